@@ -1,0 +1,36 @@
+# feeler — the two commands a newcomer needs: `make demo` and `make test`.
+# Both create the environment (uv, exact versions from uv.lock) when it is missing or stale.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+UV := $(PYTHON) -m uv
+export UV_PYTHON_DOWNLOADS := never
+export UV_PROJECT_ENVIRONMENT := $(VENV)
+# numba's on-disk cache for the fused loops lives with the environment
+export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
+export MPLBACKEND := Agg
+
+.PHONY: env demo test bench clean help
+
+help:  ## list the targets
+	@grep -E '^[a-z]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
+
+$(VENV)/.synced: pyproject.toml uv.lock
+	@$(UV) --version >/dev/null 2>&1 || $(PYTHON) -m pip install --quiet uv
+	$(UV) sync --frozen --all-groups
+	@touch $@
+
+env: $(VENV)/.synced  ## create or update the environment from uv.lock
+
+demo: env  ## simulate, decode and calibrate on the shipped default scenes; results in runs/demo/
+	$(BIN)/feeler demo --out runs/demo --force
+
+test: env  ## run the whole test suite (slow suites at a small size)
+	$(BIN)/python -m pytest
+
+bench: env  ## run the benchmarks (pytest-benchmark); ratios are printed at the end
+	$(BIN)/python -m pytest benchmarks --benchmark-only -p no:cacheprovider
+
+clean:  ## remove the environment, caches and generated runs
+	rm -rf $(VENV) .cache runs .pytest_cache .benchmarks

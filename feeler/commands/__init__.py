@@ -1,0 +1,1 @@
+"""Sub-commands of ``feeler``; one module each (see :mod:`feeler.cli`)."""

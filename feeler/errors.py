@@ -1,0 +1,74 @@
+"""One exception hierarchy for the whole project.
+
+Bad input is a ``ValueError`` subclass whose one-line message names the file or
+argument, the value and what is allowed. Errors carry their data as attributes so a
+caller can act on them without parsing the message.
+"""
+from __future__ import annotations
+
+__all__ = [
+    "FeelerError",
+    "InputError",
+    "ArgumentError",
+    "SceneError",
+    "DataFileError",
+    "OverwriteError",
+]
+
+
+class FeelerError(Exception):
+    """Base of every error raised on purpose by feeler."""
+
+
+class InputError(FeelerError, ValueError):
+    """Bad input supplied by a user or a caller (a ``ValueError``)."""
+
+
+class ArgumentError(InputError):
+    """A function or CLI argument with a value outside what is allowed.
+
+    Attributes:
+        name (str): the argument's name, e.g. ``"tau"``.
+        value (object): the offending value (possibly abbreviated).
+        allowed (str): what would have been accepted.
+    """
+
+    def __init__(self, name: str, value: object, allowed: str):
+        self.name, self.value, self.allowed = name, value, allowed
+        super().__init__(f"argument {name}={_short(value)}: {allowed}")
+
+
+class SceneError(InputError):
+    """A scene file that does not validate.
+
+    Attributes:
+        path (str): the scene file.
+        key (str): dotted key inside the file, e.g. ``"noise.uy_sd_mm"``.
+        problem (str): what is wrong and what is allowed.
+    """
+
+    def __init__(self, path: object, key: str, problem: str):
+        self.path, self.key, self.problem = str(path), key, problem
+        where = f"{self.path}: {key}" if key else self.path
+        super().__init__(f"{where}: {problem}")
+
+
+class DataFileError(InputError):
+    """A data file (CSV, JSON, NetCDF, video, ...) that is missing, corrupt or malformed."""
+
+    def __init__(self, path: object, problem: str):
+        self.path, self.problem = str(path), problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+class OverwriteError(InputError):
+    """Refusing to overwrite existing data without ``--force``."""
+
+    def __init__(self, path: object):
+        self.path = str(path)
+        super().__init__(f"{self.path}: already exists; pass --force to overwrite it")
+
+
+def _short(value: object, limit: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
