@@ -13,6 +13,7 @@ __all__ = [
     "SceneError",
     "DataFileError",
     "OverwriteError",
+    "CalibrationFailed",
 ]
 
 
@@ -72,3 +73,18 @@ class OverwriteError(InputError):
 def _short(value: object, limit: int = 60) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+class CalibrationFailed(FeelerError):
+    """A posterior failed its diagnostics and was used without ``--accept-failed``.
+
+    Attributes:
+        verdict: the :class:`feeler.calib.diagnostics.Verdict` (``ok``, ``problems``).
+    """
+
+    def __init__(self, verdict, what: str = "calibration"):
+        self.verdict = verdict
+        first = verdict.problems[0] if verdict.problems else "unknown problem"
+        more = f" (+{len(verdict.problems) - 1} more)" if len(verdict.problems) > 1 else ""
+        super().__init__(f"{what} failed its diagnostics: {first}{more}; "
+                         f"pass --accept-failed to use it anyway")
