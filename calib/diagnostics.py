@@ -1,0 +1,151 @@
+"""Diagnostics of a posterior: the tidy summary table and the verdict.
+
+Rules (DESIGN §6): a fit fails when any parameter has R-hat > 1.01 or bulk ESS < 400,
+when the sampler reports divergent transitions, when an emcee chain is shorter than 50
+integrated autocorrelation times, or when a parameter piles against a hard prior bound.
+Every problem is a one-line string naming the parameter, and is also issued as a
+:class:`DiagnosticWarning`. Exact/conjugate backends store independent draws from the
+exact posterior and go through the very same checks (they pass naturally).
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+import pandas as pd
+
+from feeler.calib.posterior import flat_draws
+
+__all__ = ["Verdict", "DiagnosticWarning", "Thresholds", "summarize", "diagnose",
+           "SUMMARY_COLUMNS"]
+
+SUMMARY_COLUMNS = ("name", "mean", "sd", "eti95_lb", "eti95_ub", "eti89_lb", "eti89_ub",
+                   "r_hat", "ess_bulk", "ess_tail", "mcse_mean", "mcse_sd")
+
+
+class DiagnosticWarning(UserWarning):
+    """A posterior failed one of its diagnostics (the message names the parameter)."""
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Whether a posterior may be used downstream.
+
+    Attributes:
+        ok (bool): True when no problem was found.
+        problems (tuple[str, ...]): one line per problem, each naming the parameter.
+    """
+    ok: bool
+    problems: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict:
+        return {"ok": bool(self.ok), "problems": list(self.problems)}
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "Verdict":
+        return cls(ok=bool(d["ok"]), problems=tuple(str(p) for p in d["problems"]))
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Limits of the verdict (defaults from DESIGN §6)."""
+    r_hat_max: float = 1.01
+    ess_bulk_min: float = 400.0
+    autocorr_times_min: float = 50.0
+    bound_edge_fraction: float = 0.01   # width of the "edge" strip, fraction of the range
+    bound_mass_max: float = 0.05        # posterior mass allowed inside that strip
+
+
+def summarize(posterior) -> pd.DataFrame:
+    """A row per scalar parameter entry with the columns of ``SUMMARY_COLUMNS``.
+
+    Intervals are equal-tailed (ETI) 95 % and 89 %; R-hat is the rank-normalised split
+    R-hat, ESS bulk/tail and MCSE as in ArviZ 1.x (Vehtari et al. 2021).
+    """
+    from arviz_stats.base import array_stats as A
+
+    rows = []
+    for name, x in flat_draws(posterior).items():
+        flat = x.ravel()
+        q = np.quantile(flat, [0.025, 0.975, 0.055, 0.945])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rhat = float(A.rhat(x, chain_axis=0, draw_axis=1))
+            ess_b = float(A.ess(x, chain_axis=0, draw_axis=1, method="bulk"))
+            ess_t = float(A.ess(x, chain_axis=0, draw_axis=1, method="tail", prob=(0.05, 0.95)))
+            mcse_m = float(A.mcse(x, chain_axis=0, draw_axis=1, method="mean"))
+            mcse_s = float(A.mcse(x, chain_axis=0, draw_axis=1, method="sd"))
+        rows.append((name, flat.mean(), flat.std(ddof=1), *q, rhat, ess_b, ess_t, mcse_m, mcse_s))
+    return pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
+
+
+def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,
+             bounds: Mapping[str, tuple[float, float]] | None = None,
+             thresholds: Thresholds = Thresholds()) -> Verdict:
+    """Check a posterior and return its :class:`Verdict`; warn once per problem.
+
+    Args:
+        posterior: ArviZ ``DataTree`` (groups posterior and, for NUTS, sample_stats).
+        summary: the table from :func:`summarize` (computed when omitted).
+        backend (str): "exact", "nuts", "emcee", ...; "emcee" adds the autocorrelation
+            check (chain length in stored draws ≥ 50 τ_int per parameter).
+        bounds (dict[str, (lo, hi)]): hard prior bounds of some parameters; a parameter
+            with more than 5 % of its draws within 1 % of the range from a bound is
+            flagged as piling against it.
+    """
+    summary = summarize(posterior) if summary is None else summary
+    t = thresholds
+    problems: list[str] = []
+    for row in summary.itertuples(index=False):
+        if not np.isfinite(row.r_hat) or row.r_hat > t.r_hat_max:
+            problems.append(f"{row.name}: R-hat {row.r_hat:.4f} > {t.r_hat_max}")
+        if not np.isfinite(row.ess_bulk) or row.ess_bulk < t.ess_bulk_min:
+            problems.append(f"{row.name}: bulk ESS {row.ess_bulk:.0f} < {t.ess_bulk_min:.0f}")
+    problems += _divergences(posterior)
+    draws = flat_draws(posterior)
+    if backend == "emcee":
+        problems += _autocorr_problems(draws, t.autocorr_times_min)
+    for name, (lo, hi) in (bounds or {}).items():
+        problems += _bound_problems(name, draws[name], lo, hi, t)
+    for p in problems:
+        warnings.warn(f"posterior failed its diagnostics: {p}", DiagnosticWarning, stacklevel=2)
+    return Verdict(ok=not problems, problems=tuple(problems))
+
+
+def _divergences(posterior) -> list[str]:
+    if "sample_stats" not in posterior.children:
+        return []
+    stats = posterior["sample_stats"]
+    if "diverging" not in stats.data_vars:
+        return []
+    n = int(np.asarray(stats["diverging"].values).sum())
+    if n == 0:
+        return []
+    names = ", ".join(str(v) for v in posterior["posterior"].data_vars)
+    return [f"all parameters ({names}): {n} divergent transitions"]
+
+
+def _autocorr_problems(draws: Mapping[str, np.ndarray], times_min: float) -> list[str]:
+    from emcee.autocorr import integrated_time
+
+    out = []
+    for name, x in draws.items():            # x: (walker, step)
+        n_steps = x.shape[1]
+        tau = float(integrated_time(x.T[:, :, None], quiet=True)[0])
+        if not np.isfinite(tau) or n_steps < times_min * tau:
+            out.append(f"{name}: emcee chain of {n_steps} steps is shorter than "
+                       f"{times_min:.0f} autocorrelation times (tau = {tau:.1f} steps)")
+    return out
+
+
+def _bound_problems(name: str, x: np.ndarray, lo: float, hi: float, t: Thresholds) -> list[str]:
+    edge = t.bound_edge_fraction * (hi - lo)
+    out = []
+    for side, near in (("lower", x <= lo + edge), ("upper", x >= hi - edge)):
+        frac = float(np.mean(near))
+        if frac > t.bound_mass_max:
+            bound = lo if side == "lower" else hi
+            out.append(f"{name}: posterior piles against its {side} prior bound {bound:g} "
+                       f"({100 * frac:.0f} % of draws within {edge:.3g} of it)")
+    return out

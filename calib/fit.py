@@ -1,0 +1,138 @@
+"""The trust layer every model returns: posterior + summary + verdict, saved and loaded.
+
+A :class:`FitResult` holds the ArviZ ``DataTree`` posterior, the tidy summary (one row
+per parameter entry, see :data:`feeler.calib.diagnostics.SUMMARY_COLUMNS`), the
+:class:`Verdict`, the priors as stated to the user, the backend name and the wall time.
+``save(out_dir)`` writes ``posterior.nc`` (priors, backend and seconds go in its
+attributes), ``summary.csv`` and ``verdict.json``; :func:`load` reads them back and turns
+any unreadable file into a one-line :class:`DataFileError` naming it. Downstream code
+calls :func:`require_ok` before using a posterior.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import pandas as pd
+
+from feeler.calib.diagnostics import (SUMMARY_COLUMNS, DiagnosticWarning, Thresholds, Verdict,
+                                      diagnose, summarize)
+from feeler.calib.posterior import flat_draws, posterior_from_draws
+from feeler.errors import CalibrationFailed, DataFileError
+from feeler.rundir import prepare_out_dir, write_json
+
+__all__ = ["FitResult", "Verdict", "DiagnosticWarning", "Thresholds", "make_result", "load",
+           "require_ok", "diagnose", "summarize", "posterior_from_draws", "flat_draws",
+           "FIT_FILES"]
+
+FIT_FILES = ("posterior.nc", "summary.csv", "verdict.json")
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """One fitted model.
+
+    Attributes:
+        posterior (xarray.DataTree): ArviZ 1.x layout (posterior, sample_stats,
+            observed_data, posterior_predictive, ...).
+        summary (pandas.DataFrame): a row per parameter entry (``C[0,1]``, ``a``, ...).
+        verdict (Verdict): diagnostics outcome.
+        priors (dict[str, str]): each parameter's prior, in words with units.
+        backend (str): "exact", "nuts", "emcee", ...
+        seconds (float): wall time of the fit, s.
+    """
+    posterior: object
+    summary: pd.DataFrame
+    verdict: Verdict
+    priors: dict = field(default_factory=dict)
+    backend: str = ""
+    seconds: float = 0.0
+
+    def save(self, out_dir: str | Path, *, force: bool = False) -> Path:
+        """Write ``posterior.nc``, ``summary.csv``, ``verdict.json`` into ``out_dir``."""
+        out = prepare_out_dir(out_dir, FIT_FILES, force=force)
+        tree = self.posterior.copy()
+        tree["posterior"].attrs.update({"priors": json.dumps(self.priors),
+                                        "backend": self.backend, "seconds": float(self.seconds)})
+        tree.to_netcdf(out / "posterior.nc", engine="h5netcdf")
+        self.summary.to_csv(out / "summary.csv", index=False)
+        write_json(out / "verdict.json", self.verdict.as_dict())
+        return out
+
+    def draws(self) -> dict:
+        """``dict[name] -> ndarray (chain, draw)`` per parameter entry."""
+        return flat_draws(self.posterior)
+
+
+def make_result(posterior, *, backend: str, priors: Mapping[str, str], seconds: float,
+                bounds: Mapping[str, tuple[float, float]] | None = None,
+                thresholds: Thresholds = Thresholds()) -> FitResult:
+    """Summarise and diagnose ``posterior`` and wrap everything in a :class:`FitResult`."""
+    summary = summarize(posterior)
+    verdict = diagnose(posterior, summary, backend=backend, bounds=bounds, thresholds=thresholds)
+    return FitResult(posterior=posterior, summary=summary, verdict=verdict,
+                     priors=dict(priors), backend=backend, seconds=float(seconds))
+
+
+def load(directory: str | Path) -> FitResult:
+    """Read a :class:`FitResult` written by :meth:`FitResult.save`.
+
+    Raises:
+        DataFileError: a missing or corrupt ``posterior.nc``, ``summary.csv`` or
+            ``verdict.json`` (the message names the file).
+    """
+    import xarray as xr
+
+    d = Path(directory)
+    for name in FIT_FILES:
+        if not (d / name).is_file():
+            raise DataFileError(d / name, "missing; expected a fit directory written by --out")
+    try:
+        with xr.open_datatree(d / "posterior.nc", engine="h5netcdf") as src:
+            tree = src.load()
+        tree["posterior"]
+    except Exception as exc:  # h5py/xarray raise many types for a corrupt file
+        raise DataFileError(d / "posterior.nc", f"not a readable NetCDF posterior ({type(exc).__name__})") from None
+    attrs = tree["posterior"].attrs
+    try:
+        priors = json.loads(attrs.get("priors", "{}"))
+    except json.JSONDecodeError:
+        raise DataFileError(d / "posterior.nc", "attribute 'priors' is not valid JSON") from None
+    summary = _read_summary(d / "summary.csv")
+    verdict = _read_verdict(d / "verdict.json")
+    return FitResult(posterior=tree, summary=summary, verdict=verdict, priors=priors,
+                     backend=str(attrs.get("backend", "")), seconds=float(attrs.get("seconds", 0.0)))
+
+
+def require_ok(result: FitResult, *, accept_failed: bool = False, what: str = "calibration") -> FitResult:
+    """Return ``result`` if its verdict is ok or ``accept_failed``; else raise.
+
+    Raises:
+        CalibrationFailed: carrying the verdict.
+    """
+    if not result.verdict.ok and not accept_failed:
+        raise CalibrationFailed(result.verdict, what)
+    return result
+
+
+def _read_summary(path: Path) -> pd.DataFrame:
+    try:
+        table = pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise DataFileError(path, f"not a readable CSV ({type(exc).__name__})") from None
+    missing = [c for c in SUMMARY_COLUMNS if c not in table.columns]
+    if missing:
+        raise DataFileError(path, f"missing columns {', '.join(missing)}; "
+                                  f"expected {', '.join(SUMMARY_COLUMNS)}")
+    return table
+
+
+def _read_verdict(path: Path) -> Verdict:
+    try:
+        raw = json.loads(path.read_text(encoding="utf-8"))
+        return Verdict.from_dict(raw)
+    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError) as exc:
+        raise DataFileError(path, f'not a verdict {{"ok": bool, "problems": [...]}} '
+                                  f"({type(exc).__name__})") from None

@@ -1,0 +1,30 @@
+"""Progress bars for samplers and validation loops (tqdm on stderr).
+
+Bars show only when stderr is a terminal unless asked explicitly, so tests and logs
+stay clean. PyMC and emcee take a boolean (``progressbar=`` / ``progress=``): pass
+:func:`show_progress` to them; loops of our own wrap their iterable in :func:`progress`.
+"""
+from __future__ import annotations
+
+import sys
+from typing import Iterable, TypeVar
+
+__all__ = ["show_progress", "progress"]
+
+T = TypeVar("T")
+
+
+def show_progress(enabled: bool | None = None) -> bool:
+    """``enabled`` if given, else whether stderr is an interactive terminal."""
+    if enabled is not None:
+        return bool(enabled)
+    return bool(getattr(sys.stderr, "isatty", lambda: False)())
+
+
+def progress(iterable: Iterable[T], *, desc: str, total: int | None = None,
+             enabled: bool | None = None) -> Iterable[T]:
+    """``iterable`` wrapped in a tqdm bar labelled ``desc`` (or unchanged when disabled)."""
+    if not show_progress(enabled):
+        return iterable
+    from tqdm.auto import tqdm
+    return tqdm(iterable, desc=desc, total=total, file=sys.stderr, leave=False, dynamic_ncols=True)

@@ -1,0 +1,47 @@
+"""dask fan-out: identical results to the serial map for the same seeds."""
+from __future__ import annotations
+
+from functools import partial
+
+import numpy as np
+import pytest
+
+from feeler.calib.runner import map_seeds
+from feeler.errors import ArgumentError
+
+
+def _seeded_job(seed: int, n: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(n, 3))
+    return np.linalg.svd(x, compute_uv=False) + rng.standard_t(3)
+
+
+def test_local_cluster_equals_serial():
+    job = partial(_seeded_job, n=50)
+    seeds = range(100, 112)
+    serial = map_seeds(job, seeds, scheduler="serial")
+    dist = map_seeds(job, seeds)              # LocalCluster, 2 processes on 127.0.0.1
+    assert len(dist) == 12
+    for a, b in zip(serial, dist):
+        np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(serial[0], serial[1])
+
+
+def test_existing_scheduler_by_address():
+    from distributed import LocalCluster
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=None, host="127.0.0.1", protocol="tcp") as cluster:
+        addr = cluster.scheduler_address
+        assert addr.startswith("tcp://")
+        out = map_seeds(partial(_seeded_job, n=10), [3, 4], scheduler=addr)
+    np.testing.assert_array_equal(out[1], _seeded_job(4, 10))
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"scheduler": "localhost:8786"}, "scheduler='localhost:8786': must be tcp://HOST:PORT"),
+    ({"scheduler": "tcp://host:port"}, "must be tcp://HOST:PORT"),
+    ({"n_workers": 0}, "n_workers=0: must be >= 1"),
+])
+def test_bad_arguments(kw, match):
+    with pytest.raises(ArgumentError, match=match):
+        map_seeds(abs, [1], **kw)
