@@ -1,0 +1,147 @@
+"""The 2AFC CSV reader (every validation branch), the scene and the simulator."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from feeler.errors import DataFileError, OverwriteError, SceneError
+from feeler.psydata import TRIAL_COLUMNS, read_trials, write_trials
+from feeler.scene import load_scene
+from feeler.simulate_psychophysics import simulate_psychophysics
+
+SCENE = Path(__file__).parents[2] / "datasets-synthetic" / "psychophysics-2afc.toml"
+HEADER = ",".join(TRIAL_COLUMNS)
+
+
+def _csv(tmp_path, *rows, header=HEADER):
+    path = tmp_path / "t.csv"
+    path.write_text("\n".join([header, *rows]) + "\n")
+    return path
+
+
+def test_reads_comments_zero_trials_and_extreme_cells(tmp_path):
+    path = _csv(tmp_path, "A,10,20,7.6,20,0,0", "A,10,20,12.4,20,15,15", "B,10,40,7.6,20,15,15")
+    path.write_text("# synthetic\n" + path.read_text())
+    df = read_trials(path)
+    assert list(df.columns) == list(TRIAL_COLUMNS) and len(df) == 3
+    assert df["n_trials"].tolist() == [0, 15, 15] and df["n_trials"].dtype == np.int64
+    assert df["subject"].tolist() == ["A", "A", "B"]
+
+
+def test_extra_columns_are_ignored_and_order_is_free(tmp_path):
+    cols = list(reversed(TRIAL_COLUMNS)) + ["note"]
+    path = _csv(tmp_path, "3,5,20,8,20,10,S1,x", header=",".join(cols))
+    df = read_trials(path)
+    assert df.loc[0, "subject"] == "S1" and df.loc[0, "comparison_um"] == 8.0
+
+
+@pytest.mark.parametrize("rows, header, match", [
+    (("A,10,20,7.6,20,10,3",), "subject,standard_um,comparison_um,n_trials,n_comparison_higher",
+     "missing column.*standard_speed_mm_s"),
+    (("A,10,20,7.6,20,-1,0",), HEADER, "line 2, column n_trials.*whole number"),
+    (("A,10,20,7.6,20,10,-2",), HEADER, "line 2, column n_comparison_higher.*whole number"),
+    (("A,10,20,7.6,20,10,11",), HEADER, "line 2, column n_comparison_higher: 11 > n_trials 10"),
+    (("A,10,20,7.6,20,10,3", "A,ten,20,7.6,20,10,3"), HEADER, "line 3, column standard_um: 'ten' is not a number"),
+    (("A,10,20,7.6,20,2.5,1",), HEADER, "column n_trials.*whole number"),
+    (("A,10,0,7.6,20,10,1",), HEADER, "column standard_speed_mm_s.*> 0"),
+    (("A,10,20,nan,20,10,1",), HEADER, "column comparison_um.*finite"),
+    ((",10,20,7.6,20,10,1",), HEADER, "column subject: empty"),
+    (("A,10,20,7.6,20,10",), HEADER, "line 2: 6 fields"),
+    ((), HEADER, "no data rows"),
+])
+def test_each_validation_branch_is_one_line_error(tmp_path, rows, header, match):
+    path = _csv(tmp_path, *rows, header=header)
+    with pytest.raises(DataFileError, match=match) as info:
+        read_trials(path)
+    assert "\n" not in str(info.value) and str(path) in str(info.value)
+
+
+def test_missing_empty_and_undecodable_files(tmp_path):
+    with pytest.raises(DataFileError, match="no such file"):
+        read_trials(tmp_path / "absent.csv")
+    (tmp_path / "e.csv").write_text("# only a comment\n")
+    with pytest.raises(DataFileError, match="no header"):
+        read_trials(tmp_path / "e.csv")
+    (tmp_path / "b.csv").write_bytes(b"\xff\xfe\x00bad")
+    with pytest.raises(DataFileError, match="cannot read"):
+        read_trials(tmp_path / "b.csv")
+
+
+def test_scene_loads_and_respects_published_ranges():
+    scene = load_scene(SCENE)
+    assert "synthetic" in scene.scene.description.lower()
+    by_speed = {c.standard_speed_mm_s: c for c in scene.conditions}
+    assert by_speed[40.0].dt_um > by_speed[20.0].dt_um and by_speed[40.0].pse_um > by_speed[20.0].pse_um
+    assert all(0.95 <= c.dt_um <= 2.0 for c in scene.conditions)
+
+
+@pytest.mark.parametrize("old, new, key", [
+    ('description = "Synthetic', 'description = "Real', "scene.description"),
+    ("[7.6, 8.4,", "[8.4, 7.6,", "design.comparisons_um"),
+    ("dt_range_um = [0.95, 2.0]", "dt_range_um = [2.0, 0.95]", "subjects.dt_range_um"),
+    ("lapse_range = [0.0, 0.06]", "lapse_range = [0.06, 0.0]", "subjects.lapse_range"),
+    ("dt_um = 1.6", "dt_um = 2.5", "conditions[1].dt_um"),
+    ("standard_speed_mm_s = 40.0", "standard_speed_mm_s = 20.0", "conditions[1]"),
+])
+def test_scene_cross_field_rules(tmp_path, old, new, key):
+    text = SCENE.read_text()
+    assert old in text
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace(old, new, 1))
+    with pytest.raises(SceneError) as info:
+        load_scene(bad)
+    assert info.value.key == key
+
+
+def test_simulator_writes_labelled_reproducible_data(tmp_path):
+    scene = load_scene(SCENE)
+    paths = simulate_psychophysics(scene, tmp_path / "a")
+    assert paths["trials"].read_text().startswith("# SYNTHETIC")
+    truth = json.loads(paths["truth"].read_text())
+    assert truth["synthetic"] is True and len(truth["subjects"]) == 6 * 2
+    assert all(0.95 <= s["dt_um"] <= 2.0 for s in truth["subjects"])
+    df = read_trials(paths["trials"])
+    assert len(df) == 6 * 2 * 7 and df["subject"].nunique() == 6
+    again = simulate_psychophysics(scene, tmp_path / "b")
+    assert again["trials"].read_text() == paths["trials"].read_text()
+    with pytest.raises(OverwriteError):
+        simulate_psychophysics(scene, tmp_path / "a")
+    simulate_psychophysics(scene, tmp_path / "a", force=True)
+
+
+def test_simulated_proportions_follow_the_truth(tmp_path):
+    # many trials: the observed proportion is within 4 binomial sd of the true P
+    from dataclasses import replace
+    from feeler.models.psychometric import p_higher
+    scene = load_scene(SCENE)
+    scene = replace(scene, design=replace(scene.design, n_trials=4000))
+    paths = simulate_psychophysics(scene, tmp_path)
+    df = read_trials(paths["trials"])
+    truth = json.loads(paths["truth"].read_text())["subjects"]
+    for t in truth:
+        sel = df[(df.subject == t["subject"]) & (df.standard_speed_mm_s == t["standard_speed_mm_s"])]
+        p = p_higher(sel.comparison_um.to_numpy(), t["pse_um"], t["sigma_um"], t["lapse"])
+        sd = np.sqrt(p * (1 - p) / 4000)
+        assert np.all(np.abs(sel.n_comparison_higher / 4000 - p) <= 4 * sd + 1e-9)
+
+
+def test_beta_binomial_option_is_overdispersed(tmp_path):
+    from dataclasses import replace
+    scene = load_scene(SCENE)
+    design = replace(scene.design, n_trials=200, n_subjects=40)
+    plain = replace(scene, design=design)
+    over = replace(plain, subjects=replace(scene.subjects, overdispersion_phi=5.0))
+    var = []
+    for i, sc in enumerate((plain, over)):
+        df = read_trials(simulate_psychophysics(sc, tmp_path / str(i))["trials"])
+        mid = df[(df.comparison_um == 10.0) & (df.standard_speed_mm_s == 20.0)]
+        var.append(np.var(mid.n_comparison_higher / 200))
+    assert var[1] > 4 * var[0]
+
+
+def test_write_trials_round_trip(tmp_path):
+    df = read_trials(_csv(tmp_path, "A,10,20,7.6,20,10,3"))
+    write_trials(tmp_path / "o.csv", df, comment="synthetic\nline two")
+    assert (tmp_path / "o.csv").read_text().startswith("# synthetic\n# line two\n")
+    assert read_trials(tmp_path / "o.csv").equals(df)
