@@ -1,0 +1,181 @@
+"""Frame sources for the tactile camera: a device index, a video file or an image sequence.
+
+``open_source`` returns the ``cv2.VideoCapture`` for any of the three; ``FrameReader``
+iterates grey 8-bit frames from it and keeps the account of bad frames: a frame that
+cannot be decoded, a frame of another size than the first, frames missing at the end of a
+truncated video. Each bad frame is logged (WARNING) and recorded, never yielded.
+
+Image sequences (a printf pattern such as ``frames/%05d.png``) are read file by file with
+``cv2.imread`` rather than through OpenCV's image-sequence backend, because that backend
+stops silently at the first unreadable file and loses every frame after it.
+"""
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from feeler.errors import ArgumentError, DataFileError
+
+__all__ = ["open_source", "FrameReader", "write_video"]
+
+log = logging.getLogger(__name__)
+
+_PATTERN = re.compile(r"%0?\d*d")
+
+
+def _is_device(src) -> bool:
+    return isinstance(src, int) or (isinstance(src, str) and src.isdigit())
+
+
+def open_source(src: int | str | Path) -> cv2.VideoCapture:
+    """Open a camera device index, a video file or an image-sequence pattern.
+
+    Raises:
+        DataFileError: no device at that index, a missing file, a file (or the first file
+            of a sequence) that OpenCV cannot decode — one line naming the source.
+    """
+    if _is_device(src):
+        cap = cv2.VideoCapture(int(src))
+        if not cap.isOpened():
+            raise DataFileError(f"camera {int(src)}", "no camera device at this index")
+        return cap
+    text = str(src)
+    if _PATTERN.search(text):
+        first = _sequence_files(text)
+        if not first:
+            raise DataFileError(text, "image sequence has no files matching the pattern")
+        cap = cv2.VideoCapture(text, cv2.CAP_IMAGES)
+    else:
+        if not Path(text).is_file():
+            raise DataFileError(text, "no such video file")
+        cap = cv2.VideoCapture(text)
+    if not cap.isOpened():
+        raise DataFileError(text, "cannot be opened as a video or image sequence (corrupt?)")
+    return cap
+
+
+class FrameReader:
+    """Iterate the good grey frames of a source as ``(index, frame uint8[h, w])``.
+
+    Args:
+        src: device index, video file or image-sequence pattern.
+        size (tuple[int, int] | None): expected (width_px, height_px); a first frame of
+            another size raises :class:`DataFileError` naming the source.
+
+    Attributes after iteration:
+        n_frames (int): frames attempted (good + bad, including missing ones).
+        bad (list[tuple[int, str]]): (frame index, reason) of every bad frame.
+    """
+
+    def __init__(self, src: int | str | Path, *, size: tuple[int, int] | None = None):
+        self.src, self.size = src, size
+        self.name = f"camera {int(src)}" if _is_device(src) else str(src)
+        self.n_frames = 0
+        self.bad: list[tuple[int, str]] = []
+        if not _is_device(src) and _PATTERN.search(str(src)):
+            self._files = _sequence_files(str(src))
+            if not self._files:
+                raise DataFileError(self.name, "image sequence has no files matching the pattern")
+            self._cap = None
+        else:
+            self._files = None
+            self._cap = open_source(src)
+
+    def mark_bad(self, index: int, reason: str) -> None:
+        """Record a bad frame (also used by later stages that reject a frame's content)."""
+        log.warning("%s: frame %d rejected: %s", self.name, index, reason)
+        self.bad.append((index, reason))
+
+    def __iter__(self) -> Iterator[tuple[int, np.ndarray]]:
+        raw = self._iter_sequence() if self._files is not None else self._iter_capture()
+        seen_good = False
+        for index, frame in raw:
+            self.n_frames = index + 1
+            if frame is None:
+                self.mark_bad(index, "cannot be decoded")
+                continue
+            gray = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+            shape = (gray.shape[1], gray.shape[0])
+            if self.size is None:
+                self.size = shape
+            elif shape != tuple(self.size):
+                if not seen_good:
+                    raise DataFileError(self.name, f"frames are {shape[0]}×{shape[1]} px, the layout "
+                                        f"needs {self.size[0]}×{self.size[1]} px")
+                self.mark_bad(index, f"size {shape[0]}×{shape[1]} px instead of {self.size[0]}×{self.size[1]}")
+                continue
+            seen_good = True
+            yield index, gray
+
+    def _iter_capture(self):
+        cap = self._cap
+        expected = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+        index = 0
+        try:
+            while True:
+                ok, frame = cap.read()
+                if not ok:
+                    break
+                yield index, frame
+                index += 1
+        finally:
+            cap.release()
+        if not _is_device(self.src) and expected > index:
+            for missing in range(index, expected):
+                self.n_frames = missing + 1
+                self.mark_bad(missing, f"missing: the video ends after {index} of {expected} frames "
+                              "(truncated or corrupt)")
+
+    def _iter_sequence(self):
+        for index, path in enumerate(self._files):
+            yield index, cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+
+
+def _sequence_files(pattern: str) -> list[Path]:
+    """Files of a printf pattern from its first existing index (0 or 1) up to the first gap."""
+    files = []
+    start = 0 if Path(pattern % 0).exists() else 1
+    i = start
+    while Path(pattern % i).exists():
+        files.append(Path(pattern % i))
+        i += 1
+    return files
+
+
+def write_video(frames: np.ndarray, path: str | Path, fps: float = 30.0) -> Path:
+    """Write grey frames (n, h, w) uint8 losslessly: FFV1 in ``.avi``/``.mkv``, or PNG
+    files when ``path`` is a printf pattern (``frames/%05d.png``). Returns ``path``.
+
+    Raises:
+        ArgumentError: frames not (n, h, w) uint8, or an unsupported file suffix.
+        DataFileError: the writer cannot be opened or a file cannot be written.
+    """
+    frames = np.asarray(frames)
+    if frames.ndim != 3 or frames.dtype != np.uint8 or len(frames) == 0:
+        raise ArgumentError("frames", f"{frames.dtype} array of shape {frames.shape}",
+                            "a non-empty uint8 array (n, height, width)")
+    text = str(path)
+    if _PATTERN.search(text):
+        Path(text % 0).parent.mkdir(parents=True, exist_ok=True)
+        for i, frame in enumerate(frames):
+            if not cv2.imwrite(text % i, frame):
+                raise DataFileError(text % i, "cannot write image")
+        return Path(path)
+    if Path(text).suffix.lower() not in (".avi", ".mkv"):
+        raise ArgumentError("path", text, "a .avi or .mkv file (lossless FFV1) or a %05d.png pattern")
+    height, width = frames.shape[1:]
+    writer = cv2.VideoWriter(text, cv2.VideoWriter_fourcc(*"FFV1"), float(fps), (width, height),
+                             isColor=False)
+    if not writer.isOpened():
+        raise DataFileError(text, "cannot open a video writer (FFV1)")
+    try:
+        for frame in frames:
+            writer.write(frame)
+    finally:
+        writer.release()
+    return Path(path)
