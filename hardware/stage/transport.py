@@ -1,0 +1,139 @@
+"""Transport layer: bytes over a pyserial port with deadlines on ``time.monotonic()``.
+
+Any pyserial URL (``loop://``, ``socket://host:port``, ``rfc2217://...``) or device path
+(``/dev/ttyUSB0``, the emulator's ``/dev/pts/N``) opens the same way. Every read and
+write is logged at DEBUG on the ``feeler.hardware.stage`` logger. A line that is still
+incomplete at its deadline is a short read: :class:`StageTimeout` with ``partial`` set.
+"""
+from __future__ import annotations
+
+import errno
+import logging
+import time
+
+import serial
+
+from feeler.hardware.stage.errors import PortError, StageDisconnected, StageTimeout
+
+__all__ = ["Transport", "open_port", "POLL_S"]
+
+log = logging.getLogger("feeler.hardware.stage")
+
+#: granularity of blocking reads, seconds (a read returns as soon as bytes arrive)
+POLL_S = 0.01
+
+_OPEN_PROBLEMS = {
+    errno.ENOENT: "does not exist (is the device plugged in? list ports with "
+                  "'python -m serial.tools.list_ports')",
+    errno.EACCES: "permission denied (join the 'dialout' group or fix the device mode)",
+    errno.EPERM: "permission denied (join the 'dialout' group or fix the device mode)",
+    errno.EAGAIN: "busy: another program holds it open (exclusive lock refused)",
+    errno.EBUSY: "busy: another program holds it open",
+}
+
+
+def open_port(url: str, *, baudrate: int = 115200, exclusive: bool = True) -> serial.SerialBase:
+    """Open ``url`` (device path or pyserial URL) or raise a one-line :class:`PortError`."""
+    try:
+        port = serial.serial_for_url(url, baudrate=baudrate, timeout=POLL_S,
+                                     write_timeout=2.0, exclusive=exclusive)
+    except serial.SerialException as exc:
+        code = getattr(exc, "errno", None)
+        if code in _OPEN_PROBLEMS:
+            raise PortError(url, _OPEN_PROBLEMS[code]) from None
+        if "configure port" in str(exc):
+            raise PortError(url, "not a serial device (terminal settings refused)") from None
+        raise PortError(url, f"cannot open: {exc}") from None
+    except ValueError as exc:
+        raise PortError(url, f"not a device path or pyserial URL: {exc}") from None
+    except OSError as exc:  # some URL handlers raise plain OSError
+        raise PortError(url, _OPEN_PROBLEMS.get(exc.errno, f"cannot open: {exc}")) from None
+    log.debug("%s opened at %d baud", url, baudrate)
+    return port
+
+
+class Transport:
+    """Bytes in and out of one open port.
+
+    Args:
+        port: an open pyserial port (or any object with ``read(n)``, ``write(b)``,
+            ``in_waiting`` and ``close()``; reads must return within about ``POLL_S``).
+        name (str): the port's path or URL, used in log lines and errors.
+    """
+
+    def __init__(self, port, name: str):
+        self.port, self.name = port, name
+        self._buf = bytearray()
+
+    @classmethod
+    def open(cls, url: str, *, baudrate: int = 115200, exclusive: bool = True) -> "Transport":
+        return cls(open_port(url, baudrate=baudrate, exclusive=exclusive), url)
+
+    def write(self, data: bytes) -> None:
+        """Write all of ``data``; a vanished port is :class:`StageDisconnected`."""
+        log.debug("%s <- %r", self.name, data)
+        try:
+            written = self.port.write(data)
+            self.port.flush()
+        except serial.SerialTimeoutException:
+            raise StageTimeout(f"write of {data!r} to {self.name}", self.port.write_timeout) from None
+        except (serial.SerialException, OSError) as exc:
+            raise StageDisconnected(self.name, str(exc)) from None
+        if written is not None and written != len(data):
+            raise StageDisconnected(self.name, f"wrote {written} of {len(data)} bytes")
+
+    def read_line(self, timeout_s: float, what: str = "reply") -> bytes:
+        """Return the next line without its ``\\r\\n``, waiting at most ``timeout_s``.
+
+        Raises:
+            StageTimeout: nothing complete before the deadline (``partial`` holds the
+                bytes of an incomplete line, which are discarded).
+            StageDisconnected: the port vanished.
+        """
+        deadline = time.monotonic() + timeout_s
+        while True:
+            end = self._buf.find(b"\n")
+            if end >= 0:
+                line = bytes(self._buf[:end]).rstrip(b"\r")
+                del self._buf[: end + 1]
+                log.debug("%s -> %r", self.name, line)
+                return line
+            if time.monotonic() >= deadline:
+                partial = bytes(self._buf)
+                self._buf.clear()
+                if partial:
+                    log.debug("%s -> short read %r", self.name, partial)
+                raise StageTimeout(f"{what} from {self.name}", timeout_s, partial)
+            self._buf += self._read_some()
+
+    def discard_input(self, quiet_s: float) -> bytes:
+        """Drop buffered input, then whatever arrives until ``quiet_s`` passes in silence."""
+        dropped = bytearray(self._buf)
+        self._buf.clear()
+        last = time.monotonic()
+        while self._waiting() or time.monotonic() - last < quiet_s:
+            chunk = self._read_some()
+            if chunk:
+                dropped += chunk
+                last = time.monotonic()
+        if dropped:
+            log.debug("%s -> discarded %r", self.name, bytes(dropped))
+        return bytes(dropped)
+
+    def _waiting(self) -> int:
+        try:
+            return self.port.in_waiting
+        except (serial.SerialException, OSError) as exc:
+            raise StageDisconnected(self.name, str(exc)) from None
+
+    def _read_some(self) -> bytes:
+        try:
+            return self.port.read(max(1, self.port.in_waiting))
+        except (serial.SerialException, OSError) as exc:
+            raise StageDisconnected(self.name, str(exc)) from None
+
+    def close(self) -> None:
+        try:
+            self.port.close()
+        finally:
+            log.debug("%s closed", self.name)
