@@ -69,7 +69,8 @@ def observe_images(u_mm: np.ndarray, *, params: OpticsParams, layout: Layout,
     areas = np.full((len(frames), n_el, 4), np.nan)
     if video_path is not None:
         write_video(frames, video_path)
-        reading = read_source(video_path, layout, params, blur_sd_px=camera.blur_sd_px)
+        reading = read_source(video_path, layout, params, blur_sd_px=camera.blur_sd_px,
+                              reject_frozen=bool(np.isfinite(camera.photons_per_level)))
         areas[reading.index] = reading.areas_px2
     else:
         extract = AreaExtractor(layout, blur_sd_px=camera.blur_sd_px)

@@ -42,7 +42,7 @@ class CameraReading:
 def read_source(src: int | str | Path, layout: Layout, params: OpticsParams, *,
                 c_mm_per_n: np.ndarray | None = None, blur_sd_px: float = 1.2,
                 levels: tuple[float, float] | None = None,
-                max_frames: int | None = None) -> CameraReading:
+                max_frames: int | None = None, reject_frozen: bool = True) -> CameraReading:
     """Read a camera source through to displacement.
 
     Args:
@@ -54,6 +54,8 @@ def read_source(src: int | str | Path, layout: Layout, params: OpticsParams, *,
         blur_sd_px (float): the optics' blur (px), sets the extraction's reach.
         levels ((background, peak) | None): known grey levels, or estimated per frame.
         max_frames (int | None): stop after this many frames (for a live camera).
+        reject_frozen (bool): reject frames with a tile frozen from the previous frame
+            (see :class:`FrameReader`); ``False`` for noise-free synthetic video.
 
     Raises:
         DataFileError: the source cannot be opened, or its frames have the wrong size.
@@ -62,7 +64,7 @@ def read_source(src: int | str | Path, layout: Layout, params: OpticsParams, *,
     c = params.c_matrix if c_mm_per_n is None else np.asarray(c_mm_per_n, dtype=float)
     if c.shape != (3, 3) or not np.all(np.isfinite(c)):
         raise ArgumentError("c_mm_per_n", c_mm_per_n, "a finite 3×3 matrix (mm/N)")
-    reader = FrameReader(src, size=(layout.width_px, layout.height_px))
+    reader = FrameReader(src, size=(layout.width_px, layout.height_px), reject_frozen=reject_frozen)
     extract = AreaExtractor(layout, blur_sd_px=blur_sd_px, levels=levels)
     index, areas = [], []
     for i, frame in reader:

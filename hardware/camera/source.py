@@ -3,7 +3,14 @@
 ``open_source`` returns the ``cv2.VideoCapture`` for any of the three; ``FrameReader``
 iterates grey 8-bit frames from it and keeps the account of bad frames: a frame that
 cannot be decoded, a frame of another size than the first, frames missing at the end of a
-truncated video. Each bad frame is logged (WARNING) and recorded, never yielded.
+truncated video, and a frame with a frozen tile. Each bad frame is logged (WARNING) and
+recorded, never yielded.
+
+Frozen tiles: FFmpeg conceals a corrupt slice by copying it from the previous frame and
+reports success, so a corrupt video decodes into plausible frames whose areas are wrong.
+A live sensor's frames always carry shot noise, so a 16×16 tile that is bit-identical to
+the previous frame's and not uniform (clipped black tiles are legitimately equal) marks
+the frame as bad. Pass ``reject_frozen=False`` for noise-free synthetic video.
 
 Image sequences (a printf pattern such as ``frames/%05d.png``) are read file by file with
 ``cv2.imread`` rather than through OpenCV's image-sequence backend, because that backend
@@ -26,6 +33,7 @@ __all__ = ["open_source", "FrameReader", "write_video"]
 log = logging.getLogger(__name__)
 
 _PATTERN = re.compile(r"%0?\d*d")
+_TILE_PX = 16
 
 
 def _is_device(src) -> bool:
@@ -66,14 +74,16 @@ class FrameReader:
         src: device index, video file or image-sequence pattern.
         size (tuple[int, int] | None): expected (width_px, height_px); a first frame of
             another size raises :class:`DataFileError` naming the source.
+        reject_frozen (bool): reject frames with a tile frozen from the previous frame.
 
     Attributes after iteration:
         n_frames (int): frames attempted (good + bad, including missing ones).
         bad (list[tuple[int, str]]): (frame index, reason) of every bad frame.
     """
 
-    def __init__(self, src: int | str | Path, *, size: tuple[int, int] | None = None):
-        self.src, self.size = src, size
+    def __init__(self, src: int | str | Path, *, size: tuple[int, int] | None = None,
+                 reject_frozen: bool = True):
+        self.src, self.size, self.reject_frozen = src, size, reject_frozen
         self.name = f"camera {int(src)}" if _is_device(src) else str(src)
         self.n_frames = 0
         self.bad: list[tuple[int, str]] = []
@@ -93,7 +103,7 @@ class FrameReader:
 
     def __iter__(self) -> Iterator[tuple[int, np.ndarray]]:
         raw = self._iter_sequence() if self._files is not None else self._iter_capture()
-        seen_good = False
+        seen_good, previous = False, None
         for index, frame in raw:
             self.n_frames = index + 1
             if frame is None:
@@ -109,7 +119,11 @@ class FrameReader:
                                         f"needs {self.size[0]}×{self.size[1]} px")
                 self.mark_bad(index, f"size {shape[0]}×{shape[1]} px instead of {self.size[0]}×{self.size[1]}")
                 continue
-            seen_good = True
+            seen_good, previous, frozen = True, gray, _frozen_tile(gray, previous)
+            if self.reject_frozen and frozen is not None:
+                self.mark_bad(index, f"tile at column {frozen[0]}, row {frozen[1]} is identical to the "
+                              "previous frame (decoder concealment or a stuck camera)")
+                continue
             yield index, gray
 
     def _iter_capture(self):
@@ -134,6 +148,19 @@ class FrameReader:
     def _iter_sequence(self):
         for index, path in enumerate(self._files):
             yield index, cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+
+
+def _frozen_tile(frame: np.ndarray, previous: np.ndarray | None) -> tuple[int, int] | None:
+    """(column, row) px of the first non-uniform 16×16 tile equal to ``previous``'s, or None."""
+    if previous is None or previous.shape != frame.shape:
+        return None
+    h, w = (frame.shape[0] // _TILE_PX) * _TILE_PX, (frame.shape[1] // _TILE_PX) * _TILE_PX
+    same = (frame[:h, :w] == previous[:h, :w]).reshape(h // _TILE_PX, _TILE_PX, w // _TILE_PX, _TILE_PX)
+    for r, c in zip(*np.nonzero(same.all(axis=(1, 3)))):
+        tile = frame[r * _TILE_PX: (r + 1) * _TILE_PX, c * _TILE_PX: (c + 1) * _TILE_PX]
+        if tile.min() != tile.max():
+            return int(c * _TILE_PX), int(r * _TILE_PX)
+    return None
 
 
 def _sequence_files(pattern: str) -> list[Path]:
@@ -163,7 +190,11 @@ def write_video(frames: np.ndarray, path: str | Path, fps: float = 30.0) -> Path
     if _PATTERN.search(text):
         Path(text % 0).parent.mkdir(parents=True, exist_ok=True)
         for i, frame in enumerate(frames):
-            if not cv2.imwrite(text % i, frame):
+            try:
+                written = cv2.imwrite(text % i, frame)
+            except cv2.error as exc:
+                raise DataFileError(text % i, f"cannot write image: {str(exc).strip().splitlines()[-1]}") from None
+            if not written:
                 raise DataFileError(text % i, "cannot write image")
         return Path(path)
     if Path(text).suffix.lower() not in (".avi", ".mkv"):
