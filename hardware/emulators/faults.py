@@ -91,7 +91,10 @@ def parse_fault(spec: str) -> Fault:
             values[key] = _convert(key, text)
         except ValueError:
             raise ArgumentError("--fault", spec, f"{key} must be a number{_or_none(key)}") from None
-    return Fault(kind.strip(), **values)
+    try:
+        return Fault(kind.strip(), **values)
+    except ArgumentError as exc:
+        raise ArgumentError("--fault", spec, f"{exc.name} {exc.allowed}") from None
 
 
 def _convert(key: str, text: str):

@@ -211,7 +211,7 @@ class GrblEmulator:
             self._sync = ("dwell", action.dwell_s)
             return True
         if action.kind == "move":
-            if not self._within_travel(action.target_mm):
+            if not self.within_travel(action.target_mm):
                 self._alarm(2, now)
                 return True
             self._plan_move(action.target_mm, None if action.rapid else action.modal.feed_mm_min)
@@ -220,7 +220,8 @@ class GrblEmulator:
     def _plan_end(self) -> Vec:
         return self._queue[-1].end_mm if self._queue else self.pos
 
-    def _within_travel(self, target_mm: Vec) -> bool:
+    def within_travel(self, target_mm: Vec) -> bool:
+        """Whether ``target_mm`` lies inside the soft limits ``[0, $130..132]``."""
         travel = [self.settings[130 + i] for i in range(3)]
         return all(-1e-9 <= t <= lim + 1e-9 for t, lim in zip(target_mm, travel))
 

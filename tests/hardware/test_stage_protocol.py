@@ -1,0 +1,144 @@
+"""Protocol layer against byte-exact exchanges (bytes written -> bytes read), bad replies
+included, and the character-counting flow control as a property."""
+import logging
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from stage_fakes import R, ScriptedPort, W
+
+from feeler.errors import ArgumentError
+from feeler.hardware.stage.errors import ProtocolError, StageAlarm, StageTimeout
+from feeler.hardware.stage.protocol import RX_BUFFER_BYTES, GrblProtocol
+from feeler.hardware.stage.replies import Banner, Message, Ok, Status
+from feeler.hardware.stage.transport import Transport
+
+IDLE = b"<Idle|MPos:1.000,2.000,3.000|FS:0,0>\r\n"
+IDLE_STATUS = Status("Idle", None, (1.0, 2.0, 3.0), None, 0.0, 0.0)
+BANNER = b"\r\nGrbl 1.1h ['$' for help]\r\n"
+
+
+def proto(script, timeout_s=0.05):
+    port = ScriptedPort(script)
+    return GrblProtocol(Transport(port, "fake"), reply_timeout_s=timeout_s), port
+
+
+EXCHANGES = [
+    ("move ok", lambda p: p.send("G1 X1 F100"), [W(b"G1 X1 F100\n"), R(b"ok\r\n")], [Ok()]),
+    ("status", lambda p: p.status(), [W(b"?"), R(IDLE)], IDLE_STATUS),
+    ("status dropped, retried", lambda p: p.status(), [W(b"?"), W(b"?"), R(IDLE)], IDLE_STATUS),
+    ("status garbled, retried", lambda p: p.status(),
+     [W(b"?"), R(b"<Idle|MPos:1.0\xff0,2.000,3.000|FS:0,0>\r\n"), W(b"?"), R(IDLE)], IDLE_STATUS),
+    ("status truncated, retried", lambda p: p.status(),
+     [W(b"?"), R(b"<Idle|MPos:1.0"), W(b"?"), R(IDLE)], IDLE_STATUS),
+    ("soft reset", lambda p: p.soft_reset(), [W(b"\x18"), R(BANNER)], Banner("1.1h")),
+    ("soft reset in motion", lambda p: (p.soft_reset(), p.last_alarm),
+     [W(b"\x18"), R(b"ALARM:3\r\n" + BANNER + b"[MSG:'$H'|'$X' to unlock]\r\n")],
+     (Banner("1.1h"), 3)),
+    ("unlock", lambda p: p.unlock(), [W(b"$X\n"), R(b"[MSG:Caution: Unlocked]\r\nok\r\n")],
+     [Message("MSG", "Caution: Unlocked"), Ok()]),
+    ("settings", lambda p: p.settings(),
+     [W(b"$$\n"), R(b"$110=500.000\r\n$130=200.000\r\nok\r\n")], {110: 500.0, 130: 200.0}),
+    ("feed hold and resume", lambda p: (p.feed_hold(), p.cycle_start()), [W(b"!"), W(b"~")],
+     (None, None)),
+    ("ok of a streamed line during a status query", lambda p: (p.send("G0 X5", wait=False), p.status(), list(p.in_flight)),
+     [W(b"G0 X5\n"), W(b"?"), R(b"ok\r\n" + IDLE)], ([], IDLE_STATUS, [])),
+]
+
+
+@pytest.mark.parametrize("name, action, script, expected", EXCHANGES, ids=[e[0] for e in EXCHANGES])
+def test_byte_exact_exchange(name, action, script, expected):
+    p, port = proto(script)
+    assert action(p) == expected
+    assert port.done()
+    assert bytes(port.written) == b"".join(data for kind, data in script if kind == "w")
+
+
+FAILURES = [
+    ("error reply", lambda p: p.send("G1 X1"), [W(b"G1 X1\n"), R(b"error:22\r\n")],
+     ProtocolError, {"code": 22, "sent": "G1 X1"}),
+    ("alarm while waiting", lambda p: p.send("G1 X900 F100"),
+     [W(b"G1 X900 F100\n"), R(b"ALARM:2\r\n[MSG:Reset to continue]\r\n")], StageAlarm, {"code": 2}),
+    ("dropped ok", lambda p: p.send("G1 X1 F100"), [W(b"G1 X1 F100\n")], StageTimeout, {"partial": b""}),
+    ("truncated ok", lambda p: p.send("G1 X1 F100"), [W(b"G1 X1 F100\n"), R(b"o")],
+     StageTimeout, {"partial": b"o"}),
+    ("garbled ok", lambda p: p.send("G1 X1 F100"), [W(b"G1 X1 F100\n"), R(b"o\x9bk\r\n")],
+     ProtocolError, {"code": None, "line": b"o\x9bk"}),
+    ("status never answered", lambda p: p.status(), [W(b"?")] * 3, StageTimeout, {}),
+    ("status garbled with a line in flight", lambda p: (p.send("G0 X1", wait=False), p.status()),
+     [W(b"G0 X1\n"), W(b"?"), R(b"o\xffk\r\n")], ProtocolError, {"code": None}),
+    ("no banner after reset", lambda p: p.soft_reset(), [W(b"\x18"), R(b"ok\r\n")], StageTimeout, {}),
+]
+
+
+@pytest.mark.parametrize("name, action, script, exc_type, attrs", FAILURES, ids=[f[0] for f in FAILURES])
+def test_bad_replies_raise_typed_errors(name, action, script, exc_type, attrs):
+    p, port = proto(script)
+    with pytest.raises(exc_type) as info:
+        action(p)
+    for key, value in attrs.items():
+        assert getattr(info.value, key) == value
+    assert port.done()
+
+
+def test_every_exchange_is_logged_at_debug(caplog):
+    p, _ = proto([W(b"G1 X1 F100\n"), R(b"ok\r\n")])
+    with caplog.at_level(logging.DEBUG, logger="feeler.hardware.stage"):
+        p.send("G1 X1 F100")
+    assert [r.getMessage() for r in caplog.records] == ["fake <- b'G1 X1 F100\\n'", "fake -> b'ok'"]
+
+
+@pytest.mark.parametrize("line, fragment", [
+    ("G1 X1\nG1 X2", "printable"), ("G1 X1 ?", "real-time"), ("G1 X1 !", "real-time"),
+    ("G1 X" + "1" * 80, "at most 78"), ("G1 Xé", "printable"),
+])
+def test_bad_lines_are_refused_before_sending(line, fragment):
+    p, port = proto([])
+    with pytest.raises(ArgumentError, match=fragment):
+        p.send(line)
+    assert port.written == b""
+
+
+def test_flow_control_waits_for_room_before_the_fourth_line():
+    lines = [f"G1 X{i} F100".ljust(40, " ") for i in range(5)]  # 41 bytes with '\n'
+    script = [W(lines[0].encode() + b"\n"), W(lines[1].encode() + b"\n"), W(lines[2].encode() + b"\n"),
+              R(b"ok\r\n"), W(lines[3].encode() + b"\n"), R(b"ok\r\n"), W(lines[4].encode() + b"\n"),
+              R(b"ok\r\nok\r\nok\r\n")]
+    p, port = proto(script)
+    assert p.stream(lines) == [Ok()] * 5 and port.done() and not p.in_flight
+
+
+class BufferModelPort:
+    """A controller with a 128-byte receive buffer acknowledging lines at random."""
+
+    def __init__(self, rng):
+        self.rng, self.pending, self.rx, self.max_bytes, self.max_lines = rng, [], bytearray(), 0, 0
+        self.acked, self.write_timeout, self.in_waiting = 0, 1.0, 0
+
+    def write(self, data):
+        self.pending.append(len(data))
+        self.max_bytes = max(self.max_bytes, sum(self.pending))
+        self.max_lines = max(self.max_lines, len(self.pending))
+        return len(data)
+
+    def flush(self):
+        pass
+
+    def read(self, size):
+        if self.pending and self.rng.random() < 0.5:
+            self.pending.pop(0)
+            self.acked += 1
+            return b"ok\r\n"
+        return b""
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.integers(1, 78), min_size=1, max_size=60), st.integers(0, 2**32 - 1))
+def test_flow_control_never_overfills_the_receive_buffer(lengths, seed):
+    port = BufferModelPort(np.random.default_rng(seed))
+    p = GrblProtocol(Transport(port, "model"), reply_timeout_s=5.0)
+    replies = p.stream(["G" * n for n in lengths])
+    assert port.max_bytes <= RX_BUFFER_BYTES - 1
+    assert replies == [Ok()] * len(lengths) and port.acked == len(lengths)
+    if len(lengths) >= 2 and sum(n + 1 for n in lengths[:2]) <= RX_BUFFER_BYTES - 1:
+        assert port.max_lines >= 2  # it streams, not stop-and-wait
