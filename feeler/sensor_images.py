@@ -12,6 +12,7 @@ OpenCV is imported only when this module is.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,7 @@ from feeler.models.optics import (CameraParams, Layout, OpticsParams, areas_from
                                   displacement_from_force, force_from_areas,
                                   force_from_displacement, render_frames)
 
-__all__ = ["observe_images", "frames_from_displacement"]
+__all__ = ["observe_images", "frames_from_displacement", "ImagesFidelity", "register_optical_fidelities"]
 
 _CHUNK_FRAMES = 32  # frames rendered at once (bounds memory to ~80 MB for 640×480)
 
@@ -91,3 +92,25 @@ def _series(u_mm: np.ndarray) -> np.ndarray:
     if not np.all(np.isfinite(u)):
         raise ArgumentError("u_mm", "non-finite values", "finite displacements (mm)")
     return u.reshape(-1, *u.shape[-2:])
+
+
+@dataclass(frozen=True)
+class ImagesFidelity:
+    """Everything the `images` fidelity needs, as one ``params`` object for
+    :func:`feeler.models.sensor.observe` (``optics``, ``layout``, ``camera``, ``video_path``)."""
+
+    optics: OpticsParams
+    layout: Layout
+    camera: CameraParams = CameraParams()
+    video_path: str | None = None
+
+
+def register_optical_fidelities() -> None:
+    """Plug `areas` (params: OpticsParams) and `images` (params: ImagesFidelity) into
+    :data:`feeler.models.sensor.FIDELITIES`."""
+    from feeler.models.optics import observe_areas
+    from feeler.models.sensor import register_fidelity
+
+    register_fidelity("areas", lambda u, p, rng: observe_areas(u, params=p, rng=rng))
+    register_fidelity("images", lambda u, p, rng: observe_images(
+        u, params=p.optics, layout=p.layout, rng=rng, video_path=p.video_path, camera=p.camera))

@@ -92,19 +92,26 @@ def render_frames(areas_px2: np.ndarray, layout: Layout, camera: CameraParams,
                             f"areas ≤ {np.pi * limit ** 2:.0f} px² (disc + blur inside the "
                             f"±{w} px feeler window)")
     n = areas.shape[0]
-    light = np.zeros((n, layout.height_px, layout.width_px), dtype=np.float64)
     offsets = np.arange(-w, w + 1, dtype=float)
+    patches = []  # (rows slice, cols slice, light (n, P, P)) per feeler
     for e, element in enumerate(layout.elements):
         for k, (cx, cy) in enumerate(element.feelers):
             ix, iy = int(round(cx)), int(round(cy))
             dist = np.hypot(offsets[None, :] + ix - cx, offsets[:, None] + iy - cy)
-            patch = _disc_patch(radius[:, e, k], areas[:, e, k], dist, camera.blur_sd_px)
-            light[:, iy - w: iy + w + 1, ix - w: ix + w + 1] += patch
-    level = camera.background_level + (camera.peak_level - camera.background_level) * light
-    if rng is not None and np.isfinite(camera.photons_per_level):
-        g = camera.photons_per_level
-        level = rng.poisson(level * g) / g
-    return np.clip(np.rint(level), 0, 255).astype(np.uint8)
+            light = _disc_patch(radius[:, e, k], areas[:, e, k], dist, camera.blur_sd_px)
+            patches.append((slice(iy - w, iy + w + 1), slice(ix - w, ix + w + 1), light))
+    noisy = rng is not None and np.isfinite(camera.photons_per_level)
+    gain = camera.photons_per_level if noisy else 1.0
+    contrast = (camera.peak_level - camera.background_level) * gain
+    out = np.empty((n, layout.height_px, layout.width_px), dtype=np.uint8)
+    level = np.empty((layout.height_px, layout.width_px))
+    for i in range(n):  # one frame at a time keeps the working set in cache
+        level.fill(camera.background_level * gain)
+        for rows, cols, light in patches:
+            level[rows, cols] += contrast * light[i]
+        counts = rng.poisson(level) / gain if noisy else level
+        out[i] = np.clip(np.rint(counts), 0, 255)
+    return out
 
 
 def _disc_patch(radius: np.ndarray, area: np.ndarray, dist: np.ndarray, blur_sd_px: float) -> np.ndarray:
