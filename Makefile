@@ -30,7 +30,7 @@ test: env  ## run the whole test suite (slow suites at a small size)
 	$(BIN)/python -m pytest
 
 bench: env  ## run the benchmarks (pytest-benchmark); ratios are printed at the end
-	$(BIN)/python -m pytest benchmarks --benchmark-only -p no:cacheprovider
+	$(BIN)/python -m pytest benchmarks --benchmark-enable -p no:cacheprovider
 
 clean:  ## remove the environment, caches and generated runs
 	rm -rf $(VENV) .cache runs .pytest_cache .benchmarks

@@ -1,0 +1,72 @@
+"""Neuron throughput as ratios to baselines measured in the same run (issue 2 §7).
+
+- one channel of 10⁷ samples: throughput / that of a plain array copy (goal ≥ 0.25);
+- 256 channels of 10⁷ samples, streamed in chunks: / copying the same chunks (goal ≥ 0.5);
+- against direct convolution (``np.convolve`` with the boxcar) at τ/Δt = 300 (goal ≥ 50×).
+"""
+import numpy as np
+import pytest
+
+from _ratios import best_seconds, record_ratio
+from feeler.models.neuron import FA1Stream, pulse_density
+
+N = 10_000_000
+DT = 1e-3
+
+
+@pytest.fixture(scope="module")
+def one_channel():
+    rng = np.random.default_rng(0)
+    t = np.arange(N) * DT
+    eps = rng.normal(size=N).cumsum()
+    pulse_density(eps[:100], t[:100], a=1, tau=0.3, h=0)  # compile outside the timing
+    return t, eps
+
+
+def test_one_channel_vs_copy(benchmark, one_channel):
+    t, eps = one_channel
+    copy = best_seconds(lambda: eps.copy())
+    benchmark.pedantic(pulse_density, args=(eps, t), kwargs=dict(a=1.0, tau=0.3, h=0.0),
+                       rounds=5, iterations=1)
+    record_ratio(benchmark, "throughput / copy", copy / benchmark.stats["min"], ">= 0.25")
+
+
+def test_256_channels_streamed_vs_copy(benchmark):
+    rows, chunk = 256, 1 << 15
+    rng = np.random.default_rng(1)
+    block = rng.normal(size=(rows, chunk)).cumsum(axis=1)
+    n_chunks = N // chunk
+
+    def run():
+        stream = FA1Stream(a=1.0, tau=0.3, h=0.0)
+        for i in range(n_chunks):
+            stream.push((i * chunk + np.arange(chunk)) * DT, block)
+
+    def copies():
+        for _ in range(n_chunks):
+            block.copy()
+
+    FA1Stream(a=1.0, tau=0.3, h=0.0).push(np.arange(chunk) * DT, block)  # compile
+    copy = best_seconds(copies, repeat=2)
+    benchmark.pedantic(run, rounds=1, iterations=1)
+    record_ratio(benchmark, "throughput / copy (256 ch)", copy / benchmark.stats["min"], ">= 0.5")
+
+
+def test_vs_direct_convolution_at_300_samples(benchmark):
+    n, m = 1_000_000, 300
+    rng = np.random.default_rng(2)
+    t = np.arange(n) * DT
+    eps = rng.normal(size=n).cumsum()
+    tau = m * DT
+
+    def convolve():
+        rate = np.abs(np.diff(eps, prepend=eps[0])) / DT
+        return np.convolve(rate, np.ones(m) * DT)[:n]
+
+    # same numbers (τ an exact multiple of Δt: no fractional edge)
+    np.testing.assert_allclose(pulse_density(eps, t, a=1.0, tau=tau, h=0.0)[m:], convolve()[m:],
+                               rtol=1e-6)
+    conv = best_seconds(convolve, repeat=3)
+    benchmark.pedantic(pulse_density, args=(eps, t), kwargs=dict(a=1.0, tau=tau, h=0.0),
+                       rounds=5, iterations=1)
+    record_ratio(benchmark, "speed-up over np.convolve", conv / benchmark.stats["min"], ">= 50")

@@ -1,0 +1,103 @@
+"""Argument checks of the neuron core: one-line ``ArgumentError`` naming the argument."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from feeler.errors import ArgumentError
+
+__all__ = ["check_params", "check_kernel", "check_signal", "check_weights"]
+
+KERNELS = ("boxcar", "exponential")
+
+
+def _finite_scalar(name: str, value: object) -> float:
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ArgumentError(name, value, "must be a real number") from None
+    if not math.isfinite(v):
+        raise ArgumentError(name, value, "must be finite")
+    return v
+
+
+def check_params(*, a: object = None, tau: object = None, h: object = None) -> tuple:
+    """Validate the domain a > 0, τ > 0 (seconds), h ≥ 0; ``None`` skips a check."""
+    out = []
+    if a is not None:
+        av = _finite_scalar("a", a)
+        if av <= 0:
+            raise ArgumentError("a", a, "gain must be > 0")
+        out.append(av)
+    if tau is not None:
+        tv = _finite_scalar("tau", tau)
+        if tv <= 0:
+            raise ArgumentError("tau", tau, "window length in seconds must be > 0")
+        out.append(tv)
+    if h is not None:
+        hv = _finite_scalar("h", h)
+        if hv < 0:
+            raise ArgumentError("h", h, "threshold must be >= 0")
+        out.append(hv)
+    return tuple(out)
+
+
+def check_kernel(kernel: object) -> str:
+    if kernel not in KERNELS:
+        raise ArgumentError("kernel", kernel, f"allowed: {', '.join(KERNELS)}")
+    return kernel  # type: ignore[return-value]
+
+
+def check_signal(strain: object, t: object, *, min_ndim: int = 1,
+                 t_prev: float | None = None, check_finite: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``strain (..., n)`` finite, ``t (n,)`` finite and strictly increasing (after
+    ``t_prev`` when a stream continues). Returns float64 arrays.
+
+    ``check_finite=False`` skips the scan of the strain for NaN/inf; the kernels detect
+    them in one pass instead (they persist in the running sums) and call back here."""
+    s = np.asarray(strain)
+    if not (np.issubdtype(s.dtype, np.floating) or np.issubdtype(s.dtype, np.integer)):
+        raise ArgumentError("strain", f"dtype {s.dtype}", "must be a real numeric array")
+    s = s.astype(np.float64, copy=False)
+    if s.ndim < min_ndim:
+        raise ArgumentError("strain", f"shape {s.shape}",
+                            f"needs at least {min_ndim} dimension(s): (..., "
+                            + ("n_receptors, " if min_ndim > 1 else "") + "n_time)")
+    tt = np.asarray(t)
+    if tt.ndim != 1:
+        raise ArgumentError("t", f"shape {tt.shape}", "must be one-dimensional (n_time,) in seconds")
+    if not (np.issubdtype(tt.dtype, np.floating) or np.issubdtype(tt.dtype, np.integer)):
+        raise ArgumentError("t", f"dtype {tt.dtype}", "must be a real numeric array")
+    tt = tt.astype(np.float64, copy=False)
+    if tt.shape[0] != s.shape[-1]:
+        raise ArgumentError("t", f"length {tt.shape[0]}",
+                            f"must match the last axis of strain (n_time = {s.shape[-1]})")
+    bad = ~np.isfinite(tt)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ArgumentError("t", f"{tt[i]} at index {i}", "must be finite")
+    if tt.shape[0] > 1:
+        d = np.diff(tt)
+        if (d <= 0).any():
+            i = int(np.argmax(d <= 0)) + 1
+            raise ArgumentError("t", f"{tt[i]} at index {i} after {tt[i - 1]}",
+                                "must be strictly increasing")
+    if t_prev is not None and tt.shape[0] and tt[0] <= t_prev:
+        raise ArgumentError("t", f"{tt[0]} at the chunk start",
+                            f"must continue after the previous chunk's last time {t_prev}")
+    if check_finite and not np.isfinite(s).all():
+        idx = np.unravel_index(int(np.argmax(~np.isfinite(s))), s.shape)
+        raise ArgumentError("strain", f"{s[idx]} at index {tuple(int(i) for i in idx)}",
+                            "samples must be finite (no NaN or inf)")
+    return s, tt
+
+
+def check_weights(weights: object, n_receptors: int) -> np.ndarray:
+    w = np.asarray(weights, dtype=np.float64)
+    if w.ndim != 1 or w.shape[0] != n_receptors:
+        raise ArgumentError("weights", f"shape {w.shape}",
+                            f"must be ({n_receptors},), one weight per receptor (axis -2 of strain)")
+    if not np.isfinite(w).all():
+        raise ArgumentError("weights", w.tolist(), "must be finite")
+    return w

@@ -1,0 +1,100 @@
+"""Hand-computed cases of the neuron core (DESIGN §4), exact to rounding."""
+import numpy as np
+import pytest
+
+from feeler.models.neuron import peak_pulse_density, peak_window_sum, pulse_density, window_sum
+
+
+def test_ramp_rises_linearly_for_tau_then_plateaus():
+    # ε = 0.1·t ⇒ ε̇ = 0.1 from the 2nd sample, x = a·0.1 = 0.2; u = x·min(t − t0, τ)
+    t = np.arange(12) * 0.5
+    z = pulse_density(0.1 * t, t, a=2.0, tau=2.0, h=0.0)
+    expected = 0.2 * np.minimum(t, 2.0)
+    np.testing.assert_allclose(z, expected, rtol=0, atol=1e-15)
+
+
+def test_fractional_tau_counts_the_straddling_interval_by_its_fraction():
+    # Δt = 0.5, τ = 1.25 = 2.5 samples ⇒ plateau at x·τ = 0.25 reached at t = 1.25 (3rd sample)
+    t = np.arange(8) * 0.5
+    u = window_sum(0.1 * t, t, tau=1.25)
+    np.testing.assert_allclose(u, [0, 0.05, 0.1, 0.125, 0.125, 0.125, 0.125, 0.125], atol=1e-15)
+
+
+def test_non_uniform_times_by_hand():
+    t = np.array([0, 0.3, 1.0, 1.1, 2.5, 2.6, 4.0])
+    eps = np.array([0, 1, 0, 2, 2, 5, 4.0])
+    # |Δε| per interval: 1, 1, 2, 0, 3, 1. Window (t_k − 1, t_k]:
+    # k=3: (0.1, 1.1] holds 2/3 of interval 1, all of 2 and 3 ⇒ 2/3 + 1 + 2
+    # k=6: (3.0, 4.0] holds 1/1.4 of interval 6 ⇒ 1/1.4
+    expected = [0, 1, 2, 1 + 2 + 2 / 3, 0, 3, 1 / 1.4]
+    np.testing.assert_allclose(window_sum(eps, t, tau=1.0), expected, rtol=1e-14)
+
+
+def test_threshold_and_gain():
+    t = np.arange(6) * 1.0
+    eps = np.array([0, 1, 1, 3, 3, 3.0])
+    u1 = window_sum(eps, t, tau=2.0)             # [0, 1, 1, 2, 2, 0]
+    np.testing.assert_allclose(u1, [0, 1, 1, 2, 2, 0])
+    z = pulse_density(eps, t, a=3.0, tau=2.0, h=4.0)
+    np.testing.assert_allclose(z, [0, 0, 0, 2, 2, 0])
+
+
+def test_several_receptors_with_weights_sum_spatially():
+    t = np.arange(5) * 1.0
+    eps = np.array([[0, 1, 2, 3, 4.0],      # |Δε| = 1 each step
+                    [0, 0, 2, 2, 2.0]])     # |Δε| = 0, 2, 0, 0
+    w = np.array([0.5, 2.0])
+    u = window_sum(eps, t, tau=2.0, weights=w)
+    # per receptor windows of 2 s: r0 → [0,1,2,2,2], r1 → [0,0,2,2,0]
+    np.testing.assert_allclose(u, 0.5 * np.array([0, 1, 2, 2, 2]) + 2.0 * np.array([0, 0, 2, 2, 0]))
+    # leading batch axes are kept, the receptor axis is summed away
+    batch = np.stack([eps, 2 * eps])
+    np.testing.assert_allclose(window_sum(batch, t, tau=2.0, weights=w), np.stack([u, 2 * u]))
+
+
+def test_exponential_kernel_against_closed_form():
+    # constant receptor output x from t0 on: u(t) = x·τ·(1 − e^(−(t − t0)/τ)), exact for
+    # any sampling because the output is piecewise constant
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.01, 0.2, size=200))
+    x, tau = 0.7, 0.4
+    eps = x * (t - t[0])
+    u = window_sum(eps, t, tau=tau, kernel="exponential")
+    np.testing.assert_allclose(u, x * tau * (1 - np.exp(-(t - t[0]) / tau)), rtol=1e-12, atol=1e-15)
+
+
+def test_exponential_kernel_decays_after_the_input_stops():
+    t = np.arange(0, 5.0, 0.25)
+    eps = np.minimum(t, 1.0)   # rate 1 until t = 1, then constant
+    u = window_sum(eps, t, tau=0.5, kernel="exponential")
+    after = t > 1.0
+    np.testing.assert_allclose(u[after], 0.5 * (1 - np.exp(-2.0)) * np.exp(-(t[after] - 1.0) / 0.5),
+                               rtol=1e-12)
+
+
+def test_fast_path_equals_the_peak_of_z_for_many_a_and_h():
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(0.1, 0.9, size=300))
+    eps = rng.normal(size=(4, 300)).cumsum(axis=1)
+    peak_u1 = peak_window_sum(eps, t, tau=3.0)
+    a = rng.uniform(0.1, 10, size=(50, 1))
+    h = rng.uniform(0, 20, size=(50, 1))
+    fast = peak_pulse_density(peak_u1, a, h)
+    slow = np.stack([pulse_density(eps, t, a=ai, tau=3.0, h=hi).max(axis=-1)
+                     for ai, hi in zip(a[:, 0], h[:, 0])])
+    np.testing.assert_allclose(fast, slow, rtol=1e-12, atol=1e-12)
+
+
+def test_u_is_linear_in_a():
+    rng = np.random.default_rng(1)
+    t = np.arange(100) * 0.5
+    eps = rng.normal(size=100).cumsum()
+    z1 = pulse_density(eps, t, a=1.0, tau=3.0, h=0.0)
+    np.testing.assert_allclose(pulse_density(eps, t, a=7.5, tau=3.0, h=0.0), 7.5 * z1, rtol=1e-14)
+
+
+@pytest.mark.parametrize("kernel", ["boxcar", "exponential"])
+def test_empty_and_single_sample_records(kernel):
+    assert pulse_density(np.empty(0), np.empty(0), a=1, tau=1, h=0, kernel=kernel).shape == (0,)
+    np.testing.assert_array_equal(pulse_density([5.0], [0.0], a=1, tau=1, h=0, kernel=kernel), [0.0])
+    assert peak_window_sum(np.empty((3, 0)), np.empty(0), tau=1.0).shape == (3,)
