@@ -68,7 +68,8 @@ class Block:
 
     @property
     def duration_s(self) -> float:
-        return sum(self.phases_s)
+        t1, t2, t3 = self.phases_s
+        return t1 + t2 + t3  # the same rounding as travelled() (sum() is compensated)
 
     def travelled(self, t_s: float) -> tuple[float, float]:
         """Path distance (mm) and speed (mm/s) at ``t_s`` seconds after the start."""

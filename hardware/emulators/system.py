@@ -41,7 +41,7 @@ def system_command(emu, text: str, now: float) -> bool:
             emu._emit("msg", "[MSG:Caution: Unlocked]", now)
         return emu._emit("ok", "ok", now)
     if text == "$H":
-        emu.state = "Home"
+        emu.state, emu._block_t0 = "Home", now
         emu._plan_move((0.0, 0.0, 0.0), None)
         emu._sync = ("home", 0.0)
         return True
