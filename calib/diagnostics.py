@@ -3,8 +3,8 @@
 Rules (DESIGN §6): a fit fails when any parameter has R-hat > 1.01 or bulk ESS < 400,
 when the sampler reports divergent transitions, when an emcee chain is shorter than 50
 integrated autocorrelation times, or when a parameter piles against a hard prior bound.
-Every problem is a one-line string naming the parameter, and is also issued as a
-:class:`DiagnosticWarning`. Exact/conjugate backends store independent draws from the
+Every problem is a one-line string naming the parameter; a failed verdict issues one
+:class:`DiagnosticWarning` that lists them. Exact/conjugate backends store independent draws from the
 exact posterior and go through the very same checks (they pass naturally).
 """
 from __future__ import annotations
@@ -108,8 +108,10 @@ def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,
         problems += _autocorr_problems(draws, t.autocorr_times_min)
     for name, (lo, hi) in (bounds or {}).items():
         problems += _bound_problems(name, draws[name], lo, hi, t)
-    for p in problems:
-        warnings.warn(f"posterior failed its diagnostics: {p}", DiagnosticWarning, stacklevel=2)
+    if problems:
+        more = f"; and {len(problems) - 8} more" if len(problems) > 8 else ""
+        warnings.warn("posterior failed its diagnostics: " + "; ".join(problems[:8]) + more,
+                      DiagnosticWarning, stacklevel=3)
     return Verdict(ok=not problems, problems=tuple(problems))
 
 
@@ -127,12 +129,21 @@ def _divergences(posterior) -> list[str]:
 
 
 def _autocorr_problems(draws: Mapping[str, np.ndarray], times_min: float) -> list[str]:
+    import logging
+
     from emcee.autocorr import integrated_time
 
     out = []
-    for name, x in draws.items():            # x: (walker, step)
-        n_steps = x.shape[1]
-        tau = float(integrated_time(x.T[:, :, None], quiet=True)[0])
+    log = logging.getLogger("emcee")
+    level = log.level
+    log.setLevel(logging.ERROR)       # quiet=True would log a warning per parameter
+    try:
+        taus = {name: float(integrated_time(x.T[:, :, None], quiet=True)[0])
+                for name, x in draws.items()}          # x: (walker, step)
+    finally:
+        log.setLevel(level)
+    for name, x in draws.items():
+        n_steps, tau = x.shape[1], taus[name]
         if not np.isfinite(tau) or n_steps < times_min * tau:
             out.append(f"{name}: emcee chain of {n_steps} steps is shorter than "
                        f"{times_min:.0f} autocorrelation times (tau = {tau:.1f} steps)")

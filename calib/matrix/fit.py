@@ -1,0 +1,145 @@
+"""M1: fit the force→displacement matrix C of a sensor element, U = C F.
+
+Which way to regress. The stage imposes U (commanded, accurate to ~1 µm) and the sensor
+measures F (noisy). Regressing U on F ("forward": U = C F + ε) puts the noise in the
+regressor, and least squares / any model that treats F as exact is attenuated: for an
+uncorrelated design column j shrinks by λ_j = var(F_j)/(var(F_j) + σ_Fj²) towards 0.
+The principled default ("inverse") writes the model the way the data are generated:
+F = K U + η with K = C⁻¹ (stiffness, N/mm), η ~ N(0, diag σ_F²): the noise is in the
+response and the regressor is exact, so there is no attenuation and the Gaussian case
+is conjugate (exact backend, :mod:`.exact`). C = K⁻¹ is computed per draw, so its
+posterior (and the condition number's) is exact too. This is the errors-in-variables
+model "U = C F_true, F = F_true + η" in the limit of an exact stage; ``model="eiv"``
+keeps a stage error ε ~ N(0, stage_sd²) on U as latent variables (NUTS only).
+``model="forward"`` is the naive regression, kept to show the bias.
+
+Backends: ``exact`` (Gaussian noise, models inverse/forward), ``nuts`` (PyMC, all
+variants), ``emcee`` (no latent variables: models inverse/forward).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from feeler.calib.fit import FitResult, make_result, posterior_from_draws
+from feeler.calib.matrix.backends import sample_emcee, sample_nuts
+from feeler.calib.matrix.data import CalibrationData, weak_directions
+from feeler.calib.matrix.exact import exact_posterior
+from feeler.calib.matrix.prior import MatrixPrior
+from feeler.errors import ArgumentError
+
+__all__ = ["fit_matrix", "MODELS", "NOISES", "BACKENDS"]
+
+MODELS = ("inverse", "eiv", "forward")
+NOISES = ("gaussian", "student")
+BACKENDS = ("exact", "nuts", "emcee")
+DIMS = {"C": ["disp_axis", "force_axis"], "K": ["force_axis", "disp_axis"],
+        "sigma_n": ["force_axis"], "sigma_mm": ["disp_axis"]}
+
+
+def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inverse",
+               noise: str = "gaussian", backend: str = "exact", rng: np.random.Generator,
+               noise_sd: tuple[float, float, float] | None = None, stage_sd_mm: float = 0.001,
+               student_nu: float = 4.0, chains: int = 4, draws: int = 1000, tune: int = 1000,
+               walkers: int = 32, progress: bool | None = None) -> FitResult:
+    """Posterior of C (and K, noise sds, cond(C)) for one calibration campaign.
+
+    Args:
+        data: commanded ``u_mm (n, 3)`` and measured ``f_n (n, 3)``.
+        prior: nominal C₀ and scales (see :mod:`.prior`).
+        model: "inverse" (default, F = K U + η), "eiv" (plus latent stage error),
+            "forward" (naive U = C F + ε).
+        noise: "gaussian" or "student" (Student-t, ``student_nu`` dof).
+        backend: "exact", "nuts" or "emcee".
+        rng: source of every random number (seeds of the samplers are drawn from it).
+        noise_sd: known noise sd per output axis (N for inverse/eiv, mm for forward);
+            None infers it.
+        stage_sd_mm: sd of the stage error on U for ``model="eiv"``, mm, > 0.
+        chains, draws, tune: chains (exact/NUTS), kept draws per chain, NUTS/emcee warm-up.
+        walkers: emcee walkers (stored as chains).
+    """
+    _check(model, noise, backend, noise_sd, stage_sd_mm, student_nu, chains, draws, tune, walkers)
+    rp = prior.for_direction("forward" if model == "forward" else "inverse")
+    if model == "forward":
+        x, y = data.f_n, data.u_mm
+        weak_directions(x, what="force", unit="N")
+    else:
+        x, y = data.u_mm, data.f_n
+        weak_directions(x, what="displacement", unit="mm")
+    known = None if noise_sd is None else np.asarray(noise_sd, dtype=float)
+    seed = int(rng.integers(2**31 - 1))
+    t0 = time.perf_counter()
+    stats = None
+    if backend == "exact":
+        B, S = exact_posterior(rng, x, y, rp.b0, rp.sd, rp.sigma_scale, n_draws=chains * draws,
+                               noise_sd=known)
+        B, S = B.reshape(chains, draws, 3, 3), S.reshape(chains, draws, 3)
+    elif backend == "nuts":
+        out, stats = sample_nuts(x, y, rp, noise=noise, nu=student_nu, eiv=model == "eiv",
+                                 stage_sd=stage_sd_mm, noise_sd=known, chains=chains, draws=draws,
+                                 tune=tune, seed=seed, progress=progress)
+        B, S = out["B"], out["sigma"]
+    else:
+        out, stats = sample_emcee(x, y, rp, noise=noise, nu=student_nu, noise_sd=known,
+                                  walkers=walkers, draws=draws, tune=tune, seed=seed, progress=progress)
+        B, S = out["B"], out["sigma"]
+    seconds = time.perf_counter() - t0
+    posterior = _named_posterior(B, S, model, data, stats, dict(model=model, noise=noise,
+                                 student_nu=student_nu, noise_known=known is not None))
+    priors = rp.stated()
+    if known is not None:
+        priors["sigma"] = f"known: {list(map(float, known))} {rp.noise_unit}"
+    if model == "eiv":
+        priors["eps"] = f"stage error per point and axis ~ Normal(0, {stage_sd_mm:g} mm) (latent)"
+    if noise == "student":
+        priors["noise"] = f"Student-t, {student_nu:g} degrees of freedom (fixed)"
+    return make_result(posterior, backend=backend, priors=priors, seconds=seconds)
+
+
+def _named_posterior(B, S, model, data, stats, attrs):
+    with np.errstate(all="ignore"):
+        if model == "forward":
+            C = B
+            draws = {"C": C, "sigma_mm": S}
+        else:
+            C = _safe_inv(B)
+            draws = {"C": C, "K": B, "sigma_n": S}
+        draws["cond_C"] = np.linalg.cond(C.reshape(-1, 3, 3)).reshape(C.shape[:2])
+    attrs = {k: (int(v) if isinstance(v, bool) else v) for k, v in attrs.items()}
+    return posterior_from_draws(draws, dims=DIMS, sample_stats=stats,
+                                observed={"u_mm": data.u_mm, "f_n": data.f_n}, attrs=attrs)
+
+
+def _safe_inv(K: np.ndarray) -> np.ndarray:
+    """Batched inverse; a singular draw (measure zero, but floating point) gives inf."""
+    flat = K.reshape(-1, 3, 3)
+    out = np.full_like(flat, np.inf)
+    ok = np.abs(np.linalg.det(flat)) > 0
+    out[ok] = np.linalg.inv(flat[ok])
+    return out.reshape(K.shape)
+
+
+def _check(model, noise, backend, noise_sd, stage_sd_mm, nu, chains, draws, tune, walkers):
+    for name, value, allowed in (("model", model, MODELS), ("noise", noise, NOISES),
+                                 ("backend", backend, BACKENDS)):
+        if value not in allowed:
+            raise ArgumentError(name, value, f"must be one of {', '.join(allowed)}")
+    if backend == "exact" and (noise != "gaussian" or model == "eiv"):
+        raise ArgumentError("backend", backend, "exact needs noise=gaussian and model inverse or "
+                                                "forward; use nuts for student/eiv")
+    if backend == "emcee" and model == "eiv":
+        raise ArgumentError("backend", backend, "emcee cannot sample the eiv model's latent "
+                                                "variables; use nuts")
+    if noise_sd is not None:
+        sd = np.asarray(noise_sd, dtype=float)
+        if sd.shape != (3,) or not np.all(np.isfinite(sd)) or np.any(sd <= 0):
+            raise ArgumentError("noise_sd", noise_sd, "must be 3 finite numbers > 0 (or None)")
+    if not (np.isfinite(stage_sd_mm) and stage_sd_mm > 0):
+        raise ArgumentError("stage_sd_mm", stage_sd_mm, "must be a finite number > 0 (mm)")
+    if not (np.isfinite(nu) and nu > 0):
+        raise ArgumentError("student_nu", nu, "must be a finite number > 0")
+    for name, value, lo in (("chains", chains, 1), ("draws", draws, 4), ("tune", tune, 0),
+                            ("walkers", walkers, 8)):
+        if not isinstance(value, (int, np.integer)) or value < lo:
+            raise ArgumentError(name, value, f"must be an integer >= {lo}")
