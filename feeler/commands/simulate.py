@@ -1,0 +1,32 @@
+"""Simulate a scene into a run directory.
+
+Writes DIR/scene.toml (a byte copy of SCENE), DIR/truth.json (every true parameter,
+including each touch's press U_y0, tilt, start offset and drift) and DIR/scans.csv
+(long format: scan_id, plate, step_mm, speed_mm_s, t_s, x_mm, ux_mm, uy_mm, uz_mm), plus
+DIR/features.csv when the scene lists "features" in its outputs. The result depends only
+on the scene file (its seed). Existing data are never overwritten without --force.
+
+Example:
+    feeler simulate datasets-synthetic/four-plates.toml --out runs/four-plates
+"""
+from __future__ import annotations
+
+__all__ = ["NAME", "HELP", "register"]
+
+NAME = "simulate"
+HELP = "simulate a scene (e.g. datasets-synthetic/four-plates.toml) into a run directory"
+
+
+def register(parser) -> None:
+    parser.add_argument("scene", metavar="SCENE", help="scene TOML file")
+    parser.add_argument("--out", required=True, metavar="DIR", help="run directory to write")
+    parser.add_argument("--force", action="store_true", help="overwrite existing data in DIR")
+    parser.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from feeler.simulate import run_simulation
+
+    out = run_simulation(args.scene, args.out, force=args.force)
+    print(f"wrote {out}/scene.toml, truth.json, scans.csv")
+    return 0

@@ -1,0 +1,155 @@
+"""Robot scan datasets: read ``scans.csv`` back, and compute the per-scan features.
+
+A run directory written by ``feeler simulate`` (or by an acquisition run) holds
+``scans.csv`` in long format, one row per sample, with at least the columns
+:data:`COLUMNS`. :func:`read_scans` validates it and returns a :class:`Scans` of
+arrays ``(n_scans, n_time)``. :func:`scan_features` turns scans into the features later
+issues use: the neuron's peak pulse density (strain = U_y / representative length, paper
+§5.2), the ΔU_y jump (Fig. 7) and the raw U̇_y peak (Fig. 8).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from feeler.errors import DataFileError
+
+__all__ = ["COLUMNS", "Scans", "Features", "read_scans", "strain", "jump_uy_mm", "peak_rate_uy_mm_s",
+           "scan_features", "proportion_correct"]
+
+COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
+
+
+@dataclass(frozen=True)
+class Scans:
+    """Scans of equal length.
+
+    Attributes:
+        scan_id (ndarray[n_scans] int), step_mm, speed_mm_s (ndarray[n_scans]): per-scan labels.
+        t_s, x_mm, ux_mm, uy_mm, uz_mm (ndarray[n_scans, n_time]): samples (s, mm).
+    """
+
+    scan_id: np.ndarray
+    step_mm: np.ndarray
+    speed_mm_s: np.ndarray
+    t_s: np.ndarray
+    x_mm: np.ndarray
+    ux_mm: np.ndarray
+    uy_mm: np.ndarray
+    uz_mm: np.ndarray
+
+
+@dataclass(frozen=True)
+class Features:
+    """Per-scan features (ndarray[n_scans] each): peak z (V), ΔU_y jump (mm), peak |U̇_y| (mm/s)."""
+
+    peak_z: np.ndarray
+    jump_uy_mm: np.ndarray
+    peak_rate_uy_mm_s: np.ndarray
+
+
+def read_scans(path: str | Path) -> Scans:
+    """Read a run directory's ``scans.csv`` (or the CSV itself).
+
+    Raises:
+        DataFileError: missing file or column, non-numeric or NaN values, scans of
+            unequal length, or t not strictly increasing within a scan (naming the column).
+    """
+    import pandas as pd
+
+    path = Path(path)
+    if path.is_dir():
+        path = path / "scans.csv"
+    try:
+        frame = pd.read_csv(path)
+    except FileNotFoundError:
+        raise DataFileError(path, "no such file") from None
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise DataFileError(path, f"not a readable CSV: {exc}") from None
+    missing = [c for c in COLUMNS if c not in frame.columns]
+    if missing:
+        raise DataFileError(path, f"missing column(s) {', '.join(missing)}; required: {', '.join(COLUMNS)}")
+    if len(frame) == 0:
+        raise DataFileError(path, "no rows")
+    for col in COLUMNS:
+        values = pd.to_numeric(frame[col], errors="coerce")
+        if values.isna().any():
+            row = int(np.flatnonzero(values.isna().to_numpy())[0])
+            raise DataFileError(path, f"column {col}: missing or non-numeric value at data row {row + 1}")
+        frame[col] = values
+    groups = frame.groupby("scan_id", sort=False)
+    lengths = groups.size()
+    if lengths.nunique() != 1:
+        raise DataFileError(path, f"column scan_id: scans have unequal lengths {sorted(set(lengths))}")
+    n_scans, n_time = len(lengths), int(lengths.iloc[0])
+    ids = np.asarray(lengths.index)
+    frame = frame.set_index("scan_id").loc[ids].reset_index()
+
+    def grid(col):
+        return frame[col].to_numpy(dtype=float).reshape(n_scans, n_time)
+
+    t = grid("t_s")
+    bad = np.flatnonzero(np.any(np.diff(t, axis=1) <= 0, axis=1))
+    if bad.size:
+        raise DataFileError(path, f"column t_s: not strictly increasing within scan_id {ids[bad[0]]}")
+    for col in ("step_mm", "speed_mm_s"):
+        per_scan = grid(col)
+        if np.any(per_scan != per_scan[:, :1]):
+            raise DataFileError(path, f"column {col}: must be constant within each scan")
+    return Scans(scan_id=ids.astype(int), step_mm=grid("step_mm")[:, 0], speed_mm_s=grid("speed_mm_s")[:, 0],
+                 t_s=t, x_mm=grid("x_mm"), ux_mm=grid("ux_mm"), uy_mm=grid("uy_mm"), uz_mm=grid("uz_mm"))
+
+
+def strain(uy_mm, length_mm: float) -> np.ndarray:
+    """Neuron input strain U_y / representative length (dimensionless; paper §5.2)."""
+    return np.asarray(uy_mm, dtype=float) / float(length_mm)
+
+
+def jump_uy_mm(uy_mm, t_s, *, gap_s: float, span_s: float) -> np.ndarray:
+    """ΔU_y jump of each scan: the largest change between the means of two ``span_s`` windows
+    ``gap_s`` apart (the gap spans the rise over the step), with its sign.
+
+    Args:
+        uy_mm (ndarray[..., n_time]), t_s (ndarray[n_time]) with uniform sampling.
+    Returns:
+        ndarray[...] in mm.
+    """
+    uy = np.asarray(uy_mm, dtype=float)
+    dt = float(np.median(np.diff(t_s)))
+    m, g = max(1, int(round(span_s / dt))), int(round(gap_s / dt))
+    n = uy.shape[-1]
+    if 2 * m + g > n:
+        raise ValueError(f"gap_s + 2*span_s = {gap_s + 2 * span_s} s longer than the scan")
+    c = np.concatenate([np.zeros(uy.shape[:-1] + (1,)), np.cumsum(uy, axis=-1)], axis=-1)
+    means = (c[..., m:] - c[..., :-m]) / m                   # mean of uy[k:k+m], k = 0..n-m
+    diff = means[..., m + g:] - means[..., : n - m - (m + g) + 1]
+    pick = np.argmax(np.abs(diff), axis=-1)[..., None]
+    return np.take_along_axis(diff, pick, axis=-1)[..., 0]
+
+
+def peak_rate_uy_mm_s(uy_mm, t_s) -> np.ndarray:
+    """Raw peak |U̇_y| per scan by backward difference (mm/s), ndarray[...]."""
+    return np.max(np.abs(np.diff(uy_mm, axis=-1) / np.diff(t_s)), axis=-1)
+
+
+def scan_features(scans: Scans, *, a: float, tau_s: float, h: float, length_mm: float,
+                  kernel: str = "boxcar", gap_s: float, span_s: float) -> Features:
+    """Peak z (via :mod:`feeler.models.neuron`), ΔU_y jump and raw U̇_y peak per scan."""
+    from feeler.models import neuron
+
+    t = scans.t_s[0]
+    if not np.all(scans.t_s == t):
+        raise ValueError("scans must share one time base (t_s) to be featurised together")
+    peak_u1 = neuron.peak_window_sum(strain(scans.uy_mm, length_mm), t, tau=tau_s, kernel=kernel)
+    return Features(peak_z=np.asarray(neuron.peak_pulse_density(peak_u1, a, h)),
+                    jump_uy_mm=jump_uy_mm(scans.uy_mm, t, gap_s=gap_s, span_s=span_s),
+                    peak_rate_uy_mm_s=peak_rate_uy_mm_s(scans.uy_mm, t))
+
+
+def proportion_correct(lower, higher) -> float:
+    """2AFC proportion correct over all pairs: P(higher > lower) + ½ P(tie)."""
+    lo = np.asarray(lower, dtype=float)[:, None]
+    hi = np.asarray(higher, dtype=float)[None, :]
+    return float(np.mean(hi > lo) + 0.5 * np.mean(hi == lo))

@@ -1,0 +1,128 @@
+"""Scene kind ``robot-scan``: the robot rubs the sensor over one or more plates (paper §5).
+
+One plate per entry of ``surface.heights_mm``, each scanned ``repeats.scans_per_plate``
+times; every scan is a fresh touch (press, tilt, start offset and drift drawn anew).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from feeler.errors import SceneError
+from feeler.scene import param
+
+__all__ = ["Scene", "Head", "Surface", "MotionTable", "Probe", "Sensor", "Noise", "Neuron", "Repeats"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Head:
+    kind: str = param(choices=("robot-scan",), doc="scene kind")
+    name: str = param(doc="short name of the dataset")
+    description: str = param("", doc="free text")
+    seed: int = param(lo=0, doc="root seed of every random draw")
+    outputs: tuple[str, ...] = param(("scans",), choices=("scans", "features"), min_len=1,
+                                     doc="files to produce: scans (scans.csv), features (features.csv)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Surface:
+    profile: str = param("step", choices=("step", "staircase", "grating"), doc="plate profile")
+    heights_mm: tuple[float, ...] = param(lo=-5.0, hi=5.0, min_len=1,
+                                          doc="mm, one plate each: step height (< 0 step down) or grating depth")
+    position_mm: float = param(lo=-1000.0, hi=1000.0, doc="mm, first edge in plate coordinates")
+    count: int = param(1, lo=1, hi=1000, doc="steps of a staircase or periods of a grating")
+    spacing_mm: float = param(1.0, lo=0.0, lo_open=True, hi=1000.0, doc="mm, staircase spacing or grating period")
+
+
+@dataclass(frozen=True, kw_only=True)
+class MotionTable:
+    speed_mm_s: float = param(lo=0.0, lo_open=True, hi=100.0, doc="mm/s, stage speed")
+    traverse_mm: float = param(lo=0.0, lo_open=True, hi=1000.0, doc="mm, stroke of one scan")
+    dt_s: float = param(lo=0.0, lo_open=True, hi=60.0, doc="s, sampling interval")
+    x0_mm: float = param(0.0, lo=-1000.0, hi=1000.0, doc="mm, nominal start in plate coordinates")
+    x0_sd_mm: float = param(0.0, lo=0.0, hi=100.0, doc="mm, touch-to-touch scatter of the start")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Probe:
+    pad_width_mm: float = param(lo=0.0, hi=50.0, doc="mm, width of the tip's flat face along x")
+    uy0_mean_mm: float = param(lo=0.0, lo_open=True, hi=5.0, doc="mm, mean initial press U_y0")
+    uy0_sd_mm: float = param(0.0, lo=0.0, hi=5.0, doc="mm, touch-to-touch sd of U_y0")
+    tilt_sd_deg: float = param(0.0, lo=0.0, hi=30.0, doc="deg, touch-to-touch sd of the face tilt")
+    drift_sd_mm_s: float = param(0.0, lo=0.0, hi=1.0, doc="mm/s, sd of the per-touch linear drift rate")
+    shear_per_normal: float = param(0.0, lo=0.0, hi=5.0, doc="U_x / U_y from kinetic friction, dimensionless")
+    breakaway_frac: float = param(0.0, lo=0.0, hi=1.0, doc="fraction of U_y0 released when sliding starts")
+    breakaway_s: float = param(0.2, lo=0.0, lo_open=True, hi=60.0, doc="s, time constant of that release")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Sensor:
+    fidelity: str = param("displacement", choices=("displacement", "areas", "images"),
+                          doc="sensor model level")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Noise:
+    ux_sd_mm: float = param(lo=0.0, hi=1.0, doc="mm, white noise sd on U_x")
+    uy_sd_mm: float = param(lo=0.0, hi=1.0, doc="mm, white noise sd on U_y")
+    uz_sd_mm: float = param(lo=0.0, hi=1.0, doc="mm, white noise sd on U_z")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Neuron:
+    a: float = param(1.0, lo=0.0, lo_open=True, hi=1e9, doc="V·s, receptor gain")
+    tau_s: float = param(lo=0.0, lo_open=True, hi=1e4, doc="s, temporal summation window")
+    h: float = param(0.0, lo=0.0, hi=1e9, doc="V, threshold")
+    kernel: str = param("boxcar", choices=("boxcar", "exponential"), doc="temporal window shape")
+    length_mm: float = param(lo=0.0, lo_open=True, hi=1000.0,
+                             doc="mm, representative length: strain = U_y / length (paper §5.2)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Repeats:
+    scans_per_plate: int = param(lo=1, hi=100000, doc="touches (scans) per plate")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scene:
+    scene: Head
+    surface: Surface
+    motion: MotionTable
+    probe: Probe
+    noise: Noise
+    neuron: Neuron
+    repeats: Repeats
+    sensor: Sensor = field(default_factory=Sensor)
+
+    def last_edge_mm(self) -> float:
+        """Position of the last edge of every plate (mm)."""
+        s = self.surface
+        if s.profile == "staircase":
+            return s.position_mm + (s.count - 1) * s.spacing_mm
+        if s.profile == "grating":
+            return s.position_mm + (s.count - 0.5) * s.spacing_mm
+        return s.position_mm
+
+    def check(self, path) -> None:
+        """Cross-field rules: raise :class:`SceneError` on an impossible combination."""
+        s, m, p = self.surface, self.motion, self.probe
+        if s.profile == "step" and s.count != 1:
+            raise SceneError(path, "surface.count", f"{s.count}: a single step has count = 1")
+        if m.traverse_mm < 2 * m.speed_mm_s * m.dt_s:
+            raise SceneError(path, "motion.traverse_mm",
+                             f"{m.traverse_mm}: shorter than two samples (speed_mm_s*dt_s*2 = {2 * m.speed_mm_s * m.dt_s:g} mm)")
+        if m.traverse_mm / (m.speed_mm_s * m.dt_s) > 1e6:
+            raise SceneError(path, "motion.dt_s", f"{m.dt_s}: more than 1e6 samples per scan")
+        margin = p.pad_width_mm / 2 + 3 * m.x0_sd_mm
+        lo, hi = m.x0_mm + margin, m.x0_mm + m.traverse_mm - margin
+        if s.position_mm < lo or self.last_edge_mm() > hi:
+            raise SceneError(path, "surface.position_mm",
+                             f"{s.position_mm}: edges at {s.position_mm:g}..{self.last_edge_mm():g} mm must lie "
+                             f"inside the traverse less the pad and start scatter, [{lo:g}, {hi:g}] mm")
+        if p.uy0_sd_mm * 3 >= p.uy0_mean_mm:
+            raise SceneError(path, "probe.uy0_sd_mm",
+                             f"{p.uy0_sd_mm}: must be below uy0_mean_mm/3 = {p.uy0_mean_mm / 3:g} mm "
+                             "(the tip must stay pressed on nearly every touch)")
+        duration_s = (m.traverse_mm / m.speed_mm_s)
+        if self.neuron.tau_s >= duration_s:
+            raise SceneError(path, "neuron.tau_s",
+                             f"{self.neuron.tau_s}: must be shorter than one scan ({duration_s:g} s)")

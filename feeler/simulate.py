@@ -1,0 +1,129 @@
+"""Pipeline composition for robot-scan scenes: scene → plates → touches → sensor → files.
+
+Only the stages the scene's ``outputs`` need are built: ``"scans"`` runs surface, probe
+and sensor; ``"features"`` also runs the neuron. A ``displacement``-fidelity scene imports
+neither OpenCV nor PyMC. Every scan draws from its own child of
+``numpy.random.SeedSequence(scene.seed)`` (one per scan id, split into probe and sensor
+streams), so a scan's data do not depend on the order of the others.
+
+Files written into the run directory: ``scene.toml`` (byte copy), ``truth.json`` (the
+scene and every per-touch true parameter), ``scans.csv`` (long format, :data:`CSV_COLUMNS`)
+and, when asked, ``features.csv``.
+"""
+from __future__ import annotations
+
+import shutil
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from feeler.datasets import Scans, scan_features
+from feeler.models import probe, sensor, surface
+from feeler.rundir import prepare_out_dir, write_json
+from feeler.scene import load_scene, scene_as_dict
+
+__all__ = ["CSV_COLUMNS", "plate_profile", "simulate_scans", "features_of", "run_simulation"]
+
+CSV_COLUMNS = ("scan_id", "plate", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
+_FORMATS = ("%d", "%d", "%.6g", "%.6g", "%.6g", "%.9g", "%.9g", "%.9g", "%.9g")
+
+
+def plate_profile(surf, height_mm: float) -> surface.Profile:
+    """The profile of one plate of a robot-scan scene's ``[surface]`` table."""
+    if surf.profile == "staircase":
+        return surface.staircase(surf.position_mm, surf.spacing_mm, height_mm, surf.count)
+    if surf.profile == "grating":
+        return surface.grating(surf.position_mm, surf.spacing_mm, height_mm, surf.count)
+    return surface.step(surf.position_mm, height_mm)
+
+
+def _sensor_params(scene):
+    if scene.sensor.fidelity == "displacement":
+        n = scene.noise
+        return sensor.DisplacementNoise(n.ux_sd_mm, n.uy_sd_mm, n.uz_sd_mm)
+    return scene.noise  # other fidelities take the scene's tables as they are plugged in
+
+
+def simulate_scans(scene) -> tuple[Scans, list[dict]]:
+    """All scans of a robot-scan scene, and the true state of every touch.
+
+    Returns:
+        scans (Scans): arrays ``(n_plates * scans_per_plate, n_time)``; scan_id =
+            plate * scans_per_plate + repeat.
+        touches (list[dict]): per scan, its ids, step and drawn touch (U_y0, tilt, x0, drift).
+    """
+    m, p = scene.motion, scene.probe
+    motion = probe.Motion(m.speed_mm_s, m.traverse_mm, m.dt_s, m.x0_mm)
+    params = probe.ProbeParams(pad_width_mm=p.pad_width_mm, uy0_mean_mm=p.uy0_mean_mm, uy0_sd_mm=p.uy0_sd_mm,
+                               tilt_sd_deg=p.tilt_sd_deg, x0_sd_mm=m.x0_sd_mm,
+                               drift_sd_mm_s=p.drift_sd_mm_s, shear_per_normal=p.shear_per_normal,
+                               breakaway_frac=p.breakaway_frac, breakaway_s=p.breakaway_s)
+    noise = _sensor_params(scene)
+    per_plate = scene.repeats.scans_per_plate
+    heights = scene.surface.heights_mm
+    children = np.random.SeedSequence(scene.scene.seed).spawn(len(heights) * per_plate)
+    t_all, x_all, u_all, touches = [], [], [], []
+    for plate, height in enumerate(heights):
+        profile = plate_profile(scene.surface, height)
+        for rep in range(per_plate):
+            scan_id = plate * per_plate + rep
+            probe_ss, sensor_ss = children[scan_id].spawn(2)
+            touch = probe.draw_touch(params, motion, np.random.default_rng(probe_ss))
+            t, x, u_true = probe.tip_displacement(profile, motion, params, touch)
+            u = sensor.observe(u_true, fidelity=scene.sensor.fidelity, params=noise,
+                               rng=np.random.default_rng(sensor_ss))
+            t_all.append(t), x_all.append(x), u_all.append(u)
+            touches.append({"scan_id": scan_id, "plate": plate, "step_mm": height, **asdict(touch)})
+    u = np.stack(u_all)
+    n = len(touches)
+    scans = Scans(scan_id=np.arange(n), step_mm=np.repeat(np.asarray(heights, float), per_plate),
+                  speed_mm_s=np.full(n, m.speed_mm_s), t_s=np.stack(t_all), x_mm=np.stack(x_all),
+                  ux_mm=u[..., 0], uy_mm=u[..., 1], uz_mm=u[..., 2])
+    return scans, touches
+
+
+def features_of(scene, scans: Scans):
+    """Per-scan features with the scene's neuron; the ΔU_y windows follow the probe's rise time."""
+    nrn, m = scene.neuron, scene.motion
+    rise_s = scene.probe.pad_width_mm / m.speed_mm_s
+    return scan_features(scans, a=nrn.a, tau_s=nrn.tau_s, h=nrn.h, length_mm=nrn.length_mm,
+                         kernel=nrn.kernel, gap_s=rise_s + m.dt_s, span_s=max(4 * m.dt_s, 1.0))
+
+
+def _write_scans_csv(path: Path, scans: Scans, per_plate: int) -> None:
+    n_scans, n_time = scans.t_s.shape
+    ids = np.repeat(scans.scan_id, n_time)
+    cols = [ids, ids // per_plate, np.repeat(scans.step_mm, n_time), np.repeat(scans.speed_mm_s, n_time),
+            scans.t_s.ravel(), scans.x_mm.ravel(), scans.ux_mm.ravel(), scans.uy_mm.ravel(), scans.uz_mm.ravel()]
+    np.savetxt(path, np.column_stack(cols), fmt=list(_FORMATS), delimiter=",",
+               header=",".join(CSV_COLUMNS), comments="")
+
+
+def _write_features_csv(path: Path, scans: Scans, feats, per_plate: int) -> None:
+    cols = [scans.scan_id, scans.scan_id // per_plate, scans.step_mm, feats.peak_z, feats.jump_uy_mm,
+            feats.peak_rate_uy_mm_s]
+    np.savetxt(path, np.column_stack(cols), fmt=["%d", "%d", "%.6g", "%.9g", "%.9g", "%.9g"], delimiter=",",
+               header="scan_id,plate,step_mm,peak_z,jump_uy_mm,peak_rate_uy_mm_s", comments="")
+
+
+def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = False) -> Path:
+    """Simulate a robot-scan scene into the run directory ``out``; returns ``out``.
+
+    Raises:
+        SceneError: the scene does not validate. OverwriteError: data exist and not ``force``.
+        ArgumentError: the scene asks for a sensor fidelity not available here.
+    """
+    scene = load_scene(scene_path)
+    outputs = set(scene.scene.outputs)
+    files = ["scene.toml", "truth.json", "scans.csv"] + (["features.csv"] if "features" in outputs else [])
+    out = prepare_out_dir(out, files, force=force)
+    scans, touches = simulate_scans(scene)
+    shutil.copyfile(scene_path, out / "scene.toml")
+    write_json(out / "truth.json", {"scene": scene_as_dict(scene), "n_time": int(scans.t_s.shape[1]),
+                                    "touches": touches})
+    per_plate = scene.repeats.scans_per_plate
+    _write_scans_csv(out / "scans.csv", scans, per_plate)
+    if "features" in outputs:
+        _write_features_csv(out / "features.csv", scans, features_of(scene, scans), per_plate)
+    return out
