@@ -13,11 +13,17 @@ import time
 
 import serial
 
+try:  # tcdrain on a vanished pty raises termios.error, which is not an OSError
+    from termios import error as _TermiosError
+except ImportError:  # pragma: no cover - not POSIX
+    _TermiosError = OSError
+
 from feeler.hardware.stage.errors import PortError, StageDisconnected, StageTimeout
 
 __all__ = ["Transport", "open_port", "POLL_S"]
 
 log = logging.getLogger("feeler.hardware.stage")
+_PORT_ERRORS = (serial.SerialException, OSError, _TermiosError)
 
 #: granularity of blocking reads, seconds (a read returns as soon as bytes arrive)
 POLL_S = 0.01
@@ -77,7 +83,7 @@ class Transport:
             self.port.flush()
         except serial.SerialTimeoutException:
             raise StageTimeout(f"write of {data!r} to {self.name}", self.port.write_timeout) from None
-        except (serial.SerialException, OSError) as exc:
+        except _PORT_ERRORS as exc:
             raise StageDisconnected(self.name, str(exc)) from None
         if written is not None and written != len(data):
             raise StageDisconnected(self.name, f"wrote {written} of {len(data)} bytes")
@@ -123,17 +129,18 @@ class Transport:
     def _waiting(self) -> int:
         try:
             return self.port.in_waiting
-        except (serial.SerialException, OSError) as exc:
+        except _PORT_ERRORS as exc:
             raise StageDisconnected(self.name, str(exc)) from None
 
     def _read_some(self) -> bytes:
         try:
             return self.port.read(max(1, self.port.in_waiting))
-        except (serial.SerialException, OSError) as exc:
+        except _PORT_ERRORS as exc:
             raise StageDisconnected(self.name, str(exc)) from None
 
     def close(self) -> None:
         try:
             self.port.close()
-        finally:
-            log.debug("%s closed", self.name)
+        except _PORT_ERRORS as exc:  # closing a vanished port: nothing left to release
+            log.debug("%s close: %s", self.name, exc)
+        log.debug("%s closed", self.name)
