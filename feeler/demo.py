@@ -1,0 +1,124 @@
+"""``feeler demo`` (what ``make demo`` runs): the paper's robot result on ``four-plates``.
+
+The demo is a list of stages (:data:`STAGES`), each ``func(ctx) -> None`` reading and
+adding entries of one shared context dict; later issues append stages (calibration,
+reports). Stages of this issue:
+
+1. ``simulate``: ``four-plates`` into ``OUT/four-plates/`` (via :mod:`feeler.simulate`);
+2. ``features``: read ``scans.csv`` back, run the neuron (z(t) and peak z per scan), the
+   ΔU_y jump and the raw U̇_y peak;
+3. ``table``: per plate, peak z and raw U̇_y mean ± sd and the ΔU_y jump; 2AFC proportion
+   correct of each adjacent plate pair by peak z and by raw U̇_y; printed and saved as
+   ``OUT/robot_table.json``;
+4. ``figures``: ``OUT/fig7_delta_uy.png`` (ΔU_y vs x), ``OUT/fig8_uy_rate.png``
+   (U̇_y vs t), ``OUT/fig9_pulse_density.png`` (normalised z vs t), one scan per plate.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+import feeler
+from feeler.datasets import proportion_correct, read_scans, strain
+from feeler.rundir import prepare_out_dir, write_json
+from feeler.scene import load_scene
+
+__all__ = ["DEFAULT_SCENE", "STAGES", "FIGURES", "run_demo"]
+
+DEFAULT_SCENE = Path(feeler.__file__).resolve().parents[1] / "datasets-synthetic" / "four-plates.toml"
+FIGURES = ("fig7_delta_uy.png", "fig8_uy_rate.png", "fig9_pulse_density.png")
+
+
+def _simulate(ctx: dict) -> None:
+    from feeler.simulate import run_simulation
+
+    ctx["run_dir"] = run_simulation(ctx["scene_path"], ctx["out"] / "four-plates", force=ctx["force"])
+    ctx["scene"] = load_scene(ctx["run_dir"] / "scene.toml")
+
+
+def _features(ctx: dict) -> None:
+    from feeler.models import neuron
+    from feeler.simulate import features_of
+
+    scene, scans = ctx["scene"], read_scans(ctx["run_dir"])
+    nrn = scene.neuron
+    ctx["scans"], ctx["features"] = scans, features_of(scene, scans)
+    ctx["z"] = neuron.pulse_density(strain(scans.uy_mm, nrn.length_mm), scans.t_s[0], a=nrn.a,
+                                    tau=nrn.tau_s, h=nrn.h, kernel=nrn.kernel)
+
+
+def _table(ctx: dict) -> None:
+    scans, f = ctx["scans"], ctx["features"]
+    steps = list(dict.fromkeys(scans.step_mm.tolist()))
+    rows, pairs = [], []
+    for step in steps:
+        sel = scans.step_mm == step
+        rows.append({"step_mm": step, "n_scans": int(sel.sum()),
+                     "peak_z_mean": float(f.peak_z[sel].mean()), "peak_z_sd": float(f.peak_z[sel].std(ddof=1)),
+                     "raw_rate_mean_mm_s": float(f.peak_rate_uy_mm_s[sel].mean()),
+                     "raw_rate_sd_mm_s": float(f.peak_rate_uy_mm_s[sel].std(ddof=1)),
+                     "jump_uy_mean_mm": float(f.jump_uy_mm[sel].mean())})
+    for lo, hi in zip(steps[:-1], steps[1:]):
+        a, b = scans.step_mm == lo, scans.step_mm == hi
+        pairs.append({"lower_mm": lo, "higher_mm": hi,
+                      "pc_peak_z": proportion_correct(f.peak_z[a], f.peak_z[b]),
+                      "pc_raw_rate": proportion_correct(f.peak_rate_uy_mm_s[a], f.peak_rate_uy_mm_s[b])})
+    ctx["table"] = {"plates": rows, "adjacent_pairs": pairs}
+    write_json(ctx["out"] / "robot_table.json", ctx["table"])
+    lines = ["step_mm  n   peak z (V) mean ± sd      raw |dU_y/dt| (mm/s) mean ± sd   dU_y jump (mm)"]
+    for r in rows:
+        lines.append(f"{r['step_mm']:6.3f} {r['n_scans']:3d}   {r['peak_z_mean']:.5f} ± {r['peak_z_sd']:.5f}"
+                     f"      {r['raw_rate_mean_mm_s']:.4f} ± {r['raw_rate_sd_mm_s']:.4f}"
+                     f"              {r['jump_uy_mean_mm']:+.4f}")
+    lines.append("2AFC proportion correct, adjacent plates:   by peak z   by raw dU_y/dt peak")
+    for p in pairs:
+        lines.append(f"  {p['lower_mm']:.3f} vs {p['higher_mm']:.3f} mm{'':22s}{p['pc_peak_z']:.3f}       {p['pc_raw_rate']:.3f}")
+    ctx["print"]("\n".join(lines))
+
+
+def _figures(ctx: dict) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scans, z, out = ctx["scans"], ctx["z"], ctx["out"]
+    steps = list(dict.fromkeys(scans.step_mm.tolist()))
+    first = [int(np.flatnonzero(scans.step_mm == s)[0]) for s in steps]
+    t = scans.t_s[0]
+    z_norm = z / max(z[first[-1]].max(), np.finfo(float).tiny)
+    panels = [("fig7_delta_uy.png", "x (mm)", "ΔU_y = U_y − U_y0 (mm)", "Fig. 7: vertical displacement",
+               lambda i: (scans.x_mm[i], scans.uy_mm[i] - scans.uy_mm[i, 0])),
+              ("fig8_uy_rate.png", "t (s)", "U̇_y (mm/s)", "Fig. 8: rate of vertical displacement",
+               lambda i: (t[1:], np.diff(scans.uy_mm[i]) / np.diff(t))),
+              ("fig9_pulse_density.png", "t (s)", "normalised pulse density Z", "Fig. 9: pulse density",
+               lambda i: (t, z_norm[i]))]
+    for name, xlabel, ylabel, title, series in panels:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        for step, i in zip(steps, first):
+            ax.plot(*series(i), label=f"δ = {step:g} mm")
+        ax.set(xlabel=xlabel, ylabel=ylabel, title=title)
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=100)
+        plt.close(fig)
+
+
+#: the demo's stages, in order: (name, func(ctx))
+STAGES: list[tuple[str, Callable[[dict], None]]] = [
+    ("simulate", _simulate), ("features", _features), ("table", _table), ("figures", _figures)]
+
+
+def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | None = None,
+             stages=None, echo: Callable[[str], None] = print) -> dict:
+    """Run the demo stages into ``out``; returns the context (scene, scans, features, table...).
+
+    Raises:
+        OverwriteError: ``out`` holds demo results and ``force`` is false.
+    """
+    out = prepare_out_dir(out, ("robot_table.json", *FIGURES, "four-plates/scans.csv"), force=force)
+    ctx = {"out": out, "force": force, "scene_path": Path(scene_path or DEFAULT_SCENE), "print": echo}
+    for name, stage in (STAGES if stages is None else stages):
+        stage(ctx)
+    return ctx
