@@ -8,7 +8,8 @@ The series of ``u_mm`` (all leading axes flattened) are packed onto the array's 
 frame ``g · n_time + t`` shows, at time step ``t``, series ``g · n_elements + e`` on element
 ``e``; elements without a series of their own rest at zero force. A frame the reader
 rejects turns every series it carries into NaN at that time step (logged, never used).
-OpenCV is imported only when this module is.
+OpenCV is imported only when frames are read (inside :func:`observe_images`), so importing
+this module and registering the fidelities stays light.
 """
 from __future__ import annotations
 
@@ -18,7 +19,6 @@ from pathlib import Path
 import numpy as np
 
 from feeler.errors import ArgumentError
-from feeler.hardware.camera import AreaExtractor, read_source, write_video
 from feeler.models.optics import (CameraParams, Layout, OpticsParams, areas_from_force,
                                   displacement_from_force, force_from_areas,
                                   force_from_displacement, render_frames)
@@ -63,6 +63,8 @@ def observe_images(u_mm: np.ndarray, *, params: OpticsParams, layout: Layout,
     Returns:
         ndarray[..., n_time, 3]: measured displacement (mm), NaN where a frame was bad.
     """
+    from feeler.hardware.camera import AreaExtractor, read_source, write_video
+
     camera = CameraParams() if camera is None else camera
     u = np.asarray(u_mm, dtype=float)
     frames = frames_from_displacement(u, params=params, layout=layout, rng=rng, camera=camera)

@@ -1,4 +1,6 @@
 """The `images` fidelity end to end: U → frames → (video) → OpenCV → U, against `displacement`."""
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -93,3 +95,10 @@ def test_registration_into_the_sensor_interface(monkeypatch):
     np.testing.assert_array_equal(got, observe_images(u, params=P, layout=LAYOUT, rng=np.random.default_rng(7)))
     got = observe(u, fidelity="areas", params=P, rng=np.random.default_rng(8))
     np.testing.assert_array_equal(got, observe_areas(u, params=P, rng=np.random.default_rng(8)))
+
+
+def test_registering_stays_light():
+    code = ("import sys; from feeler.sensor_images import register_optical_fidelities; "
+            "register_optical_fidelities(); print('cv2' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

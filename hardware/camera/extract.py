@@ -47,7 +47,7 @@ class AreaExtractor:
     def __init__(self, layout: Layout, *, blur_sd_px: float = 1.2,
                  levels: tuple[float, float] | None = None):
         self.layout, self.levels = layout, levels
-        reach, erode = int(np.ceil(4.0 * blur_sd_px)) + 1, int(np.ceil(3.0 * blur_sd_px))
+        reach = erode = int(np.ceil(3.0 * blur_sd_px)) + 1
         self._dilate = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * reach + 1,) * 2)
         self._erode = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * erode + 1,) * 2)
         w = layout.window_px

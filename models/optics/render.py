@@ -33,14 +33,16 @@ class CameraParams:
         background_level (float): grey level of the plate without contact, 0 ≤ · < peak.
         peak_level (float): grey level inside a contact disc, < 255 (no saturation).
         blur_sd_px (float): standard deviation of the Gaussian blur (px), ≥ 0.
-        photons_per_level (float): photons per grey level for the shot noise, > 0;
-            ``inf`` renders without noise (then only 8-bit rounding remains).
+        photons_per_level (float): photons (photo-electrons) per grey level for the shot
+            noise, > 0; the default 40 is a 10 000 e⁻ full well spread over 255 levels, as
+            in common 8-bit machine-vision CMOS cameras; ``inf`` renders without noise
+            (then only 8-bit rounding remains).
     """
 
     background_level: float = 20.0
     peak_level: float = 200.0
     blur_sd_px: float = 1.2
-    photons_per_level: float = 10.0
+    photons_per_level: float = 40.0
 
     def __post_init__(self):
         if not (0 <= self.background_level < self.peak_level <= 250):
