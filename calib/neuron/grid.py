@@ -1,0 +1,106 @@
+"""Fast deterministic M2 backend: the exact posterior on an adaptive 4-D grid.
+
+Coordinates (ln τ, ln a, h, ln σ). For each (τ, a, h) cell the residual sum of squares
+over the scans is computed once; σ then enters the likelihood only through it, so the σ
+axis costs nothing per scan. The grid starts on the prior's bulk and is refined onto the
+bounding box of every cell within ``LOG_DROP`` of the maximum (one cell of margin), until
+the box is stable. Draws are independent: cells drawn by their posterior mass, jittered
+uniformly inside the cell. They go through the same diagnostics as MCMC draws (R-hat ≈ 1,
+bulk ESS ≈ number of draws).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from feeler.calib.neuron.model import PeakTable, Priors, log_prior
+
+__all__ = ["sample_grid", "log_posterior_grid", "LOG_DROP"]
+
+LOG_DROP = 25.0       # cells below max − LOG_DROP carry < e⁻²⁵ of the peak density each
+_AXES = ("log_tau", "log_a", "h", "log_sigma")
+
+
+def log_posterior_grid(table: PeakTable, delta_mm: np.ndarray, pri: Priors, axes: dict) -> np.ndarray:
+    """Unnormalised log posterior on the product grid ``axes`` (ndarray[nτ, na, nh, nσ])."""
+    lt, la, hh, ls = (np.asarray(axes[k], float) for k in _AXES)
+    d = np.asarray(delta_mm, float)
+    ss = np.empty((lt.size, la.size, hh.size))
+    for i, p in enumerate(table.at(np.exp(lt))):                      # p: (n_scans,)
+        m = np.maximum(np.exp(la)[:, None, None] * p - hh[None, :, None], 0.0)
+        ss[i] = np.sum((d - m) ** 2, axis=-1)
+    n = d.size
+    sig2 = np.exp(2 * ls)
+    ll = -n * ls - 0.5 * ss[..., None] / sig2
+    lp = log_prior(pri, la[None, :, None, None], lt[:, None, None, None], hh[None, None, :, None],
+                   ls[None, None, None, :])
+    return ll + lp
+
+
+def _start(pri: Priors) -> dict:
+    return {"log_tau": (np.log(pri.tau_lo_s), np.log(pri.tau_hi_s)),
+            "log_a": (pri.log_a_mu - 4 * pri.log_a_sd, pri.log_a_mu + 4 * pri.log_a_sd),
+            "h": (0.0, 4 * pri.h_scale_mm),
+            "log_sigma": (np.log(pri.sigma_scale_mm * 1e-4), np.log(4 * pri.sigma_scale_mm))}
+
+
+def _limits(pri: Priors) -> dict:
+    big = np.inf
+    return {"log_tau": (np.log(pri.tau_lo_s), np.log(pri.tau_hi_s)), "log_a": (-big, big),
+            "h": (0.0, big), "log_sigma": (-big, big)}
+
+
+def _axes(ranges: dict, sizes: dict) -> dict:
+    return {k: np.linspace(lo, hi, sizes[k]) for k, (lo, hi) in ranges.items()}
+
+
+def _refine(lp: np.ndarray, axes: dict, limits: dict) -> dict:
+    keep = lp >= lp.max() - LOG_DROP
+    out = {}
+    for dim, k in enumerate(_AXES):
+        other = tuple(j for j in range(4) if j != dim)
+        idx = np.flatnonzero(keep.any(axis=other))
+        x = axes[k]
+        step = x[1] - x[0]
+        lo = max(x[idx[0]] - step, limits[k][0])
+        hi = min(x[idx[-1]] + step, limits[k][1])
+        out[k] = (lo, hi if hi > lo else lo + step)
+    return out
+
+
+def sample_grid(table: PeakTable, delta_mm, pri: Priors, *, chains: int, draws: int,
+                rng: np.random.Generator, size: int = 40, passes: int = 8) -> dict:
+    """Independent posterior draws ``dict[name] -> ndarray (chains, draws)`` from the grid.
+
+    Args:
+        size (int): points per axis of (τ, a, h); σ gets 1.5× as many.
+        passes (int): maximum refinements (stops earlier once the box is stable).
+    """
+    sizes = {"log_tau": size, "log_a": size, "h": size, "log_sigma": int(1.5 * size)}
+    limits = _limits(pri)
+    ranges = _start(pri)
+    for _ in range(passes):
+        axes = _axes(ranges, sizes)
+        lp = log_posterior_grid(table, delta_mm, pri, axes)
+        new = _refine(lp, axes, limits)
+        widths = {k: ranges[k][1] - ranges[k][0] for k in _AXES}
+        stable = all(abs(new[k][0] - ranges[k][0]) < 0.05 * widths[k]
+                     and abs(new[k][1] - ranges[k][1]) < 0.05 * widths[k] for k in _AXES)
+        ranges = new
+        if stable:
+            break
+    axes = _axes(ranges, sizes)
+    lp = log_posterior_grid(table, delta_mm, pri, axes)
+    w = np.exp(lp - lp.max()).ravel()
+    n = chains * draws
+    cells = np.unravel_index(rng.choice(w.size, size=n, p=w / w.sum()), lp.shape)
+    out = {}
+    for dim, k in enumerate(_AXES):
+        x = axes[k]
+        step = x[1] - x[0]
+        v = x[cells[dim]] + rng.uniform(-0.5, 0.5, n) * step
+        lo, hi = limits[k]
+        v = np.where(v < lo, 2 * lo - v, v)          # reflect the jitter at hard bounds
+        v = np.where(v > hi, 2 * hi - v, v)
+        out[k] = v.reshape(chains, draws)
+    return {"a": np.exp(out["log_a"]), "tau_s": np.exp(out["log_tau"]), "h": out["h"],
+            "sigma_mm": np.exp(out["log_sigma"])}
