@@ -6,6 +6,7 @@ import tempfile
 
 import pytest
 
+from feeler.cli import main
 from feeler.hardware.emulators import GrblConfig, emulator_process
 from feeler.hardware.stage import PortError, Stage
 from feeler.hardware.stage.transport import open_port
@@ -101,9 +102,8 @@ def test_emulate_stage_command_serves_until_sigterm():
     (["--travel-mm", "0", "1", "1"], "argument --travel-mm=[0.0, 1.0, 1.0]: three numbers > 0"),
     (["--start-mm", "0", "0", "90"], "argument --start-mm=[0.0, 0.0, 90.0]: inside [0, travel]"),
 ])
-def test_emulate_stage_rejects_bad_options(args, message):
-    done = subprocess.run([sys.executable, "-m", "feeler", "emulate", "stage", *args],
-                          capture_output=True, text=True, timeout=60)
-    assert done.returncode == 2 and done.stdout == ""
-    assert done.stderr.startswith("feeler: error: ") and message in done.stderr
-    assert done.stderr.count("\n") == 1
+def test_emulate_stage_rejects_bad_options(args, message, capsys):
+    assert main(["emulate", "stage", *args]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith("feeler: error: ") and message in err
+    assert err.count("\n") == 1
