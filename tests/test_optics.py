@@ -89,15 +89,16 @@ def test_observe_areas_without_noise_is_exact():
     np.testing.assert_allclose(out, u, atol=1e-12)
 
 
-def test_observe_areas_noise_matches_propagated_covariance():
-    # cov U = C K Σ_A Kᵀ Cᵀ with K = ∂F/∂A and Σ_A = (σ² + step²/12) I (quantisation uniform)
+@pytest.mark.parametrize("sd, step", [(0.25, 0.0), (1.0, 1.0)])
+def test_observe_areas_noise_matches_propagated_covariance(sd, step):
+    # cov U = C K Σ_A Kᵀ Cᵀ with K = ∂F/∂A and Σ_A = (σ² + step²/12) I (the quantisation
+    # error is uniform and independent when σ ≥ step — Sheppard; exact when step = 0)
+    params = OpticsParams(area_sd_px2=sd, area_step_px2=step)
     rng = np.random.default_rng(7)
     u = np.tile([0.02, 0.4, -0.03], (40000, 1))[None]
-    err = (observe_areas(u, params=P, rng=rng) - u)[0]
-    k = np.stack([force_from_areas(np.eye(4)[i], P) - force_from_areas(np.zeros(4), P)
-                  for i in range(4)], axis=1)
-    var_a = P.area_sd_px2 ** 2 + P.area_step_px2 ** 2 / 12
-    cov = P.c_matrix @ k @ k.T @ P.c_matrix.T * var_a
+    err = (observe_areas(u, params=params, rng=rng) - u)[0]
+    k = (force_from_areas(np.eye(4), P) - force_from_areas(np.zeros(4), P)).T  # (3, 4)
+    cov = P.c_matrix @ k @ k.T @ P.c_matrix.T * (sd ** 2 + step ** 2 / 12)
     np.testing.assert_allclose(err.std(axis=0), np.sqrt(np.diag(cov)), rtol=0.03)
     assert np.all(np.abs(err.mean(axis=0)) < 4 * np.sqrt(np.diag(cov) / 40000))
 
