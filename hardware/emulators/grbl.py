@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import logging
 from collections import deque
-from dataclasses import dataclass
-
+from feeler.hardware.emulators.config import GrblConfig
 from feeler.hardware.emulators.faults import Fault, FaultPlan
 from feeler.hardware.emulators.gcode import GcodeError, Modal, clean_line, interpret, parse_words
 from feeler.hardware.emulators.motion import Block, axis_limited
@@ -29,39 +28,6 @@ REALTIME = {ord("?"), ord("!"), ord("~"), RESET}
 Vec = tuple[float, float, float]
 
 
-@dataclass(frozen=True)
-class GrblConfig:
-    """Machine of the emulator (Grbl settings ``$130-132``, ``$110-112``, ``$120-122``).
-
-    Attributes:
-        travel_mm (tuple[float, float, float]): soft limits are ``[0, travel]`` per axis.
-        max_rate_mm_min (tuple[float, float, float]): per-axis maximum rate, mm/min.
-        accel_mm_s2 (tuple[float, float, float]): per-axis acceleration, mm/s².
-        start_mm (tuple[float, float, float]): machine position at power-up, mm.
-        version (str): reported in the banner.
-        rx_buffer_bytes (int): serial receive buffer (holds one byte less).
-        planner_blocks (int): motion blocks planned ahead.
-    """
-
-    travel_mm: Vec = (200.0, 200.0, 50.0)
-    max_rate_mm_min: Vec = (3000.0, 3000.0, 1000.0)
-    accel_mm_s2: Vec = (500.0, 500.0, 200.0)
-    start_mm: Vec = (0.0, 0.0, 0.0)
-    version: str = "1.1h"
-    rx_buffer_bytes: int = 128
-    planner_blocks: int = 15
-
-    def settings(self) -> dict[int, float]:
-        """The ``$$`` table (Grbl defaults except the machine fields above)."""
-        table = {0: 10, 1: 25, 2: 0, 3: 0, 4: 0, 5: 0, 6: 0, 10: 1, 11: 0.010, 12: 0.002,
-                 13: 0, 20: 1, 21: 0, 22: 1, 23: 0, 24: 25.0, 25: 500.0, 26: 250, 27: 1.0,
-                 30: 1000, 31: 0, 32: 0, 100: 250.0, 101: 250.0, 102: 250.0}
-        for base, values in ((110, self.max_rate_mm_min), (120, self.accel_mm_s2),
-                             (130, self.travel_mm)):
-            table.update({base + i: float(v) for i, v in enumerate(values)})
-        return table
-
-
 class GrblEmulator:
     """Grbl 1.1 state machine (see the module docstring); ``faults`` from :mod:`.faults`."""
 
@@ -72,6 +38,7 @@ class GrblEmulator:
         self.config, self.settings = config, config.settings()
         self.plan = FaultPlan(tuple(faults), seed)
         self.pos: Vec = tuple(float(v) for v in config.start_mm)
+        self._prev_pos = self.pos
         self.state, self.hold_phase, self.critical = "Idle", 0, False
         self.vanished = False
         self.lost_bytes = 0
@@ -113,8 +80,7 @@ class GrblEmulator:
             self._soft_reset(now)
 
     def _soft_reset(self, now: float) -> None:
-        moving = self.state in ("Run", "Home") or (self.state == "Hold" and self.hold_phase == 1)
-        if moving:
+        if self.moving:
             self._alarm(3, now)
         self._reset_state(now)
         self._emit("banner", f"\r\nGrbl {self.config.version} ['$' for help]", now)
@@ -131,6 +97,11 @@ class GrblEmulator:
         if self.state != "Alarm":
             self.state = "Idle"
 
+    @property
+    def moving(self) -> bool:
+        """Motion in progress (running, homing, or decelerating into a hold)."""
+        return self.state in ("Run", "Home") or (self.state == "Hold" and self.hold_phase == 1)
+
     # ---- time
     def tick(self, now: float) -> None:
         """Advance motion to ``now``, fire timed faults, execute buffered lines."""
@@ -141,7 +112,7 @@ class GrblEmulator:
         self._finish_sync(now)
 
     def _advance(self, now: float) -> None:
-        if self.state in ("Run", "Home") or (self.state == "Hold" and self.hold_phase == 1):
+        if self.moving:
             while self._queue and now - self._block_t0 >= self._queue[0].duration_s:
                 self._block_t0 += self._queue[0].duration_s
                 self.pos = self._queue.popleft().end_mm
@@ -156,8 +127,7 @@ class GrblEmulator:
             self.state, self._block_t0 = "Run", now
 
     def _speed_mm_min(self, now: float) -> float:
-        moving = self.state in ("Run", "Home") or (self.state == "Hold" and self.hold_phase == 1)
-        return self._queue[0].at(now - self._block_t0)[1] * 60.0 if moving and self._queue else 0.0
+        return self._queue[0].at(now - self._block_t0)[1] * 60.0 if self.moving and self._queue else 0.0
 
     def _timed_faults(self, now: float) -> None:
         for i, fault in enumerate(self.plan.timed_faults):
@@ -174,7 +144,7 @@ class GrblEmulator:
         self._prev_pos = self.pos
 
     def _crossed(self, axis: int, mm: float) -> bool:
-        before = getattr(self, "_prev_pos", self.pos)[axis]
+        before = self._prev_pos[axis]
         return (before - mm) * (self.pos[axis] - mm) <= 0 and before != self.pos[axis]
 
     def _alarm(self, code: int, now: float) -> None:
