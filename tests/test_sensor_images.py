@@ -69,6 +69,13 @@ def test_packing_puts_series_on_elements_and_rest_elsewhere():
     assert out.shape == (18, 1, 3) and np.abs(out - u[:, :1]).max() < 3e-3
 
 
+def test_noise_free_static_video_is_not_taken_for_frozen(tmp_path):
+    u = np.tile([0.01, 0.3, 0.0], (2, 4, 1))  # identical frames: legitimate without shot noise
+    out = observe_images(u, params=P, layout=LAYOUT, rng=None, video_path=tmp_path / "still.avi",
+                         camera=CameraParams(photons_per_level=np.inf))
+    assert not np.isnan(out).any() and np.abs(out - u).max() < 3e-3
+
+
 def test_bad_frames_become_nan_never_values():
     glare = CameraParams(peak_level=250.0, photons_per_level=0.5)  # shot noise saturates 8 bits
     out = observe_images(scans(n_scans=3, n_time=2), params=P, layout=LAYOUT,

@@ -65,6 +65,7 @@ def test_image_sequence_with_a_corrupt_file(tmp_path, rendered, caplog):
     _, frames = rendered
     pattern = str(tmp_path / "frames" / "%05d.png")
     write_video(frames[:5], pattern)
+    assert open_source(pattern).isOpened()
     (tmp_path / "frames" / "00002.png").write_bytes(b"\x89PNG broken")
     with caplog.at_level(logging.WARNING):
         reading = read_source(pattern, LAYOUT, P)
