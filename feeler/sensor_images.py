@@ -13,6 +13,7 @@ this module and registering the fidelities stays light.
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,7 +26,9 @@ from feeler.models.optics import (CameraParams, Layout, OpticsParams, areas_from
 
 __all__ = ["observe_images", "frames_from_displacement", "ImagesFidelity", "register_optical_fidelities"]
 
-_CHUNK_FRAMES = 32  # frames rendered at once (bounds memory to ~80 MB for 640×480)
+_CHUNK_FRAMES = 32  # frames rendered per call (bounds the disc patches to ~40 MB)
+
+log = logging.getLogger(__name__)
 
 
 def frames_from_displacement(u_mm: np.ndarray, *, params: OpticsParams, layout: Layout,
@@ -81,6 +84,8 @@ def observe_images(u_mm: np.ndarray, *, params: OpticsParams, layout: Layout,
             found, problem = extract(frame)
             if problem is None:
                 areas[i] = found
+            else:
+                log.warning("rendered frame %d rejected: %s", i, problem)
     n_series, n_time = int(np.prod(u.shape[:-2], dtype=int)), u.shape[-2]
     per_series = areas.reshape(-1, n_time, n_el, 4).transpose(0, 2, 1, 3).reshape(-1, n_time, 4)
     measured = displacement_from_force(force_from_areas(per_series[:n_series], params), params.c_matrix)

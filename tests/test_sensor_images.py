@@ -76,11 +76,12 @@ def test_noise_free_static_video_is_not_taken_for_frozen(tmp_path):
     assert not np.isnan(out).any() and np.abs(out - u).max() < 3e-3
 
 
-def test_bad_frames_become_nan_never_values():
+def test_bad_frames_become_nan_never_values(caplog):
     glare = CameraParams(peak_level=250.0, photons_per_level=0.5)  # shot noise saturates 8 bits
     out = observe_images(scans(n_scans=3, n_time=2), params=P, layout=LAYOUT,
                          rng=np.random.default_rng(6), camera=glare)
     assert out.shape == (3, 2, 3) and np.isnan(out).all()
+    assert "rendered frame 1 rejected: saturated pixels" in caplog.text
 
 
 def test_bad_displacements():
