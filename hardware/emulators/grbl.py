@@ -134,9 +134,13 @@ class GrblEmulator:
             if i in self._fired or self._first_byte_s is None:
                 continue
             due = fault.after_s is not None and now - self._first_byte_s >= fault.after_s
-            reached = any(self._crossed(axis, mm) for axis, mm in fault.positions().items())
+            reached = [(axis, mm) for axis, mm in fault.positions().items() if self._crossed(axis, mm)]
             if due or reached:
                 self._fired.add(i)
+                if reached:  # a switch at a position: stop exactly there, whatever the tick
+                    axis, mm = reached[0]
+                    f = (mm - self._prev_pos[axis]) / (self.pos[axis] - self._prev_pos[axis])
+                    self.pos = tuple(b + f * (p - b) for b, p in zip(self._prev_pos, self.pos))
                 if fault.kind == "vanish":
                     self.vanished = True
                 else:

@@ -157,7 +157,7 @@ def test_alarm_and_vanish_faults():
     talk(emu, b"G1 X10 F600\n", 0.0)
     out = b"".join(talk(emu, b"", t / 100) for t in range(1, 100))
     assert out == b"ALARM:1\r\n[MSG:Reset to continue]\r\n"
-    assert 5.0 <= emu.pos[0] < 5.2 and emu.state == "Alarm"
+    assert emu.pos[0] == pytest.approx(5.0) and emu.state == "Alarm"
     emu = fresh(faults=(Fault("alarm", code=6, after_s=1.0),))
     talk(emu, b"?", 0.5)
     assert talk(emu, b"", 1.4) == b"" and talk(emu, b"", 1.5) == b"ALARM:6\r\n"
