@@ -1,0 +1,87 @@
+"""scans.csv reading (validated) and the per-scan features, against hand-computed cases."""
+import numpy as np
+import pytest
+
+from feeler.datasets import (COLUMNS, Scans, jump_uy_mm, peak_rate_uy_mm_s, proportion_correct, read_scans,
+                             scan_features, strain)
+from feeler.errors import DataFileError
+
+
+def write_csv(path, rows, columns=COLUMNS):
+    lines = [",".join(columns)] + [",".join(str(v) for v in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def good_rows():
+    rows = []
+    for scan in (0, 1):
+        for k in range(4):
+            rows.append([scan, 0.05 * scan, 0.5, 0.5 * k, 0.25 * k, -0.01, 0.05 + 0.01 * k * scan, 0.0])
+    return rows
+
+
+def test_round_trip_of_a_small_file(tmp_path):
+    scans = read_scans(write_csv(tmp_path / "scans.csv", good_rows()))
+    assert scans.t_s.shape == (2, 4)
+    np.testing.assert_array_equal(scans.scan_id, [0, 1])
+    np.testing.assert_array_equal(scans.step_mm, [0.0, 0.05])
+    np.testing.assert_allclose(scans.uy_mm[1], [0.05, 0.06, 0.07, 0.08])
+    assert read_scans(tmp_path).uy_mm.shape == (2, 4)          # a run directory works too
+
+
+@pytest.mark.parametrize("mutate, words", [
+    (lambda rows: ([r[:-1] for r in rows], COLUMNS[:-1]), "missing column(s) uz_mm"),
+    (lambda rows: (rows[:3] + [rows[3][:6] + ["nan"] + rows[3][7:]] + rows[4:], COLUMNS), "column uy_mm"),
+    (lambda rows: (rows[:2] + [rows[2][:3] + ["abc"] + rows[2][4:]] + rows[3:], COLUMNS), "column t_s"),
+    (lambda rows: (rows[:2] + [rows[2][:3] + [0.25] + rows[2][4:]] + rows[3:], COLUMNS), "column t_s: not strictly"),
+    (lambda rows: (rows[:7], COLUMNS), "column scan_id: scans have unequal lengths"),
+    (lambda rows: (rows[:1] + [rows[1][:1] + [0.2] + rows[1][2:]] + rows[2:], COLUMNS), "column step_mm"),
+    (lambda rows: ([], COLUMNS), "no rows"),
+])
+def test_malformed_files_name_file_and_column(tmp_path, mutate, words):
+    rows, columns = mutate(good_rows())
+    path = write_csv(tmp_path / "scans.csv", rows, columns)
+    with pytest.raises(DataFileError) as info:
+        read_scans(path)
+    assert words in str(info.value) and str(path) in str(info.value)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(DataFileError, match="no such file"):
+        read_scans(tmp_path / "nothing.csv")
+
+
+def test_jump_and_rate_on_a_hand_made_step():
+    t = np.arange(20) * 0.5
+    uy = np.where(t >= 4.0, 0.1, 0.0) + 0.02                    # jump of 0.1 mm between t = 3.5 and 4.0
+    assert jump_uy_mm(uy, t, gap_s=1.0, span_s=2.0) == pytest.approx(0.1)
+    assert jump_uy_mm(-uy, t, gap_s=1.0, span_s=2.0) == pytest.approx(-0.1)
+    ramp = 0.02 + 0.1 * np.clip((t - 3.0) / 2.0, 0, 1)          # rise over 2 s, 0.025 mm per sample
+    assert peak_rate_uy_mm_s(ramp, t) == pytest.approx(0.05)
+    assert jump_uy_mm(ramp, t, gap_s=2.0, span_s=1.5) == pytest.approx(0.1)
+    with pytest.raises(ValueError, match="longer than the scan"):
+        jump_uy_mm(uy, t, gap_s=8.0, span_s=2.0)
+
+
+def test_peak_z_is_the_largest_window_sum_of_strain_changes():
+    """Independent reference: uniform sampling and tau = 6 dt -> sum of the last 6 |Δε|."""
+    rng = np.random.default_rng(2)
+    t = np.arange(41) * 0.5
+    uy = np.cumsum(rng.normal(0, 0.01, size=(3, 41)), axis=1)
+    scans = Scans(np.arange(3), np.zeros(3), np.full(3, 0.5), np.tile(t, (3, 1)), np.tile(t, (3, 1)),
+                  uy, uy, uy)
+    f = scan_features(scans, a=2.0, tau_s=3.0, h=0.001, length_mm=4.0, gap_s=1.0, span_s=1.0)
+    d = np.abs(np.diff(strain(uy, 4.0), axis=1))
+    c = np.concatenate([np.zeros((3, 1)), np.cumsum(d, axis=1)], axis=1)
+    windows = c[:, 6:] - c[:, :-6]
+    ref = np.maximum(2.0 * np.maximum(windows.max(axis=1), c[:, 1:6].max(axis=1)) - 0.001, 0)
+    np.testing.assert_allclose(f.peak_z, ref, rtol=1e-9)
+    np.testing.assert_allclose(f.peak_rate_uy_mm_s, np.abs(np.diff(uy, axis=1)).max(axis=1) / 0.5)
+
+
+def test_proportion_correct_exact():
+    assert proportion_correct([1, 2], [3, 4]) == 1.0
+    assert proportion_correct([3, 4], [1, 2]) == 0.0
+    assert proportion_correct([1, 3], [2, 2]) == 0.5
+    assert proportion_correct([1], [1]) == 0.5
