@@ -54,8 +54,17 @@ def test_shipped_four_plates_matches_the_paper():
     ('outputs = ["scans"]', "outputs = []", "scene.outputs", "at least 1"),
     ('outputs = ["scans"]', 'outputs = "scans"', "scene.outputs", "must be a list"),
     ("heights_mm = [0.0, 0.05, 0.1, 0.2]", "heights_mm = [0.0, 9.0]", "surface.heights_mm[1]", "<= 5.0"),
+    # impossible combinations (Scene.check)
+    ('profile = "step"', 'profile = "step"\ncount = 2', "surface.count", "count = 1"),
+    ("traverse_mm = 10.0", "traverse_mm = 0.4", "motion.traverse_mm", "two samples"),
+    ("dt_s = 0.5", "dt_s = 0.000001", "motion.dt_s", "1e6 samples"),
+    ("position_mm = 5.0", "position_mm = 9.5", "surface.position_mm", "inside the traverse"),
+    ("position_mm = 5.0", "position_mm = 0.5", "surface.position_mm", "inside the traverse"),
+    ('profile = "step"', 'profile = "grating"\ncount = 5\nspacing_mm = 2.0', "surface.position_mm", "inside"),
+    ("uy0_sd_mm = 0.0125", "uy0_sd_mm = 0.02", "probe.uy0_sd_mm", "uy0_mean_mm/3"),
+    ("tau_s = 3.0", "tau_s = 25.0", "neuron.tau_s", "shorter than one scan"),
 ])
-def test_each_field_rule_names_file_and_key(tmp_path, old, new, key, words):
+def test_each_rule_names_file_and_key(tmp_path, old, new, key, words):
     err = error_of(variant(tmp_path, old, new))
     assert err.key == key and words in err.problem
 
@@ -78,21 +87,6 @@ def test_unknown_kind_missing_kind_bad_toml_missing_and_unreadable_file(tmp_path
     bad = tmp_path / "latin1.toml"
     bad.write_bytes(b'[scene]\nname = "\xe9"\n')
     assert "cannot read" in error_of(bad).problem
-
-
-@pytest.mark.parametrize("old, new, key, words", [
-    ('profile = "step"', 'profile = "step"\ncount = 2', "surface.count", "count = 1"),
-    ("traverse_mm = 10.0", "traverse_mm = 0.4", "motion.traverse_mm", "two samples"),
-    ("dt_s = 0.5", "dt_s = 0.000001", "motion.dt_s", "1e6 samples"),
-    ("position_mm = 5.0", "position_mm = 9.5", "surface.position_mm", "inside the traverse"),
-    ("position_mm = 5.0", "position_mm = 0.5", "surface.position_mm", "inside the traverse"),
-    ('profile = "step"', 'profile = "grating"\ncount = 5\nspacing_mm = 2.0', "surface.position_mm", "inside"),
-    ("uy0_sd_mm = 0.0125", "uy0_sd_mm = 0.02", "probe.uy0_sd_mm", "uy0_mean_mm/3"),
-    ("tau_s = 3.0", "tau_s = 25.0", "neuron.tau_s", "shorter than one scan"),
-])
-def test_impossible_combinations_are_refused(tmp_path, old, new, key, words):
-    err = error_of(variant(tmp_path, old, new))
-    assert err.key == key and words in err.problem
 
 
 def test_staircase_and_grating_inside_the_traverse_load(tmp_path):
