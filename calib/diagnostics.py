@@ -66,18 +66,24 @@ def summarize(posterior) -> pd.DataFrame:
     """
     from arviz_stats.base import array_stats as A
 
-    rows = []
-    for name, x in flat_draws(posterior).items():
-        flat = x.ravel()
-        q = np.quantile(flat, [0.025, 0.975, 0.055, 0.945])
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rhat = float(A.rhat(x, chain_axis=0, draw_axis=1))
-            ess_b = float(A.ess(x, chain_axis=0, draw_axis=1, method="bulk"))
-            ess_t = float(A.ess(x, chain_axis=0, draw_axis=1, method="tail", prob=(0.05, 0.95)))
-            mcse_m = float(A.mcse(x, chain_axis=0, draw_axis=1, method="mean"))
-            mcse_s = float(A.mcse(x, chain_axis=0, draw_axis=1, method="sd"))
-        rows.append((name, flat.mean(), flat.std(ddof=1), *q, rhat, ess_b, ess_t, mcse_m, mcse_s))
-    return pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
+    draws = flat_draws(posterior)
+    names = list(draws)
+    x = np.stack([draws[n] for n in names], axis=-1)          # (chain, draw, entry)
+    flat = x.reshape(-1, len(names))
+    q = np.quantile(flat, [0.025, 0.975, 0.055, 0.945], axis=0)
+    kw = dict(chain_axis=0, draw_axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cols = {
+            "r_hat": A.rhat(x, **kw),
+            "ess_bulk": A.ess(x, method="bulk", **kw),
+            "ess_tail": A.ess(x, method="tail", prob=(0.05, 0.95), **kw),
+            "mcse_mean": A.mcse(x, method="mean", **kw),
+            "mcse_sd": A.mcse(x, method="sd", **kw),
+        }
+    table = pd.DataFrame({"name": names, "mean": flat.mean(axis=0), "sd": flat.std(axis=0, ddof=1),
+                          "eti95_lb": q[0], "eti95_ub": q[1], "eti89_lb": q[2], "eti89_ub": q[3],
+                          **{k: np.asarray(v, dtype=float).reshape(len(names)) for k, v in cols.items()}})
+    return table[list(SUMMARY_COLUMNS)]
 
 
 def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,

@@ -10,7 +10,8 @@ a posteriori. With the sufficient statistics G = XᵀX, g_i = Xᵀy_i, q_i = y_i
 2. Unknown σ_i with prior p(σ_i): p(σ_i | y_i) ∝ p(σ_i) N(y_i; X b0_i, σ_i² I + s² X Xᵀ).
    With r = y_i − X b0_i, Woodbury and the determinant lemma turn this n×n density into
    3×3 algebra:  log N = −½[n log 2π + n log σ² + 3 log s² + log det P
-   + rᵀr/σ² − (Xᵀr)ᵀ P⁻¹ (Xᵀr)/σ⁴],  rᵀr = q − 2 b0·g + b0ᵀGb0,  Xᵀr = g − G b0.
+   + rᵀ(σ²I + s²XXᵀ)⁻¹r], and the quadratic form equals min_b |y − Xb|²/σ² + |b − b0|²/s²,
+   evaluated at the conditional posterior mean m(σ) from residuals (stable as σ → 0).
    This 1-D density is normalised on a grid in log σ (two passes: locate, then 512
    cells across the mass), σ_i is drawn from it by inverting the piecewise-constant CDF,
    and b_i | σ_i from case 1. Draws are independent; the only approximation is the
@@ -40,15 +41,17 @@ def sigma_log_density(log_sigma: np.ndarray, x: np.ndarray, y: np.ndarray, b0: n
         s (float): prior sd of each entry; sigma_scale (float): half-normal scale of σ.
     """
     n = x.shape[0]
-    G, g, q = x.T @ x, x.T @ y, y @ y
+    G, g = x.T @ x, x.T @ y
     lam, Q = np.linalg.eigh(G)
     lam = np.clip(lam, 0.0, None)
-    rr = max(q - 2 * b0 @ g + b0 @ G @ b0, 0.0)
-    t = Q.T @ (g - G @ b0)
     v = np.exp(2 * np.asarray(log_sigma, dtype=float))[:, None]
     d = 1.0 / s**2 + lam / v                                   # eigenvalues of P
     logdet_p = np.log(d).sum(axis=1)
-    quad = rr / v[:, 0] - (t**2 / d).sum(axis=1) / v[:, 0] ** 2
+    # rᵀ(σ²I + s²XXᵀ)⁻¹r = min_b |y − Xb|²/σ² + |b − b0|²/s², attained at the posterior
+    # mean m(σ); computed from the residuals themselves (no cancellation as σ → 0)
+    m = ((Q.T @ (b0 / s**2))[None, :] + (Q.T @ g)[None, :] / v) / d @ Q.T      # (grid, 3)
+    resid = y[None, :] - m @ x.T
+    quad = (resid**2).sum(axis=1) / v[:, 0] + ((m - b0) ** 2).sum(axis=1) / s**2
     loglik = -0.5 * (n * _LOG2PI + n * np.log(v[:, 0]) + 6 * np.log(s) + logdet_p + quad)
     sigma = np.exp(log_sigma)
     log_prior = -0.5 * (sigma / sigma_scale) ** 2 + log_sigma      # half-normal × Jacobian
@@ -67,6 +70,9 @@ def sample_sigma(rng: np.random.Generator, n_draws: int, x, y, b0, s, sigma_scal
     hi = max(centre, np.log(sigma_scale)) + 6.0
     coarse = np.linspace(lo, hi, 2001)
     lp = sigma_log_density(coarse, x, y, b0, s, sigma_scale)
+    if not np.any(np.isfinite(lp)):
+        raise FloatingPointError("the noise-sd marginal is not finite anywhere on its grid")
+    lp = np.where(np.isfinite(lp), lp, -np.inf)
     keep = np.flatnonzero(lp > lp.max() - 60.0)
     step = coarse[1] - coarse[0]
     edges = np.linspace(coarse[keep[0]] - step, coarse[keep[-1]] + step, 513)

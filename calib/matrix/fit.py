@@ -85,8 +85,9 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
                                   walkers=walkers, draws=draws, tune=tune, seed=seed, progress=progress)
         B, S = out["B"], out["sigma"]
     seconds = time.perf_counter() - t0
-    posterior = _named_posterior(B, S, model, data, stats, dict(model=model, noise=noise,
-                                 student_nu=student_nu, noise_known=known is not None))
+    attrs = dict(model=model, noise=noise, student_nu=student_nu,
+                 noise_sd_known=[] if known is None else [float(v) for v in known])
+    posterior = _named_posterior(B, None if known is not None else S, model, data, stats, attrs)
     priors = rp.stated()
     if known is not None:
         priors["sigma"] = f"known: {list(map(float, known))} {rp.noise_unit}"
@@ -98,6 +99,7 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
 
 
 def _named_posterior(B, S, model, data, stats, attrs):
+    """C, K (inverse/eiv), noise sds (when inferred) and cond(C) as a DataTree."""
     with np.errstate(all="ignore"):
         if model == "forward":
             C = B
@@ -106,7 +108,7 @@ def _named_posterior(B, S, model, data, stats, attrs):
             C = _safe_inv(B)
             draws = {"C": C, "K": B, "sigma_n": S}
         draws["cond_C"] = np.linalg.cond(C.reshape(-1, 3, 3)).reshape(C.shape[:2])
-    attrs = {k: (int(v) if isinstance(v, bool) else v) for k, v in attrs.items()}
+    draws = {k: v for k, v in draws.items() if v is not None}   # known noise: not a parameter
     return posterior_from_draws(draws, dims=DIMS, sample_stats=stats,
                                 observed={"u_mm": data.u_mm, "f_n": data.f_n}, attrs=attrs)
 

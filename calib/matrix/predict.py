@@ -33,9 +33,13 @@ def predict_u(result, f_new_n, *, rng: np.random.Generator, prob: float = 0.9) -
     attrs = post.attrs
     C = np.asarray(post["C"].transpose("chain", "draw", ...).values).reshape(-1, 3, 3)
     forward = attrs.get("model") == "forward"
-    sigma = np.asarray(post["sigma_mm" if forward else "sigma_n"].transpose("chain", "draw", ...)
-                       .values).reshape(-1, 3)
     d, m = C.shape[0], f.shape[0]
+    known = np.atleast_1d(np.asarray(attrs.get("noise_sd_known", []), dtype=float))
+    if known.size == 3:
+        sigma = np.broadcast_to(known, (d, 3))
+    else:
+        sigma = np.asarray(post["sigma_mm" if forward else "sigma_n"].transpose("chain", "draw", ...)
+                           .values).reshape(-1, 3)
     if attrs.get("noise") == "student":
         noise = rng.standard_t(float(attrs.get("student_nu", 4.0)), size=(d, m, 3))
     else:

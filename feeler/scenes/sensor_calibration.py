@@ -1,0 +1,92 @@
+"""Scene kind ``sensor-calibration``: a stage imposes tip displacements, the sensor reports forces.
+
+The stage commands displacements U (mm) — normal presses along y, then shear offsets
+along x and z on top of a normal preload — each ``design.repeats`` times. The stage
+reaches U_true = U + N(0, ``noise.stage_sd_mm``²); the element's true compliance C
+(mm/N, ``sensor.c_mm_per_n``) gives the true force F = C⁻¹ U_true, and the sensor
+reports F + η, η per axis Gaussian or Student-t with scale ``noise.f_sd_n``. The
+``[prior]`` table is the lab's nominal knowledge (C₀ from the sensor's design), used by
+``feeler calibrate sensor``. Axes as in the paper: x along the scan, y normal, z lateral.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from feeler.errors import SceneError
+from feeler.scene import param
+
+__all__ = ["Scene", "Head", "Sensor", "Design", "Noise", "Prior", "commanded_displacements"]
+
+_MATRIX_DOC = "3x3 compliance matrix, rows = displacement axis x, y, z, columns = force axis, mm/N"
+
+
+@dataclass(frozen=True)
+class Head:
+    kind: str = param(choices=("sensor-calibration",), doc="scene kind")
+    description: str = param("", doc="free text")
+    seed: int = param(0, lo=0, doc="seed of the numpy Generator")
+
+
+@dataclass(frozen=True)
+class Sensor:
+    c_mm_per_n: tuple[tuple[float, ...], ...] = param(lo=-10.0, hi=10.0, min_len=3, doc=_MATRIX_DOC)
+
+
+@dataclass(frozen=True)
+class Design:
+    normal_presses_mm: tuple[float, ...] = param((0.05, 0.10, 0.15, 0.20, 0.25), lo=0.0, hi=2.0,
+                                                 min_len=1, doc="normal press depths U_y, mm")
+    shear_offsets_mm: tuple[float, ...] = param((-0.10, -0.05, 0.05, 0.10), lo=-2.0, hi=2.0,
+                                                doc="shear offsets applied along x and along z, mm")
+    shear_preload_mm: float = param(0.15, lo=0.0, hi=2.0, doc="normal press held during shear, mm")
+    repeats: int = param(3, lo=1, hi=1000, doc="repetitions of the whole design")
+
+
+@dataclass(frozen=True)
+class Noise:
+    f_sd_n: tuple[float, ...] = param((0.02, 0.02, 0.02), lo=0.0, hi=100.0, min_len=3,
+                                      doc="force noise scale per axis x, y, z, N")
+    stage_sd_mm: float = param(0.001, lo=0.0, hi=1.0, doc="stage positioning error sd, mm")
+    kind: str = param("gaussian", choices=("gaussian", "student"), doc="force noise distribution")
+    student_nu: float = param(4.0, lo=0.0, lo_open=True, hi=1000.0, doc="Student-t degrees of freedom")
+
+
+@dataclass(frozen=True)
+class Prior:
+    c0_mm_per_n: tuple[tuple[float, ...], ...] = param(lo=-10.0, hi=10.0, min_len=3, doc=_MATRIX_DOC)
+    rel_sd: float = param(0.5, lo=0.0, lo_open=True, hi=1e6, doc="prior sd per entry / largest entry")
+    sigma_f_scale_n: float = param(0.1, lo=0.0, lo_open=True, hi=100.0,
+                                   doc="half-normal scale of the force noise sd, N")
+
+
+@dataclass(frozen=True)
+class Scene:
+    scene: Head
+    sensor: Sensor
+    prior: Prior
+    design: Design = Design()
+    noise: Noise = Noise()
+
+    def check(self, path) -> None:
+        """3x3 invertible matrices, exactly 3 noise sds, a design that spans 3 axes."""
+        for key, m in (("sensor.c_mm_per_n", self.sensor.c_mm_per_n),
+                       ("prior.c0_mm_per_n", self.prior.c0_mm_per_n)):
+            if len(m) != 3 or any(len(row) != 3 for row in m):
+                raise SceneError(path, key, f"must be 3 rows of 3 numbers ({_MATRIX_DOC})")
+            if np.linalg.cond(np.asarray(m, dtype=float)) > 1e8:
+                raise SceneError(path, key, "must be invertible (condition number <= 1e8)")
+        if len(self.noise.f_sd_n) != 3:
+            raise SceneError(path, "noise.f_sd_n", f"needs exactly 3 values (x, y, z), got {len(self.noise.f_sd_n)}")
+        if not any(o != 0 for o in self.design.shear_offsets_mm):
+            raise SceneError(path, "design.shear_offsets_mm",
+                             "needs a non-zero offset: without shear the x and z columns are unidentified")
+
+
+def commanded_displacements(design: Design) -> np.ndarray:
+    """The design's commanded tip displacements, ndarray[n, 3] (ux, uy, uz), mm."""
+    rows = [(0.0, d, 0.0) for d in design.normal_presses_mm]
+    rows += [(o, design.shear_preload_mm, 0.0) for o in design.shear_offsets_mm]
+    rows += [(0.0, design.shear_preload_mm, o) for o in design.shear_offsets_mm]
+    return np.tile(np.asarray(rows, dtype=float), (design.repeats, 1))

@@ -1,0 +1,79 @@
+"""sensor-calibration scene, campaign simulator and CSV reader."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from feeler.calib.matrix import read_calibration_csv
+from feeler.errors import DataFileError, OverwriteError, SceneError
+from feeler.scene import load_scene
+from feeler.scenes.sensor_calibration import commanded_displacements
+from feeler.simulate_calibration import draw_campaign, simulate_sensor_calibration
+
+SHIPPED = "datasets-synthetic/sensor-calibration.toml"
+
+
+def test_simulation_writes_the_three_files_and_is_deterministic(tmp_path):
+    scene = load_scene(SHIPPED)
+    paths = simulate_sensor_calibration(scene, tmp_path / "a")
+    simulate_sensor_calibration(scene, tmp_path / "b", scene_path=SHIPPED)
+    assert (tmp_path / "a" / "calibration.csv").read_bytes() == (tmp_path / "b" / "calibration.csv").read_bytes()
+    header = paths["calibration"].read_text().splitlines()[0]
+    assert header == "point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n"
+    data = read_calibration_csv(paths["calibration"])
+    assert data.n == 39
+    np.testing.assert_allclose(data.u_mm, commanded_displacements(scene.design), atol=1e-6)
+    truth = json.loads(paths["truth"].read_text())
+    np.testing.assert_allclose(truth["C_mm_per_n"], scene.sensor.c_mm_per_n)
+    np.testing.assert_allclose(np.asarray(truth["C_mm_per_n"]) @ np.asarray(truth["K_n_per_mm"]), np.eye(3), atol=1e-12)
+    assert load_scene(paths["scene"]) == scene                       # the rendered TOML reloads
+    assert (tmp_path / "b" / "scene.toml").read_bytes() == open(SHIPPED, "rb").read()
+    with pytest.raises(OverwriteError, match="calibration.csv"):
+        simulate_sensor_calibration(scene, tmp_path / "a")
+
+
+def test_forces_follow_the_true_stiffness():
+    scene = load_scene(SHIPPED)
+    u_cmd, u_true, f = draw_campaign(scene, np.random.default_rng(0))
+    k = np.linalg.inv(np.asarray(scene.sensor.c_mm_per_n))
+    resid = f - u_true @ k.T
+    np.testing.assert_allclose(resid.std(axis=0), scene.noise.f_sd_n, rtol=0.35)
+    assert np.abs(u_true - u_cmd).max() < 6 * scene.noise.stage_sd_mm
+
+
+@pytest.mark.parametrize("old, new, match", [
+    ("[0.018, 0.008, 0.280]]", "[0.018, 0.008]]", r"sensor.c_mm_per_n\[2\]: needs at least 3 items"),
+    ("[0.018, 0.008, 0.280]]", "[0.018, 0.008, 0.280], [1.0, 1.0, 1.0]]", "sensor.c_mm_per_n: must be 3 rows of 3"),
+    ("[0.0, 0.0, 0.25]]", "[0.25, 0.0, 0.0]]", "prior.c0_mm_per_n: must be invertible"),
+    ("f_sd_n = [0.02, 0.02, 0.02]", "f_sd_n = [0.02, 0.02, 0.02, 0.02]", "noise.f_sd_n: needs exactly 3"),
+    ("shear_offsets_mm = [-0.10, -0.05, 0.05, 0.10]", "shear_offsets_mm = [0.0]", "design.shear_offsets_mm: needs a non-zero"),
+    ('kind = "gaussian"', 'kind = "laplace"', "noise.kind: 'laplace' is not allowed"),
+])
+def test_scene_errors_name_the_key(tmp_path, old, new, match):
+    text = open(SHIPPED).read()
+    assert old in text
+    path = tmp_path / "s.toml"
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(SceneError, match=match):
+        load_scene(path)
+
+
+@pytest.mark.parametrize("content, match", [
+    ("point_id,ux_mm\n0,1\n", "missing columns uy_mm"),
+    ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3 + "3,0,abc,0,1,2,3\n",
+     "column uy_mm, row 4: 'abc' is not a finite number"),
+    ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3, "3 points; a 3x3 matrix needs at least 4"),
+    ("", "not a readable CSV"),
+])
+def test_csv_errors_name_the_file(tmp_path, content, match):
+    path = tmp_path / "calibration.csv"
+    path.write_text(content)
+    with pytest.raises(DataFileError, match=match):
+        read_calibration_csv(path)
+
+
+def test_missing_csv(tmp_path):
+    with pytest.raises(DataFileError, match="no such calibration file"):
+        read_calibration_csv(tmp_path / "nope.csv")
