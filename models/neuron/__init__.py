@@ -41,7 +41,7 @@ def window_sum(strain, t, *, tau: float, weights=None, kernel: str = "boxcar") -
         ndarray[..., n_time] float64: u₁(t_k) (strain units).
     """
     (tau,) = check_params(tau=tau)
-    return Engine(tau, check_kernel(kernel), weights).run(strain, t)
+    return Engine(tau, check_kernel(kernel), weights).run(strain, t, whole=True)
 
 
 def pulse_density(strain, t, *, a: float, tau: float, h: float, weights=None,
@@ -61,7 +61,8 @@ def pulse_density(strain, t, *, a: float, tau: float, h: float, weights=None,
             mismatched ``t``, wrong weight length, unknown kernel.
     """
     a, tau, h = check_params(a=a, tau=tau, h=h)
-    return Engine(tau, check_kernel(kernel), weights).run(strain, t, a=a, h=h, clamp=True)
+    return Engine(tau, check_kernel(kernel), weights).run(strain, t, a=a, h=h, clamp=True,
+                                                         whole=True)
 
 
 def peak_window_sum(strain, t, *, tau: float, weights=None, kernel: str = "boxcar") -> np.ndarray:

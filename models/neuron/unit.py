@@ -28,8 +28,12 @@ class Engine:
         self.shape: tuple | None = None  # leading shape of the strain, fixed by the first chunk
         self.t_last: float | None = None
 
-    def run(self, strain, t, *, a: float = 1.0, h: float = 0.0, clamp: bool = False) -> np.ndarray:
-        """Window sum u₁ (or z when ``clamp``) for the next chunk, shape ``(..., n)``."""
+    def run(self, strain, t, *, a: float = 1.0, h: float = 0.0, clamp: bool = False,
+            whole: bool = False) -> np.ndarray:
+        """Window sum u₁ (or z when ``clamp``) for the next chunk, shape ``(..., n)``.
+
+        ``whole`` says the chunk is a whole record (batch call): uniformly sampled
+        records then take the pointer-free boxcar loop."""
         with_w = self.weights is not None
         s, tt = check_signal(strain, t, min_ndim=2 if with_w else 1, t_prev=self.t_last,
                              check_finite=False)
@@ -47,8 +51,12 @@ class Engine:
         w = self.weights if with_w else _ONE
         if self.carry is None:
             self.carry = kernels.Carry(x.shape[0])
-        run = kernels.exponential if self.kernel == "exponential" else kernels.boxcar
-        out = run(x, w, tt, self.tau, self.carry, a=a, h=h, clamp=clamp)
+        dt = _uniform_step(tt) if whole and self.kernel == "boxcar" else None
+        if dt is not None:
+            out = kernels.boxcar_uniform(x, w, dt, self.tau, self.carry, a=a, h=h, clamp=clamp)
+        else:
+            run = kernels.exponential if self.kernel == "exponential" else kernels.boxcar
+            out = run(x, w, tt, self.tau, self.carry, a=a, h=h, clamp=clamp)
         if n and not kernels.finite(self.carry):
             check_signal(strain, t, min_ndim=1)  # raises with the index of the bad sample
             raise ArgumentError("strain", "increments beyond float64",
@@ -56,3 +64,18 @@ class Engine:
         if n:
             self.t_last = float(tt[-1])
         return out.reshape(*lead, n)
+
+
+# relative spread of the sampling interval below which a record counts as uniform
+_UNIFORM_RTOL = 1e-9
+
+
+def _uniform_step(t: np.ndarray) -> float | None:
+    """The sampling interval when ``t`` is uniform (to 1e-9 relative), else None."""
+    n = t.shape[0]
+    if n < 2:
+        return None
+    dt = (t[-1] - t[0]) / (n - 1)
+    if n > 2 and np.abs(np.diff(t) - dt).max() > _UNIFORM_RTOL * dt:
+        return None
+    return float(dt)
