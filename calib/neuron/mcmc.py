@@ -28,8 +28,8 @@ def sample_nuts(table: PeakTable, delta_mm, pri: Priors, *, chains: int, draws: 
         log_a = pm.Normal("log_a", mu=pri.log_a_mu, sigma=pri.log_a_sd)
         h = pm.HalfNormal("h", sigma=pri.h_scale_mm)
         sigma = pm.HalfNormal("sigma_mm", sigma=pri.sigma_scale_mm)
-        pos = pt.clip((log_tau - lt[0]) / step, 0.0, n_grid - 1.000001)
-        i = pt.cast(pt.floor(pos), "int64")
+        pos = pt.clip((log_tau - lt[0]) / step, 0.0, n_grid - 1.0)
+        i = pt.minimum(pt.cast(pt.floor(pos), "int64"), n_grid - 2)
         w = pos - i
         peak = peak_t[i] * (1.0 - w) + peak_t[i + 1] * w
         mu = pt.maximum(pt.exp(log_a) * peak - h, 0.0)

@@ -39,8 +39,8 @@ class PeakTable:
         x = np.log(np.asarray(tau_s, dtype=float))
         lt = self.log_tau
         step = lt[1] - lt[0]
-        pos = np.clip((x - lt[0]) / step, 0.0, len(lt) - 1.000001)
-        i = np.floor(pos).astype(int)
+        pos = np.clip((x - lt[0]) / step, 0.0, len(lt) - 1.0)
+        i = np.minimum(np.floor(pos).astype(int), len(lt) - 2)
         w = (pos - i)[..., None]
         return self.peak.T[i] * (1.0 - w) + self.peak.T[i + 1] * w
 
@@ -109,15 +109,17 @@ def mean_mm(table: PeakTable, a, tau_s, h) -> np.ndarray:
 
 
 def log_prior(pri: Priors, log_a, log_tau, h, log_sigma) -> np.ndarray:
-    """log density in the unconstrained coordinates (ln a, ln τ, h, ln σ); −inf outside."""
-    log_a, log_tau, h, log_sigma = np.broadcast_arrays(*(np.asarray(v, float) for v in
-                                                         (log_a, log_tau, h, log_sigma)))
-    lp = -0.5 * ((log_a - pri.log_a_mu) / pri.log_a_sd) ** 2
-    lp = lp - 0.5 * (h / pri.h_scale_mm) ** 2
-    sig = np.exp(log_sigma)
-    lp = lp - 0.5 * (sig / pri.sigma_scale_mm) ** 2 + log_sigma      # Jacobian of ln σ
-    inside = (log_tau >= np.log(pri.tau_lo_s)) & (log_tau <= np.log(pri.tau_hi_s)) & (h >= 0)
-    return np.where(inside, lp, -np.inf)
+    """log density in the unconstrained coordinates (ln a, ln τ, h, ln σ); −inf outside.
+
+    Each term is computed on its own argument and the four are added by broadcasting,
+    so a product grid costs one addition per cell."""
+    log_a, log_tau, h, log_sigma = (np.asarray(v, float) for v in (log_a, log_tau, h, log_sigma))
+    t_a = -0.5 * ((log_a - pri.log_a_mu) / pri.log_a_sd) ** 2
+    inside = (log_tau >= np.log(pri.tau_lo_s)) & (log_tau <= np.log(pri.tau_hi_s))
+    t_tau = np.where(inside, 0.0, -np.inf)
+    t_h = np.where(h >= 0, -0.5 * (h / pri.h_scale_mm) ** 2, -np.inf)
+    t_s = -0.5 * (np.exp(log_sigma) / pri.sigma_scale_mm) ** 2 + log_sigma      # Jacobian of ln σ
+    return t_a + t_tau + t_h + t_s
 
 
 def log_likelihood(table: PeakTable, delta_mm, a, tau_s, h, sigma_mm) -> np.ndarray:

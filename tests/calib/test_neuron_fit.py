@@ -1,0 +1,122 @@
+"""M2: the grid posterior is the model's posterior, parameters are recovered, failures are flagged."""
+import dataclasses
+import os
+
+import numpy as np
+import pytest
+
+from feeler.calib.neuron import DecoderMisfitWarning, NeuronData, fit_neuron, make_priors, peak_table
+from feeler.calib.neuron.grid import log_posterior_grid
+from feeler.calib.neuron.model import log_likelihood, log_prior
+from feeler.calib.neuron.synth import Truth, scene_scans, simulate_labels
+from feeler.errors import ArgumentError
+from feeler.models import neuron
+
+TRUTH = Truth(a=3.3, tau_s=3.0, h=0.035, sigma_mm=0.014)
+
+
+@pytest.fixture(scope="module")
+def plates():
+    return scene_scans()[2]
+
+
+def test_peak_table_exact_at_nodes_and_between(plates):
+    tab = plates.table(n_grid=64)
+    taus = np.exp(tab.log_tau[[0, 17, 63]])
+    for tau in taus:
+        exact = neuron.peak_window_sum(plates.strain, plates.t_s, tau=float(tau))
+        np.testing.assert_allclose(tab.at(tau), exact, rtol=1e-9, atol=1e-12)
+    mid = float(np.exp(0.5 * (tab.log_tau[20] + tab.log_tau[21])))
+    exact = neuron.peak_window_sum(plates.strain, plates.t_s, tau=mid)
+    assert np.max(np.abs(plates.table(n_grid=256).at(mid) - exact)) < 2e-4 * np.max(exact)
+
+
+def test_grid_log_posterior_equals_model(plates):
+    tab = plates.table(n_grid=32)
+    d = simulate_labels(tab, TRUTH, np.random.default_rng(1))
+    pri = make_priors(tab, d)
+    axes = {"log_tau": np.log([1.0, 3.0]), "log_a": np.log([2.0, 3.3]), "h": np.array([0.0, 0.04]),
+            "log_sigma": np.log([0.01, 0.02])}
+    lp = log_posterior_grid(tab, d, pri, axes)
+    for idx in np.ndindex(lp.shape):
+        lt, la, h, ls = (axes[k][i] for k, i in zip(("log_tau", "log_a", "h", "log_sigma"), idx))
+        ref = log_prior(pri, la, lt, h, ls) + log_likelihood(tab, d, np.exp(la), np.exp(lt), h, np.exp(ls))
+        assert lp[idx] == pytest.approx(ref + 0.5 * d.size * np.log(2 * np.pi), rel=1e-12, abs=1e-9)
+
+
+def test_grid_recovers_parameters_on_fresh_seeds(plates):
+    tab = plates.table()
+    inside = {k: 0 for k in ("a", "tau_s", "h", "sigma_mm")}
+    seeds = range(8)
+    for seed in seeds:
+        data = dataclasses.replace(plates, step_mm=simulate_labels(tab, TRUTH, np.random.default_rng(seed)))
+        res = fit_neuron(data, seed=seed, draws=500)
+        assert res.verdict.ok, res.verdict.problems
+        s = res.summary.set_index("name")
+        for k in inside:
+            inside[k] += s.loc[k, "eti95_lb"] <= getattr(TRUTH, k) <= s.loc[k, "eti95_ub"]
+    print("95 % intervals holding the truth out of 8:", inside)
+    assert all(v >= 6 for v in inside.values()), inside   # P(≥6 of 8 | 95 %) = 0.994 each
+
+
+def test_tau_piling_against_prior_bound_is_flagged(plates):
+    tab = plates.table()
+    d = simulate_labels(tab, dataclasses.replace(TRUTH, tau_s=6.0, sigma_mm=0.004), np.random.default_rng(3))
+    pri = dataclasses.replace(make_priors(tab, d), tau_lo_s=0.3, tau_hi_s=1.0)
+    with pytest.warns(UserWarning, match="tau_s: posterior piles against its upper prior bound"):
+        res = fit_neuron(dataclasses.replace(plates, step_mm=d), priors=pri, draws=500)
+    assert not res.verdict.ok
+
+
+def test_ppc_passes_model_labels_and_flags_reversed_labels(plates):
+    d = simulate_labels(plates.table(), TRUTH, np.random.default_rng(5))
+    ok = fit_neuron(dataclasses.replace(plates, step_mm=d), draws=500)
+    attrs = ok.posterior["posterior"].attrs
+    assert attrs["ppc_p_value"] > 0.01 and 0.8 <= attrs["ppc_coverage90"] <= 1.0
+    reversed_ = 0.2 - plates.step_mm
+    with pytest.warns(DecoderMisfitWarning):
+        bad = fit_neuron(dataclasses.replace(plates, step_mm=reversed_), draws=500)
+    assert bad.posterior["posterior"].attrs["ppc_p_value"] < 0.01
+
+
+def test_saved_fit_round_trips(plates, tmp_path):
+    from feeler.calib.fit import load
+    res = fit_neuron(plates, draws=250)
+    back = load(res.save(tmp_path / "fit"))
+    np.testing.assert_allclose(back.posterior["observed_data"]["peak_u1"].values, plates.table().peak)
+    assert back.priors["tau_s"].startswith("ln tau ~ Uniform") and back.backend == "grid"
+
+
+@pytest.mark.parametrize("kwargs, match", [({"backend": "laplace"}, "backend"), ])
+def test_bad_backend(plates, kwargs, match):
+    with pytest.raises(ArgumentError, match=match):
+        fit_neuron(plates, **kwargs)
+
+
+def test_bad_labels(plates):
+    few = NeuronData(plates.strain[:3], plates.t_s, plates.step_mm[:3], 3.0)
+    with pytest.raises(ArgumentError, match="step_mm"):
+        fit_neuron(few)
+    nan = dataclasses.replace(plates, step_mm=np.where(plates.step_mm > 0.1, np.nan, plates.step_mm))
+    with pytest.raises(ArgumentError, match="step_mm"):
+        fit_neuron(nan)
+    tab = plates.table(n_grid=8)
+    with pytest.raises(ArgumentError, match="non-zero"):
+        make_priors(tab, np.zeros(plates.step_mm.size))
+    with pytest.raises(ArgumentError, match="tau"):
+        peak_table(plates.strain, plates.t_s, tau_lo_s=2.0, tau_hi_s=1.0)
+    with pytest.raises(ArgumentError, match="strain change"):
+        make_priors(peak_table(np.zeros((4, 41)), plates.t_s, tau_lo_s=1, tau_hi_s=2, n_grid=4), plates.step_mm)
+
+
+@pytest.mark.slow
+def test_grid_agrees_with_nuts(plates):
+    d = simulate_labels(plates.table(), TRUTH, np.random.default_rng(11))
+    data = dataclasses.replace(plates, step_mm=d)
+    draws = 1000 if os.environ.get("FEELER_FULL") == "1" else 500
+    g = fit_neuron(data, draws=draws).summary.set_index("name")
+    n = fit_neuron(data, backend="nuts", draws=draws, tune=draws).summary.set_index("name")
+    for k in ("a", "tau_s", "h", "sigma_mm"):
+        se = np.hypot(g.loc[k, "mcse_mean"], n.loc[k, "mcse_mean"])
+        assert abs(g.loc[k, "mean"] - n.loc[k, "mean"]) < 4 * se + 1e-3 * g.loc[k, "sd"], k
+        assert n.loc[k, "sd"] == pytest.approx(g.loc[k, "sd"], rel=0.15), k
