@@ -1,0 +1,55 @@
+"""The ``feeler`` command: every sub-command explains itself, and start-up stays light."""
+import argparse
+import subprocess
+import sys
+
+import pytest
+
+from feeler.cli import build_parser, main
+
+HEAVY = ("pymc", "pytensor", "cv2", "weasyprint", "skfem", "gmsh", "dask", "arviz")
+
+
+def _commands(parser, prefix=()):
+    """Every (sub-)sub-command path of the parser."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield (*prefix, name)
+                yield from _commands(sub, (*prefix, name))
+
+
+ALL = sorted(set(_commands(build_parser())))
+
+
+def test_the_expected_commands_are_there():
+    top = {c[0] for c in ALL}
+    assert {"simulate", "demo", "emulate"} <= top
+
+
+@pytest.mark.parametrize("path", ALL, ids=[" ".join(p) for p in ALL])
+def test_every_subcommand_has_help(path, capsys):
+    with pytest.raises(SystemExit) as info:
+        main([*path, "--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: feeler " + " ".join(path))
+    assert len(out.splitlines()) > 2
+
+
+def test_no_command_prints_help_and_exits_2(capsys):
+    assert main([]) == 2
+    assert "commands" in capsys.readouterr().out
+
+
+def test_import_and_help_stay_light():
+    code = ("import sys, feeler, feeler.cli; feeler.cli.build_parser(); "
+            f"print([m for m in {HEAVY!r} if m in sys.modules])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_python_dash_m_feeler_is_the_command():
+    out = subprocess.run([sys.executable, "-m", "feeler", "--version"], capture_output=True,
+                         text=True, check=True)
+    assert out.stdout.startswith("feeler ")
