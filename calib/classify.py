@@ -50,9 +50,10 @@ class Classification:
 
 def fit_tables(result):
     """(training PeakTable, labels, draws dict, attrs) out of an M2 :class:`FitResult`."""
-    obs = result.posterior["observed_data"]
+    tree = result.posterior
+    obs = tree["observed_data"] if "observed_data" in tree.children else None
     for name in ("peak_u1", "log_tau_grid", "step_mm"):
-        if name not in obs.data_vars:
+        if obs is None or name not in obs.data_vars:
             raise ArgumentError("posterior", f"no observed_data/{name}", "a posterior written by the neuron fit")
     table = PeakTable(log_tau=np.asarray(obs["log_tau_grid"].values, float),
                       peak=np.asarray(obs["peak_u1"].values, float))
