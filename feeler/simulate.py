@@ -1,4 +1,6 @@
-"""Pipeline composition for robot-scan scenes: scene → plates → touches → sensor → files.
+"""Pipeline composition: a scene file → its kind's simulator → a run directory.
+
+Robot-scan scenes: scene → plates → touches → sensor → files.
 
 Only the stages the scene's ``outputs`` need are built: ``"scans"`` runs surface, probe
 and sensor; ``"features"`` also runs the neuron. A ``displacement``-fidelity scene imports
@@ -23,7 +25,8 @@ from feeler.models import probe, sensor, surface
 from feeler.rundir import prepare_out_dir, write_json
 from feeler.scene import load_scene, scene_as_dict
 
-__all__ = ["CSV_COLUMNS", "plate_profile", "simulate_scans", "features_of", "run_simulation"]
+__all__ = ["CSV_COLUMNS", "SIMULATORS", "plate_profile", "simulate_scans", "features_of", "run_simulation",
+           "simulate_robot_scan"]
 
 CSV_COLUMNS = ("scan_id", "plate", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
 _FORMATS = ("%d", "%d", "%.6g", "%.6g", "%.6g", "%.9g", "%.9g", "%.9g", "%.9g")
@@ -108,13 +111,25 @@ def _write_features_csv(path: Path, scans: Scans, feats, per_plate: int) -> None
 
 
 def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = False) -> Path:
-    """Simulate a robot-scan scene into the run directory ``out``; returns ``out``.
+    """Simulate any shipped kind of scene into the run directory ``out``; returns ``out``.
+
+    The scene's kind picks the simulator (:data:`SIMULATORS`); each writes ``scene.toml``
+    (a byte copy), ``truth.json`` and its data files.
 
     Raises:
         SceneError: the scene does not validate. OverwriteError: data exist and not ``force``.
         ArgumentError: the scene asks for a sensor fidelity not available here.
     """
     scene = load_scene(scene_path)
+    module, func = SIMULATORS[scene.scene.kind].split(":")
+    import importlib
+
+    getattr(importlib.import_module(module), func)(scene, scene_path, out, force)
+    return Path(out)
+
+
+def simulate_robot_scan(scene, scene_path: str | Path, out: str | Path, force: bool) -> None:
+    """Robot-scan scenes: ``scans.csv`` (and ``features.csv`` when asked)."""
     outputs = set(scene.scene.outputs)
     files = ["scene.toml", "truth.json", "scans.csv"] + (["features.csv"] if "features" in outputs else [])
     out = prepare_out_dir(out, files, force=force)
@@ -126,4 +141,25 @@ def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = Fal
     _write_scans_csv(out / "scans.csv", scans, per_plate)
     if "features" in outputs:
         _write_features_csv(out / "features.csv", scans, features_of(scene, scans), per_plate)
-    return out
+
+
+def _simulate_calibration(scene, scene_path, out, force) -> None:
+    from feeler.simulate_calibration import simulate_sensor_calibration
+
+    simulate_sensor_calibration(scene, out, force=force, scene_path=scene_path)
+
+
+def _simulate_psychophysics(scene, scene_path, out, force) -> None:
+    from feeler.simulate_psychophysics import simulate_psychophysics
+
+    prepare_out_dir(out, ["scene.toml"], force=force)
+    simulate_psychophysics(scene, out, force=force)
+    shutil.copyfile(scene_path, Path(out) / "scene.toml")
+
+
+# scene kind → "module:function(scene, scene_path, out, force)"; imported only when used
+SIMULATORS = {
+    "robot-scan": "feeler.simulate:simulate_robot_scan",
+    "sensor-calibration": "feeler.simulate:_simulate_calibration",
+    "psychophysics-2afc": "feeler.simulate:_simulate_psychophysics",
+}

@@ -1,6 +1,7 @@
 """Simulate a scene into a run directory.
 
-Writes DIR/scene.toml (a byte copy of SCENE), DIR/truth.json (every true parameter,
+Any shipped kind: robot-scan (four-plates), sensor-calibration (DIR/calibration.csv),
+psychophysics-2afc (DIR/trials.csv). For a robot-scan scene it writes DIR/scene.toml (a byte copy of SCENE), DIR/truth.json (every true parameter,
 including each touch's press U_y0, tilt, start offset and drift) and DIR/scans.csv
 (long format: scan_id, plate, step_mm, speed_mm_s, t_s, x_mm, ux_mm, uy_mm, uz_mm), plus
 DIR/features.csv when the scene lists "features" in its outputs. The result depends only
@@ -28,5 +29,5 @@ def run(args) -> int:
     from feeler.simulate import run_simulation
 
     out = run_simulation(args.scene, args.out, force=args.force)
-    print(f"wrote {out}/scene.toml, truth.json, scans.csv")
+    print(f"wrote {out}: {', '.join(sorted(p.name for p in out.iterdir() if p.is_file()))}")
     return 0
