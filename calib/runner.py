@@ -38,8 +38,13 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
         return [func(s) for s in progress(seeds, desc=desc, enabled=progress_bar)]
     if scheduler is not None and not _is_tcp_address(scheduler):
         raise ArgumentError("scheduler", scheduler, "must be tcp://HOST:PORT (or omitted for a LocalCluster)")
+    import logging
+
     from distributed import Client, LocalCluster, as_completed
 
+    # dask logs every worker start/stop at INFO; show that only when feeler runs with -v
+    dask_log = logging.getLogger("distributed")
+    dask_log.setLevel(max(logging.getLogger().getEffectiveLevel(), logging.INFO))
     if scheduler is None:
         cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                                dashboard_address=None, host="127.0.0.1")

@@ -80,5 +80,6 @@ class RegressionPrior:
         b0 = np.array2string(self.b0, precision=4, separator=", ").replace("\n", "")
         return {self.matrix: f"matrix-normal MN({self.matrix}0, {self.sd:.4g} I3, {self.sd:.4g} I3) "
                              f"= independent Normal(mean {self.matrix}0[i,j], sd {self.sd:.4g} {unit}) "
-                             f"per entry, {self.matrix}0 = {b0} {unit}",
+                             f"per entry, {self.matrix}0 = {b0} {unit}"
+                             + (" (K0 = C0^-1, C0 the nominal compliance)" if self.matrix == "K" else ""),
                 "sigma": f"HalfNormal(scale {self.sigma_scale:g} {self.noise_unit}) per axis"}

@@ -1,0 +1,102 @@
+"""Calibrate a sensor element's force→displacement matrix C (M1).
+
+DATASET is a directory with calibration.csv (point_id, ux_mm, uy_mm, uz_mm, fx_n, fy_n,
+fz_n) and scene.toml whose [prior] table gives the nominal C₀ (as written by `feeler
+simulate` for a sensor-calibration scene), or a calibration.csv with --c0.
+
+Default model: the commanded U is exact and the measured F is noisy, so F = K U + η
+with K = C⁻¹ is fitted and C = K⁻¹ reported (no attenuation). --eiv adds latent stage
+errors on U (NUTS); --model forward is the naive U = C F + ε regression (biased; for
+comparison only).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from feeler.commands._fit_output import add_fit_arguments, finish_fit
+
+__all__ = ["HELP", "register", "run"]
+
+HELP = "posterior of the force→displacement matrix C from a calibration campaign"
+
+
+def register(parser) -> None:
+    parser.add_argument("dataset", metavar="DATASET", help="directory with calibration.csv and scene.toml, or a CSV")
+    parser.add_argument("--backend", choices=("exact", "nuts", "emcee"), default="exact",
+                        help="exact conjugate (Gaussian noise; default), PyMC NUTS, or emcee")
+    parser.add_argument("--noise", choices=("gaussian", "student"), default="gaussian",
+                        help="force noise distribution (student: Student-t, --nu dof)")
+    parser.add_argument("--nu", type=float, default=4.0, help="Student-t degrees of freedom (default 4)")
+    parser.add_argument("--eiv", action="store_true",
+                        help="errors-in-variables: latent stage error on U (needs --backend nuts)")
+    parser.add_argument("--stage-sd-mm", type=float, default=None,
+                        help="stage error sd for --eiv, mm (default: the scene's noise.stage_sd_mm or 0.001)")
+    parser.add_argument("--model", choices=("inverse", "forward"), default="inverse",
+                        help="inverse: F = K U + η (default); forward: naive U = C F + ε")
+    parser.add_argument("--c0", type=float, nargs=9, default=None, metavar="C",
+                        help="nominal C₀ row by row, mm/N (overrides the dataset's scene.toml)")
+    parser.add_argument("--rel-sd", type=float, default=None, help="prior sd per entry / largest entry")
+    parser.add_argument("--predict", type=float, nargs=3, action="append", default=[],
+                        metavar=("FX", "FY", "FZ"), help="print the 90 %% predictive interval of U for this force, N")
+    add_fit_arguments(parser, draws=1000)
+    parser.set_defaults(run=run)
+
+
+def run(args) -> int:
+    import numpy as np
+
+    from feeler.calib.matrix import fit_matrix, predict_u, read_calibration_csv
+
+    csv, scene = _locate(Path(args.dataset))
+    data = read_calibration_csv(csv)
+    prior, stage_sd, source = _prior(args, scene)
+    rng = np.random.default_rng(args.seed)
+    model = "eiv" if args.eiv else args.model
+    result = fit_matrix(data, prior, model=model, noise=args.noise, backend=args.backend, rng=rng,
+                        student_nu=args.nu, stage_sd_mm=stage_sd, chains=args.chains,
+                        draws=args.draws, tune=args.tune, progress=args.progress)
+    print(f"M1 force→displacement matrix: {data.n} points from {csv}, model {model}, "
+          f"noise {args.noise}, backend {args.backend}; nominal C0 from {source}")
+    for f in args.predict:
+        p = predict_u(result, f, rng=rng, prob=0.9)
+        cells = ", ".join(f"u{a} {m:.4f} [{lo:.4f}, {hi:.4f}]" for a, m, lo, hi in
+                          zip("xyz", p["mean_mm"][0], p["lb_mm"][0], p["ub_mm"][0]))
+        print(f"predicted U for F = {list(f)} N (90 %): {cells} mm")
+    return finish_fit(result, args)
+
+
+def _locate(path: Path):
+    from feeler.errors import DataFileError
+
+    if path.is_dir():
+        csv, scene = path / "calibration.csv", path / "scene.toml"
+        return csv, (scene if scene.is_file() else None)
+    if path.suffix == ".csv":
+        scene = path.with_name("scene.toml")
+        return path, (scene if scene.is_file() else None)
+    raise DataFileError(path, "not a dataset directory or a calibration CSV")
+
+
+def _prior(args, scene_path):
+    from feeler.calib.matrix import MatrixPrior
+    from feeler.errors import ArgumentError
+
+    c0, rel_sd, sigma_scale, stage_sd = None, 0.5, 0.1, 0.001
+    if scene_path is not None:
+        from feeler.scene import load_scene
+        scene = load_scene(scene_path)
+        if not hasattr(scene, "prior"):
+            raise ArgumentError("DATASET", str(scene_path), "scene.toml must be a sensor-calibration scene")
+        c0, rel_sd = scene.prior.c0_mm_per_n, scene.prior.rel_sd
+        sigma_scale, stage_sd = scene.prior.sigma_f_scale_n, scene.noise.stage_sd_mm or 0.001
+    if args.c0 is not None:
+        c0 = tuple(tuple(args.c0[3 * i: 3 * i + 3]) for i in range(3))
+    if c0 is None:
+        raise ArgumentError("--c0", None, "the nominal matrix is needed: give --c0 (9 numbers, mm/N) "
+                                          "or a dataset with scene.toml")
+    if args.rel_sd is not None:
+        rel_sd = args.rel_sd
+    if args.stage_sd_mm is not None:
+        stage_sd = args.stage_sd_mm
+    source = "--c0" if args.c0 is not None else str(scene_path)
+    return MatrixPrior(c0_mm_per_n=c0, rel_sd=rel_sd, sigma_f_scale_n=sigma_scale), stage_sd, source

@@ -1,0 +1,38 @@
+"""Bayesian calibration. Sub-commands:
+
+  sensor   the force→displacement matrix C of a sensor element from a calibration
+           campaign (calibration.csv + scene.toml with the nominal C₀)
+
+Every fit prints a summary table (mean, sd, 95 % interval, R-hat, bulk ESS per
+parameter) and its verdict; with --out DIR it writes posterior.nc, summary.csv and
+verdict.json. The exit status is 1 when the posterior fails its diagnostics.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+
+__all__ = ["NAME", "HELP", "register", "SUBCOMMANDS"]
+
+NAME = "calibrate"
+HELP = "Bayesian calibration of a sensor's matrix (calibrate sensor) and more"
+
+# (sub-command, module): each module defines HELP, a docstring and register(parser).
+# To add one (e.g. "neuron"), append a line here.
+SUBCOMMANDS = [
+    ("sensor", "feeler.commands._calibrate_sensor"),
+]
+
+
+def register(parser) -> None:
+    sub = parser.add_subparsers(title="what to calibrate", metavar="WHAT")
+    for name, module_name in SUBCOMMANDS:
+        module = importlib.import_module(module_name)
+        cmd = sub.add_parser(name, help=module.HELP, description=module.__doc__,
+                             formatter_class=argparse.RawDescriptionHelpFormatter)
+        module.register(cmd)
+
+    def no_target(args) -> int:
+        parser.print_help()
+        return 2
+    parser.set_defaults(run=no_target)
