@@ -132,3 +132,30 @@ class StepProfile:
         if self.edge_um == 0:
             return np.where(x > 0, h, np.where(x < 0, 0.0, h / 2))
         return h * np.clip(x / (self.edge_um * 1e-3) + 0.5, 0.0, 1.0)
+
+    def second_integral_mm3(self, x_mm):
+        """∫∫ height dx dx (mm³) from −∞, at plate positions ``x_mm`` (ndarray[...])."""
+        e = self.edge_um * 1e-3
+        r = np.maximum(np.asarray(x_mm, dtype=float) - self.position_mm + e / 2, 0.0)
+        h = self.height_um * 1e-3
+        if e == 0:
+            return h * r * r / 2
+        return h * np.where(r <= e, r ** 3 / (6 * e), r * r / 2 - e * r / 2 + e * e / 6)
+
+    def hat_average_mm(self, x_mm, travel_mm=0.0):
+        """Plate height averaged over the P1 hat function of each node (the weighted gap).
+
+        Args:
+            x_mm (ndarray[n]): node positions in the finger frame, increasing, n >= 2.
+            travel_mm (float | ndarray[...]): finger travel; a node at x sits above
+                plate x + travel.
+        Returns:
+            ndarray[..., n]: ∫ φ_i height / ∫ φ_i in mm; the end nodes use a mirrored hat.
+        """
+        x_nodes = np.asarray(x_mm, dtype=float)
+        a = np.diff(x_nodes, prepend=2 * x_nodes[0] - x_nodes[1])
+        b = np.diff(x_nodes, append=2 * x_nodes[-1] - x_nodes[-2])
+        x = x_nodes + np.asarray(travel_mm, dtype=float)[..., None]
+        i2 = self.second_integral_mm3
+        mid = i2(x)
+        return 2.0 / (a + b) * ((i2(x + b) - mid) / b - (mid - i2(x - a)) / a)
