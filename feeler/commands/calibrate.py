@@ -21,6 +21,7 @@ HELP = "Bayesian calibration of a sensor's matrix (calibrate sensor) and more"
 # To add one (e.g. "neuron"), append a line here.
 SUBCOMMANDS = [
     ("sensor", "feeler.commands._calibrate_sensor"),
+    ("neuron", "feeler.commands._calibrate_neuron"),
 ]
 
 
