@@ -21,19 +21,21 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from feeler.calib.fit import FitResult, make_result, posterior_from_draws
+from feeler.calib.fit import DiagnosticWarning, FitResult, make_result, posterior_from_draws
 from feeler.calib.psychometric.cells import POOLED, Cells, Priors, make_cells
 from feeler.errors import ArgumentError
 from feeler.models.psychometric import dt_from_sigma
 from feeler.rundir import prepare_out_dir
 
 __all__ = ["fit_psychometric", "threshold_table", "save_psychometric", "BACKENDS", "Priors",
-           "THRESHOLD_COLUMNS"]
+           "THRESHOLD_COLUMNS", "with_problems"]
 
 BACKENDS = ("nuts", "laplace")
 THRESHOLD_COLUMNS = ("subject", "standard_speed_mm_s", "comparison_speed_mm_s", "pse_um",
@@ -74,11 +76,17 @@ def fit_psychometric(trials: pd.DataFrame, *, rng: np.random.Generator, backend:
     tree = _tree(out, stats, cells, label)
     described = priors.described(hierarchical=hierarchical, overdispersion=overdispersion)
     result = make_result(tree, backend=label, priors=described, seconds=time.perf_counter() - start)
-    if problems:
-        from dataclasses import replace
-        result = replace(result, verdict=replace(result.verdict, ok=False,
-                                                 problems=result.verdict.problems + tuple(problems)))
-    return result
+    return with_problems(result, problems)
+
+
+def with_problems(result: FitResult, problems) -> FitResult:
+    """``result`` with extra verdict problems (failed when any), each issued as a warning."""
+    if not problems:
+        return result
+    for p in problems:
+        warnings.warn(f"posterior failed its diagnostics: {p}", DiagnosticWarning, stacklevel=2)
+    verdict = replace(result.verdict, ok=False, problems=result.verdict.problems + tuple(problems))
+    return replace(result, verdict=verdict)
 
 
 def _laplace_all(cells: Cells, priors, overdispersion, rng, chains, draws):

@@ -21,7 +21,7 @@ import pandas as pd
 
 from feeler.errors import DataFileError
 
-__all__ = ["TRIAL_COLUMNS", "read_trials", "write_trials"]
+__all__ = ["TRIAL_COLUMNS", "read_trials", "write_trials", "synthetic_note"]
 
 TRIAL_COLUMNS = ("subject", "standard_um", "standard_speed_mm_s", "comparison_um",
                  "comparison_speed_mm_s", "n_trials", "n_comparison_higher")
@@ -34,7 +34,7 @@ def read_trials(path: str | Path) -> pd.DataFrame:
 
     Returns:
         DataFrame with exactly ``TRIAL_COLUMNS``: ``subject`` str, heights and speeds
-        float64 (µm, mm/s), counts int64.
+        float64 (µm, mm/s), counts int64; ``attrs["comments"]`` holds the ``#`` lines.
     Raises:
         DataFileError: missing file or columns, empty table, non-numeric value, negative
             or non-integer count, n_comparison_higher > n_trials, non-positive height or
@@ -77,8 +77,17 @@ def read_trials(path: str | Path) -> pd.DataFrame:
         data["n_trials"].append(n)
         data["n_comparison_higher"].append(k)
     frame = pd.DataFrame(data, columns=list(TRIAL_COLUMNS))
-    return frame.astype({c: "float64" for c in _POSITIVE} | {c: "int64" for c in _COUNTS}
-                        | {"subject": str})
+    frame = frame.astype({c: "float64" for c in _POSITIVE} | {c: "int64" for c in _COUNTS}
+                         | {"subject": str})
+    frame.attrs["comments"] = [line.lstrip()[1:].strip() for line in text.splitlines()
+                               if line.lstrip().startswith("#")]
+    return frame
+
+
+def synthetic_note(trials: pd.DataFrame) -> str:
+    """The file's comment lines when they say the data are synthetic, else ""."""
+    comments = trials.attrs.get("comments", [])
+    return "\n".join(comments) if any("synthetic" in c.lower() for c in comments) else ""
 
 
 def _number(path, lineno: int, col: str, text: str, *, positive: bool) -> float:

@@ -1,0 +1,91 @@
+"""The finger route: skin L0 → neuron → observer → binomial, τ and σ_d on a grid."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from feeler.calib.finger_route import (RouteGrid, _edge_problems, accepted_heights,
+                                       fit_finger_route, predict_p_higher, tau_report)
+from feeler.calib.fit import DiagnosticWarning
+from feeler.errors import ArgumentError
+
+GRID = RouteGrid(n_tau=81, n_sigma=50, n_lapse=5)
+
+
+@pytest.fixture(scope="module")
+def design(simulate):
+    trials, _ = simulate(0, n_subjects=6, n_trials=20)
+    return trials
+
+
+def test_kappa_makes_the_mean_slope_one():
+    heights = (5.0, 7.5, 10.0, 12.5, 15.0)
+    stim = [(h, v) for v in (20.0, 40.0) for h in heights]
+    s_hat, kappa = accepted_heights(stim, np.array([0.01, 0.1, 1.0]))
+    slopes = s_hat.reshape(3, 2, 5) / np.array(heights)       # L0 is linear in the height
+    np.testing.assert_allclose(slopes.std(axis=2), 0.0, atol=1e-9)
+    np.testing.assert_allclose(slopes[:, :, 0].mean(axis=1), 1.0, rtol=1e-12)
+    assert np.all(slopes[:, 1, 0] >= slopes[:, 0, 0] - 1e-12)  # felt higher at 40 mm/s
+    assert slopes[2, 1, 0] == pytest.approx(slopes[2, 0, 0], rel=1e-3)  # τ ≫ slide: no speed effect
+
+
+def test_predicted_probabilities(design):
+    p = predict_p_higher(design, tau_s=0.1, sigma_d_um=1.0, lapse=0.0)
+    same = (design.standard_speed_mm_s == 20.0) & (design.comparison_um == 10.0)
+    np.testing.assert_allclose(p[same.to_numpy()], 0.5, atol=1e-12)
+    faster = (design.standard_speed_mm_s == 40.0) & (design.comparison_um == 10.0)
+    assert np.all(p[faster.to_numpy()] < 0.5)                 # the 40 mm/s standard feels higher
+    first = design[design.subject == "S1"].index
+    for v in (20.0, 40.0):
+        sel = (design.loc[first].standard_speed_mm_s == v).to_numpy()
+        assert np.all(np.diff(p[first][sel]) > 0)
+
+
+def test_recovers_tau_and_noise_from_data_simulated_by_the_chain(design):
+    hits = 0
+    for seed, tau in enumerate((0.03, 0.1, 0.2, 0.1)):
+        rng = np.random.default_rng(40 + seed)
+        p = predict_p_higher(design, tau_s=tau, sigma_d_um=1.2, lapse=0.02)
+        data = design.assign(n_comparison_higher=rng.binomial(design.n_trials, p))
+        result = fit_finger_route(data, rng=rng, grid=GRID, draws=500)
+        s = result.summary.set_index("name")
+        hits += int(s.loc["tau_s", "eti95_lb"] <= tau <= s.loc["tau_s", "eti95_ub"])
+        hits += int(s.loc["sigma_d_um", "eti95_lb"] <= 1.2 <= s.loc["sigma_d_um", "eti95_ub"])
+        report = tau_report(result)
+        assert report["tau_eti95_s"][0] <= report["tau_median_s"] <= report["tau_eti95_s"][1]
+    assert hits >= 7
+
+
+def test_shipped_like_data_fit_and_report(design, extreme):
+    result = fit_finger_route(design, rng=np.random.default_rng(1), grid=GRID, draws=400)
+    assert result.verdict.ok, result.verdict.problems
+    report = tau_report(result)
+    assert 0.0 <= report["p_tau_le_300ms"] <= 1.0 and report["skin_level"] == "l0"
+    # extremes: all-correct and all-wrong conditions, zero-trial rows, one subject
+    with pytest.warns(DiagnosticWarning, match="sigma_d_um: posterior piles against its upper"):
+        result = fit_finger_route(extreme, rng=np.random.default_rng(2), grid=GRID, draws=400)
+    assert np.all(np.isfinite(result.summary["mean"])) and not result.verdict.ok
+
+
+def test_zero_trial_rows_change_nothing(design):
+    padded = pd.concat([design, design.iloc[:4].assign(n_trials=0, n_comparison_higher=0)])
+    a = fit_finger_route(design, rng=np.random.default_rng(3), grid=GRID, draws=200)
+    b = fit_finger_route(padded, rng=np.random.default_rng(3), grid=GRID, draws=200)
+    assert tau_report(a) == tau_report(b)
+
+
+def test_edge_piling_is_flagged():
+    taus, sigmas = np.geomspace(1e-3, 10, 10), np.geomspace(0.1, 10, 8)
+    prob = np.zeros((10, 8, 2))
+    prob[4, 3, :] = 0.5
+    assert _edge_problems(prob, taus, sigmas) == []
+    prob[9, 3, 0] = 0.2
+    prob /= prob.sum()
+    problems = _edge_problems(prob, taus, sigmas)
+    assert len(problems) == 1 and problems[0].startswith("tau_s: posterior piles against its upper")
+
+
+@pytest.mark.parametrize("kwargs", [dict(tau_min_s=0.0), dict(sigma_d_min_um=30.0),
+                                    dict(n_lapse=1), dict(lapse_a=0.0), dict(kappa_heights_um=())])
+def test_bad_grid(kwargs):
+    with pytest.raises(ArgumentError):
+        RouteGrid(**kwargs)
