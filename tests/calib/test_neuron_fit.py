@@ -120,3 +120,29 @@ def test_grid_agrees_with_nuts(plates):
         se = np.hypot(g.loc[k, "mcse_mean"], n.loc[k, "mcse_mean"])
         assert abs(g.loc[k, "mean"] - n.loc[k, "mean"]) < 4 * se + 1e-3 * g.loc[k, "sd"], k
         assert n.loc[k, "sd"] == pytest.approx(g.loc[k, "sd"], rel=0.15), k
+
+
+def test_sbc_ranks_uniform_small():
+    from feeler.calib.neuron_sbc import neuron_sbc_problem
+    from feeler.calib.sbc import run_sbc
+    n = 200 if os.environ.get("FEELER_FULL") == "1" else 24
+    res = run_sbc(*neuron_sbc_problem(n_grid=64), n_datasets=n, seed=3, n_draws=49, scheduler="serial")
+    print("\n", res.table().to_string(index=False))
+    assert res.failed() == []
+
+
+def test_cli_calibrate_classify_discriminate(tmp_path, capsys):
+    from feeler.calib.neuron.synth import FOUR_PLATES
+    from feeler.cli import main
+    run, fit = tmp_path / "run", tmp_path / "fit"
+    assert main(["simulate", str(FOUR_PLATES), "--out", str(run)]) == 0
+    assert main(["calibrate", "neuron", str(run), "--out", str(fit), "--draws", "500", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "tau_s" in out and "posterior predictive check" in out and (fit / "posterior.nc").is_file()
+    assert main(["classify", str(fit), str(run), "--n-draws", "50"]) == 0
+    assert "classified as their labelled plate" in capsys.readouterr().out
+    assert main(["discriminate", str(fit), "--pair", "0.1", "0.12", "--n-scans", "50", "--n-draws", "20",
+                 "--speeds", "0.5", "0.5"]) == 0
+    assert "Weber fraction" in capsys.readouterr().out
+    assert main(["calibrate", "neuron", str(run), "--out", str(fit)]) == 2      # refuses to overwrite
+    assert main(["calibrate", "neuron", str(tmp_path / "nothing.txt")]) == 2
