@@ -14,6 +14,10 @@ error of every add and subtract is carried in a compensation term, so residue of
 that left the window never accumulates — 10⁸-sample streams do not drift, and a quiet
 window after loud ones keeps its relative precision.
 
+Every compiled function and its callees live in one file: numba's cache is keyed on
+the file of the cached function only. Uniformly sampled whole records take the faster
+loops of :mod:`feeler.models.neuron.uniform`.
+
 Streaming: a :class:`Carry` holds what the next chunk needs — the last strain sample,
 the samples still in (or straddling) the window as (t, c) history, the running sum and
 its compensation.
@@ -25,7 +29,8 @@ import math
 import numba as nb
 import numpy as np
 
-__all__ = ["Carry", "boxcar", "boxcar_uniform", "exponential", "finite"]
+
+__all__ = ["Carry", "boxcar", "exponential", "finite", "pick"]
 
 
 class Carry:
@@ -109,7 +114,8 @@ _boxcar_rows_ser = nb.njit(cache=True)(_boxcar_rows_py)
 _PARALLEL_MIN_SAMPLES = 1 << 16
 
 
-def _pick(par, ser, rows: int, n: int):
+def pick(par, ser, rows: int, n: int):
+    """The parallel or the serial compiled loop for ``rows`` × ``n`` samples."""
     return par if rows > 1 and rows * n >= _PARALLEL_MIN_SAMPLES else ser
 
 
@@ -132,7 +138,7 @@ def boxcar(x: np.ndarray, w: np.ndarray, t: np.ndarray, tau: float, carry: Carry
     have_prev = cr.prev.shape[1] == x.shape[1]
     prev = cr.prev if have_prev else np.zeros((rows, x.shape[1]))
     lo_out = np.empty(rows, dtype=np.int64)
-    run = _pick(_boxcar_rows_par, _boxcar_rows_ser, rows, n)
+    run = pick(_boxcar_rows_par, _boxcar_rows_ser, rows, n)
     run(x, w, tv, prev, have_prev, cv, H, cr.sum, cr.comp, cr.lo,
         float(tau), float(a), float(h), clamp, out, lo_out)
     lo = int(lo_out[0])  # identical for every row (it depends on t only)
@@ -141,71 +147,6 @@ def boxcar(x: np.ndarray, w: np.ndarray, t: np.ndarray, tau: float, carry: Carry
     cr.c_hist = cv[:, keep:].copy()
     cr.lo = lo - keep
     cr.prev = x[:, :, -1].copy()
-    return out
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _uniform_row(x, w, m, frac, a, h, clamp, out):
-    """A whole record sampled every Δt with τ = (m + frac)·Δt, m ≥ 0, 0 ≤ frac < 1:
-
-        u1_k = Σ_{j=k−m+1..k} c_j + frac·c_{k−m}    (c_j = 0 for j ≤ 0)
-
-    Same quantity as :func:`_window` without the pointer walk or the division; the
-    increments are recomputed from the strain (no array of them is stored) and the
-    slide adds the exact difference c_k − c_{k−m} (TwoSum) to the compensated sum."""
-    n = x.shape[1]
-    nr = x.shape[0]
-    s = 0.0
-    comp = 0.0
-    if n:
-        out[0] = 0.0
-    for k in range(1, n):
-        ck = 0.0
-        for r in range(nr):
-            ck += w[r] * abs(x[r, k] - x[r, k - 1])
-        j = k - m            # the interval straddling t_k − τ (fraction ``frac``)
-        if m == 0:
-            cj = ck
-        elif j >= 1:
-            cj = 0.0
-            for r in range(nr):
-                cj += w[r] * abs(x[r, j] - x[r, j - 1])
-        else:
-            cj = 0.0
-        d, e1 = _two_sum(ck, -cj)
-        s, e2 = _two_sum(s, d)
-        comp += e1 + e2
-        u = (s + comp) + frac * cj
-        if clamp:
-            z = a * u - h
-            out[k] = z if z > 0.0 else 0.0
-        else:
-            out[k] = u
-    return s + comp
-
-
-def _uniform_rows_py(x, w, m, frac, a, h, clamp, out, final):
-    for r in nb.prange(x.shape[0]):
-        final[r] = _uniform_row(x[r], w, m, frac, a, h, clamp, out[r])
-
-
-_uniform_rows_par = nb.njit(cache=True, parallel=True)(_uniform_rows_py)
-_uniform_rows_ser = nb.njit(cache=True)(_uniform_rows_py)
-
-
-def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, carry: Carry, *,
-                   a: float = 1.0, h: float = 0.0, clamp: bool = False) -> np.ndarray:
-    """Boxcar z or u₁ of a whole record ``x (rows, n_rec, n)`` sampled every ``dt``.
-
-    ``carry.sum`` receives the final running sums (non-finite when a NaN/inf entered);
-    the carry cannot continue a stream after this call."""
-    rows, n = x.shape[0], x.shape[2]
-    ratio = tau / dt
-    m = int(min(math.floor(ratio), n + 1))  # beyond the record the window is the whole record
-    frac = ratio - math.floor(ratio) if m <= n else 0.0
-    out = np.empty((rows, n))
-    run = _pick(_uniform_rows_par, _uniform_rows_ser, rows, n)
-    run(x, w, m, frac, float(a), float(h), clamp, out, carry.sum)
     return out
 
 
@@ -255,7 +196,7 @@ def exponential(x: np.ndarray, w: np.ndarray, t: np.ndarray, tau: float, carry: 
     cr = carry
     have_prev = cr.prev.shape[1] == x.shape[1]
     prev = cr.prev if have_prev else np.zeros((rows, x.shape[1]))
-    run = _pick(_exponential_rows_par, _exponential_rows_ser, rows, n)
+    run = pick(_exponential_rows_par, _exponential_rows_ser, rows, n)
     run(x, w, t, prev, have_prev, cr.t_last, cr.u, float(tau), float(a),
                       float(h), clamp, out, np.empty((rows, n)))
     cr.prev = x[:, :, -1].copy()

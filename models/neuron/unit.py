@@ -5,7 +5,8 @@ import numpy as np
 
 from feeler.errors import ArgumentError
 from feeler.models.neuron import kernels
-from feeler.models.neuron.validate import check_signal, check_weights
+from feeler.models.neuron.uniform import boxcar_uniform
+from feeler.models.neuron.validate import check_signal, check_weights, uniform_step
 
 __all__ = ["Engine"]
 
@@ -51,9 +52,9 @@ class Engine:
         w = self.weights if with_w else _ONE
         if self.carry is None:
             self.carry = kernels.Carry(x.shape[0])
-        dt = _uniform_step(tt) if whole and self.kernel == "boxcar" else None
+        dt = uniform_step(tt) if whole and self.kernel == "boxcar" else None
         if dt is not None:
-            out = kernels.boxcar_uniform(x, w, dt, self.tau, self.carry, a=a, h=h, clamp=clamp)
+            out = boxcar_uniform(x, w, dt, self.tau, self.carry, a=a, h=h, clamp=clamp)
         else:
             run = kernels.exponential if self.kernel == "exponential" else kernels.boxcar
             out = run(x, w, tt, self.tau, self.carry, a=a, h=h, clamp=clamp)
@@ -65,17 +66,3 @@ class Engine:
             self.t_last = float(tt[-1])
         return out.reshape(*lead, n)
 
-
-# relative spread of the sampling interval below which a record counts as uniform
-_UNIFORM_RTOL = 1e-9
-
-
-def _uniform_step(t: np.ndarray) -> float | None:
-    """The sampling interval when ``t`` is uniform (to 1e-9 relative), else None."""
-    n = t.shape[0]
-    if n < 2:
-        return None
-    dt = (t[-1] - t[0]) / (n - 1)
-    if n > 2 and np.abs(np.diff(t) - dt).max() > _UNIFORM_RTOL * dt:
-        return None
-    return float(dt)

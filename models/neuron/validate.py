@@ -3,11 +3,12 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 
 from feeler.errors import ArgumentError
 
-__all__ = ["check_params", "check_kernel", "check_signal", "check_weights"]
+__all__ = ["check_params", "check_kernel", "check_signal", "check_weights", "uniform_step"]
 
 KERNELS = ("boxcar", "exponential")
 
@@ -73,16 +74,12 @@ def check_signal(strain: object, t: object, *, min_ndim: int = 1,
     if tt.shape[0] != s.shape[-1]:
         raise ArgumentError("t", f"length {tt.shape[0]}",
                             f"must match the last axis of strain (n_time = {s.shape[-1]})")
-    bad = ~np.isfinite(tt)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ArgumentError("t", f"{tt[i]} at index {i}", "must be finite")
-    if tt.shape[0] > 1:
-        d = np.diff(tt)
-        if (d <= 0).any():
-            i = int(np.argmax(d <= 0)) + 1
-            raise ArgumentError("t", f"{tt[i]} at index {i} after {tt[i - 1]}",
-                                "must be strictly increasing")
+    i = int(_first_bad_time(tt))
+    if i >= 0:
+        if not np.isfinite(tt[i]):
+            raise ArgumentError("t", f"{tt[i]} at index {i}", "must be finite")
+        raise ArgumentError("t", f"{tt[i]} at index {i} after {tt[i - 1]}",
+                            "must be strictly increasing")
     if t_prev is not None and tt.shape[0] and tt[0] <= t_prev:
         raise ArgumentError("t", f"{tt[0]} at the chunk start",
                             f"must continue after the previous chunk's last time {t_prev}")
@@ -101,3 +98,37 @@ def check_weights(weights: object, n_receptors: int) -> np.ndarray:
     if not np.isfinite(w).all():
         raise ArgumentError("weights", w.tolist(), "must be finite")
     return w
+
+
+@nb.njit(cache=True, nogil=True)
+def _first_bad_time(t):
+    """Index of the first non-finite or non-increasing time, or −1 (one pass)."""
+    for i in range(t.shape[0]):
+        if not math.isfinite(t[i]) or (i > 0 and not t[i] > t[i - 1]):
+            return i
+    return -1
+
+
+@nb.njit(cache=True, nogil=True)
+def _max_step_deviation(t, dt):
+    worst = 0.0
+    for i in range(1, t.shape[0]):
+        d = abs((t[i] - t[i - 1]) - dt)
+        if d > worst:
+            worst = d
+    return worst
+
+
+# relative spread of the sampling interval below which a record counts as uniform
+UNIFORM_RTOL = 1e-9
+
+
+def uniform_step(t: np.ndarray) -> float | None:
+    """The sampling interval when ``t`` (valid, float64) is uniform to 1e-9 relative, else None."""
+    n = t.shape[0]
+    if n < 2:
+        return None
+    dt = (t[-1] - t[0]) / (n - 1)
+    if n > 2 and _max_step_deviation(t, dt) > UNIFORM_RTOL * dt:
+        return None
+    return float(dt)

@@ -98,3 +98,16 @@ def test_empty_and_single_sample_records(kernel):
     assert pulse_density(np.empty(0), np.empty(0), a=1, tau=1, h=0, kernel=kernel).shape == (0,)
     np.testing.assert_array_equal(pulse_density([5.0], [0.0], a=1, tau=1, h=0, kernel=kernel), [0.0])
     assert peak_window_sum(np.empty((3, 0)), np.empty(0), tau=1.0).shape == (3,)
+
+
+@pytest.mark.parametrize("tau", [0.004, 0.1, 0.1234, 3.0, 25.0, 1e4])
+@pytest.mark.parametrize("n", [5, 63, 64, 1001, 20000])
+def test_uniform_lanes_and_general_loop_agree(tau, n):
+    """Uniform records take the pointer-free (four-lane) loop; a stream takes the general
+    one. They compute the same u₁."""
+    from feeler.models.neuron import FA1Stream
+    rng = np.random.default_rng(n)
+    t = np.arange(n) * 0.01
+    eps = rng.normal(size=n).cumsum()
+    general = FA1Stream(a=1.0, tau=tau, h=0.0).push_u1(t, eps)
+    np.testing.assert_allclose(window_sum(eps, t, tau=tau), general, rtol=1e-10, atol=1e-12)
