@@ -8,6 +8,8 @@ integrating over the posterior. A posterior that failed its diagnostics is refus
 """
 from __future__ import annotations
 
+from feeler.commands._posterior_use import add_use_arguments, load_checked
+
 __all__ = ["NAME", "HELP", "register", "run"]
 
 NAME = "classify"
@@ -15,15 +17,10 @@ HELP = "plate probabilities and decoded step heights of new scans, from a neuron
 
 
 def register(parser) -> None:
-    parser.add_argument("posterior", metavar="POSTERIOR", help="directory of a `calibrate neuron --out` fit")
+    add_use_arguments(parser, n_draws=400, out_file="classification.csv")
     parser.add_argument("scans", metavar="SCANS", help="run directory with scans.csv, or the CSV")
     parser.add_argument("--backend", choices=("draws",), default="draws",
                         help="draws: Monte Carlo over posterior draws (the only one)")
-    parser.add_argument("--n-draws", type=int, default=400, help="posterior draws used (default 400)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the draw subsample (default 0)")
-    parser.add_argument("--out", default=None, metavar="DIR", help="write classification.csv into DIR")
-    parser.add_argument("--force", action="store_true", help="overwrite an earlier result in DIR")
-    parser.add_argument("--accept-failed", action="store_true", help="use a posterior that failed its diagnostics")
     parser.set_defaults(run=run)
 
 
@@ -34,14 +31,10 @@ def run(args) -> int:
     import pandas as pd
 
     from feeler.calib.classify import classify
-    from feeler.calib.fit import load, require_ok
     from feeler.datasets import read_scans
-    from feeler.errors import ArgumentError
     from feeler.rundir import prepare_out_dir
 
-    if args.n_draws < 1:
-        raise ArgumentError("--n-draws", args.n_draws, ">= 1")
-    result = require_ok(load(args.posterior), accept_failed=args.accept_failed, what="neuron calibration")
+    result = load_checked(args)
     path = Path(args.scans)
     scans = read_scans(path / "scans.csv" if path.is_dir() else path)
     length = float(result.posterior["posterior"].attrs["length_mm"])

@@ -10,6 +10,8 @@ credible intervals. A failed posterior is refused unless --accept-failed.
 """
 from __future__ import annotations
 
+from feeler.commands._posterior_use import add_use_arguments, load_checked
+
 __all__ = ["NAME", "HELP", "register", "run"]
 
 NAME = "discriminate"
@@ -17,7 +19,7 @@ HELP = "2AFC discrimination probabilities, threshold, Weber fraction and speed P
 
 
 def register(parser) -> None:
-    parser.add_argument("posterior", metavar="POSTERIOR", help="directory of a `calibrate neuron --out` fit")
+    add_use_arguments(parser, n_draws=200, out_file="discrimination.json")
     parser.add_argument("--scene", default=None, help="robot-scan scene of the forward model (default four-plates)")
     parser.add_argument("--backend", choices=("forward",), default="forward",
                         help="forward: simulated touches decoded per posterior draw (the only one)")
@@ -27,11 +29,6 @@ def register(parser) -> None:
     parser.add_argument("--speeds", type=float, nargs=2, default=None, metavar=("REF", "TEST"),
                         help="scan speeds for the PSE, mm/s (default: the scene's and twice it)")
     parser.add_argument("--n-scans", type=int, default=400, help="touches simulated per height (default 400)")
-    parser.add_argument("--n-draws", type=int, default=200, help="posterior draws used (default 200)")
-    parser.add_argument("--seed", type=int, default=0, help="seed (default 0)")
-    parser.add_argument("--out", default=None, metavar="DIR", help="write discrimination.json into DIR")
-    parser.add_argument("--force", action="store_true", help="overwrite an earlier result in DIR")
-    parser.add_argument("--accept-failed", action="store_true", help="use a posterior that failed its diagnostics")
     parser.set_defaults(run=run)
 
 
@@ -39,13 +36,12 @@ def run(args) -> int:
     from itertools import combinations
 
     from feeler.calib.discriminate import Discriminator
-    from feeler.calib.fit import load, require_ok
     from feeler.calib.neuron.synth import FOUR_PLATES
     from feeler.calib.progress import progress
     from feeler.rundir import prepare_out_dir, write_json
     from feeler.scene import load_scene
 
-    result = require_ok(load(args.posterior), accept_failed=args.accept_failed, what="neuron calibration")
+    result = load_checked(args)
     scene_path = args.scene or FOUR_PLATES
     scene = load_scene(scene_path)
     disc = Discriminator(result, scene_path=scene_path, n_scans=args.n_scans, n_draws=args.n_draws, seed=args.seed)

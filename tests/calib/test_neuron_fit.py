@@ -144,5 +144,10 @@ def test_cli_calibrate_classify_discriminate(tmp_path, capsys):
     assert main(["discriminate", str(fit), "--pair", "0.1", "0.12", "--n-scans", "50", "--n-draws", "20",
                  "--speeds", "0.5", "0.5"]) == 0
     assert "Weber fraction" in capsys.readouterr().out
+    import json
+    (fit / "verdict.json").write_text(json.dumps({"ok": False, "problems": ["a: R-hat 1.2 > 1.01"]}))
+    assert main(["classify", str(fit), str(run)]) != 0                       # a failed fit is refused
+    assert main(["classify", str(fit), str(run), "--n-draws", "20", "--accept-failed"]) == 0
+    assert main(["classify", str(fit), str(run), "--n-draws", "1", "--accept-failed"]) == 2
     assert main(["calibrate", "neuron", str(run), "--out", str(fit)]) == 2      # refuses to overwrite
     assert main(["calibrate", "neuron", str(tmp_path / "nothing.txt")]) == 2

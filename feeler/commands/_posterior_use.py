@@ -1,0 +1,24 @@
+"""Shared CLI pieces of the commands that use a saved neuron posterior (classify, discriminate)."""
+from __future__ import annotations
+
+__all__ = ["add_use_arguments", "load_checked"]
+
+
+def add_use_arguments(parser, *, n_draws: int, out_file: str) -> None:
+    """POSTERIOR, --n-draws, --seed, --out, --force, --accept-failed."""
+    parser.add_argument("posterior", metavar="POSTERIOR", help="directory of a `calibrate neuron --out` fit")
+    parser.add_argument("--n-draws", type=int, default=n_draws, help=f"posterior draws used (default {n_draws})")
+    parser.add_argument("--seed", type=int, default=0, help="seed of draws and simulations (default 0)")
+    parser.add_argument("--out", default=None, metavar="DIR", help=f"write {out_file} into DIR")
+    parser.add_argument("--force", action="store_true", help="overwrite an earlier result in DIR")
+    parser.add_argument("--accept-failed", action="store_true", help="use a posterior that failed its diagnostics")
+
+
+def load_checked(args):
+    """The saved fit of ``args.posterior``; CalibrationFailed unless ok or --accept-failed."""
+    from feeler.calib.fit import load, require_ok
+    from feeler.errors import ArgumentError
+
+    if args.n_draws < 2:
+        raise ArgumentError("--n-draws", args.n_draws, ">= 2")
+    return require_ok(load(args.posterior), accept_failed=args.accept_failed, what="neuron calibration")
