@@ -37,6 +37,8 @@ class FingerFEM:
         contact_pos (ndarray[n_c]): position of those DOFs within ``free``.
         compliance (ndarray[n_c, n_c]): C0 = (K0⁻¹)_cc, mm per N/mm.
         corpuscle (ndarray[n_dof]): w, with ε̄_y = w·u.
+        adjoint (ndarray[n_c]): (K0⁻¹ w) at the contact DOFs — the corpuscle strain per
+            unit contact force (one adjoint solve; K0 symmetric).
     """
 
     mesh: FingerMesh
@@ -50,6 +52,7 @@ class FingerFEM:
     contact_pos: np.ndarray
     compliance: np.ndarray
     corpuscle: np.ndarray
+    adjoint: np.ndarray
 
     @property
     def surface_x_mm(self) -> np.ndarray:
@@ -139,7 +142,9 @@ def _fem_cached(e_layers: tuple, nu: float, mesh: FingerMesh) -> FingerFEM:
     corp = mesh.corpuscle
     weights = np.zeros(3 * mesh.triangles.shape[1])
     weights[3 * np.flatnonzero(corp) + 1] = area[corp] / area[corp].sum()
+    corpuscle = b.T @ weights
+    adjoint = lu.solve(corpuscle[free])[contact_pos]
     return FingerFEM(mesh=mesh, stiffness=k0, strain=b, area_mm2=area,
                      elastic=elastic_matrices(e_tri, nu), free=free, lu=lu,
                      contact_dof=contact_dof, contact_pos=contact_pos, compliance=compliance,
-                     corpuscle=b.T @ weights)
+                     corpuscle=corpuscle, adjoint=adjoint)

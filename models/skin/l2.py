@@ -1,18 +1,23 @@
 """L2: viscoelastic plane-strain contact FEM of the pressed and sliding finger.
 
 The finger is fixed; the rigid plate moves under it (press ``press_mm`` in ``press_s``,
-hold ``hold_s``, slide ``slide_mm`` at the speed). Each time step:
+hold ``hold_s``, slide ``slide_mm`` at the speed). Material: first-order Prony series
+with one ratio g1 and time constant τ for all layers (the paper's assumption),
+σ = D0 [(1−g1) ε + g1 s], s_n = e^{−Δ/τ} s_{n−1} + γ (ε_n − ε_{n−1}),
+γ = (τ/Δ)(1 − e^{−Δ/τ}) (exact for strain linear within a step).
 
-1. first-order Prony viscoelasticity, σ = D0 [(1−g1) ε + g1 s] with the internal
-   variable s per triangle, s_n = e^{−Δ/τ} s_{n−1} + γ (ε_n − ε_{n−1}),
-   γ = (τ/Δ)(1 − e^{−Δ/τ}) (exact for strain linear within the step). The history part
-   is a load, the effective stiffness is c K0 with c = 1 − g1 + g1 γ: K0 is factorised
-   once for every time step;
-2. frictionless contact with the stepped plate, condensed exactly onto the y-DOFs of
-   the contact-strip nodes (compliance C0 / c), solved by an active set;
-3. the full displacement field, the strain per triangle, and the corpuscle average ε̄_y.
+Because s is the same linear filter of ε in every triangle and ε = B u, the internal
+variables are exactly s = B q with the filtered nodal displacement q; the history load
+is −g1 K0 (e^{−Δ/τ} q − γ u_{n−1}), so with the effective stiffness c K0,
+c = 1 − g1 + g1 γ, the contact-free displacement is u_free = −g1 (e^{−Δ/τ} q − γ u_{n−1}) / c
+without a solve. Everything then condenses exactly onto the contact DOFs:
 
-The sign convention is the paper's: ε_y positive in tension along the surface normal.
+    u_c = u_free,c + C0 p / c,       ε̄_y = w·u_free + λ_c·p / c,
+
+with C0 = (K0⁻¹)_cc and λ = K0⁻¹ w (one adjoint solve), and the frictionless contact
+forces p ≥ 0 come from the active-set solver each step. The internal variables carried
+per step are q at the contact DOFs and w·q at the corpuscle. (The equivalence with
+per-triangle internal variables and full-field solves is tested.)
 """
 from __future__ import annotations
 
@@ -25,7 +30,7 @@ from feeler.models.skin.loading import loading_history
 from feeler.models.skin.mesh import MeshSpec
 from feeler.models.skin.params import SkinParams, StepProfile
 
-__all__ = ["plate_need_mm", "l2_strain_history", "check_patch_inside_strip"]
+__all__ = ["plate_need_mm", "l2_strain_history", "check_patch_inside_strip", "prony_factors"]
 
 
 def plate_need_mm(fem: FingerFEM, profile: StepProfile | None, press_mm: float, travel_mm: float):
@@ -47,6 +52,14 @@ def check_patch_inside_strip(active: np.ndarray, spec: MeshSpec) -> None:
                             "the contact patch reaches the edge of the candidate strip; widen it")
 
 
+def prony_factors(dt_s: float, params: SkinParams) -> tuple[float, float, float]:
+    """(decay e^{−Δ/τ}, γ, c = 1 − g1 + g1 γ) for a time step of ``dt_s`` seconds."""
+    tau, g1 = params.prony_tau_s, params.prony_ratio
+    decay = np.exp(-dt_s / tau)
+    gamma = -np.expm1(-dt_s / tau) * tau / dt_s
+    return decay, gamma, 1.0 - g1 + g1 * gamma
+
+
 def l2_strain_history(profile: StepProfile, speed_mm_s: float, *, params: SkinParams,
                       dt_s: float | None = None, mesh: MeshSpec | None = None,
                       record: list | None = None):
@@ -65,47 +78,26 @@ def l2_strain_history(profile: StepProfile, speed_mm_s: float, *, params: SkinPa
     spec = MeshSpec() if mesh is None else mesh
     load = loading_history(params, speed_mm_s, dt_s)
     fem = finger_fem(params, spec)
-    state = _Prony(fem, params)
+    g1 = params.prony_ratio
+    n_c = len(fem.contact_dof)
+    q_c, u_c = np.zeros(n_c), np.zeros(n_c)      # filtered and current contact displacements
+    q_w = eps = 0.0                                # the same two at the corpuscle (w·q, w·u)
     active = None
     out = np.zeros(len(load.t_s))
     with single_thread_blas():
         for n in range(1, len(load.t_s)):
-            c, u_free = state.begin(load.t_s[n] - load.t_s[n - 1])
-            need = plate_need_mm(fem, profile, load.press_mm[n], load.travel_mm[n]) - u_free[fem.contact_dof]
+            decay, gamma, c = prony_factors(load.t_s[n] - load.t_s[n - 1], params)
+            free_c = -g1 * (decay * q_c - gamma * u_c) / c
+            free_w = -g1 * (decay * q_w - gamma * eps) / c
+            need = plate_need_mm(fem, profile, load.press_mm[n], load.travel_mm[n]) - free_c
             p, active = solve_contact(fem.compliance / c, need, active)
             check_patch_inside_strip(active, spec)
-            rhs = np.zeros(len(u_free))
-            rhs[fem.contact_dof] = p
-            u = u_free + fem.solve(rhs) / c
-            state.end(u)
-            out[n] = fem.corpuscle @ u
+            u_new = free_c + fem.compliance @ p / c
+            eps_new = free_w + fem.adjoint @ p / c
+            q_c = decay * q_c + gamma * (u_new - u_c)
+            q_w = decay * q_w + gamma * (eps_new - eps)
+            u_c, eps = u_new, eps_new
+            out[n] = eps
             if record is not None:
                 record.append(p)
     return load.t_s, out
-
-
-class _Prony:
-    """Internal variables of the first-order Prony series, one strain-like triple per triangle."""
-
-    def __init__(self, fem: FingerFEM, params: SkinParams):
-        n_tri = fem.mesh.triangles.shape[1]
-        self.fem, self.g1, self.tau = fem, params.prony_ratio, params.prony_tau_s
-        self.weighted_d = fem.elastic * fem.area_mm2[:, None, None]
-        self.s = np.zeros((n_tri, 3))
-        self.eps = np.zeros((n_tri, 3))
-        self.decay = self.gamma = 1.0
-
-    def begin(self, dt: float):
-        """Step factors for a step of ``dt`` s: (c, u_free) with c K0 u = f_hist + contact."""
-        self.decay = np.exp(-dt / self.tau)
-        self.gamma = -np.expm1(-dt / self.tau) * self.tau / dt
-        c = 1.0 - self.g1 + self.g1 * self.gamma
-        hist = self.g1 * (self.decay * self.s - self.gamma * self.eps)
-        f_hist = -(self.fem.strain.T @ np.einsum("eij,ej->ei", self.weighted_d, hist).ravel())
-        return c, self.fem.solve(f_hist) / c
-
-    def end(self, u: np.ndarray) -> None:
-        """Update the internal variables with the converged displacement u (ndarray[n_dof])."""
-        eps = (self.fem.strain @ u).reshape(self.s.shape)
-        self.s = self.decay * self.s + self.gamma * (eps - self.eps)
-        self.eps = eps

@@ -126,3 +126,12 @@ def test_contact_patch_wider_than_strip_is_an_error():
     narrow = dataclasses.replace(SMALL, contact_half_width_mm=1.0, band_half_width_mm=0.8)
     with pytest.raises(ArgumentError, match="edge of the candidate strip"):
         l2_strain_history(StepProfile(10.0), 20.0, params=P, mesh=narrow, dt_s=1.0)
+
+
+def test_condensed_l2_equals_full_field_with_per_triangle_internal_variables():
+    from tests.skin.reference_l2 import full_field_l2
+    prof = StepProfile(15.0, position_mm=3.0)
+    params = dataclasses.replace(P, slide_mm=4.0, hold_s=0.05)
+    t, fast = l2_strain_history(prof, 40.0, params=params, mesh=SMALL, dt_s=2e-3)
+    _, ref = full_field_l2(prof, 40.0, params=params, mesh=SMALL, dt_s=2e-3)
+    np.testing.assert_allclose(fast, ref, rtol=1e-8, atol=1e-12)
