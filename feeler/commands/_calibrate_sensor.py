@@ -7,7 +7,8 @@ simulate` for a sensor-calibration scene), or a calibration.csv with --c0.
 Default model: the commanded U is exact and the measured F is noisy, so F = K U + η
 with K = C⁻¹ is fitted and C = K⁻¹ reported (no attenuation). --eiv adds latent stage
 errors on U (NUTS); --model forward is the naive U = C F + ε regression (biased; for
-comparison only).
+comparison only). Defaults: 4 chains x 1000 draws (exact, NUTS: 1000 warm-up); emcee
+32 walkers x 8000 steps after 3000 warm-up.
 """
 from __future__ import annotations
 
@@ -38,13 +39,16 @@ def register(parser) -> None:
     parser.add_argument("--rel-sd", type=float, default=None, help="prior sd per entry / largest entry")
     parser.add_argument("--predict", type=float, nargs=3, action="append", default=[],
                         metavar=("FX", "FY", "FZ"), help="print the 90 %% predictive interval of U for this force, N")
-    add_fit_arguments(parser, draws=1000)
+    add_fit_arguments(parser, draws=None, tune=None)
     parser.set_defaults(run=run)
 
 
 def run(args) -> int:
+    import warnings
+
     import numpy as np
 
+    from feeler.calib.fit import DiagnosticWarning
     from feeler.calib.matrix import fit_matrix, predict_u, read_calibration_csv
 
     csv, scene = _locate(Path(args.dataset))
@@ -52,9 +56,14 @@ def run(args) -> int:
     prior, stage_sd, source = _prior(args, scene)
     rng = np.random.default_rng(args.seed)
     model = "eiv" if args.eiv else args.model
-    result = fit_matrix(data, prior, model=model, noise=args.noise, backend=args.backend, rng=rng,
-                        student_nu=args.nu, stage_sd_mm=stage_sd, chains=args.chains,
-                        draws=args.draws, tune=args.tune, progress=args.progress)
+    long_chain = args.backend == "emcee"          # emcee needs ≥ 50 autocorrelation times
+    draws = args.draws or (8000 if long_chain else 1000)
+    tune = args.tune if args.tune is not None else (3000 if long_chain else 1000)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DiagnosticWarning)     # the verdict is printed below
+        result = fit_matrix(data, prior, model=model, noise=args.noise, backend=args.backend,
+                            rng=rng, student_nu=args.nu, stage_sd_mm=stage_sd, chains=args.chains,
+                            draws=draws, tune=tune, progress=args.progress)
     print(f"M1 force→displacement matrix: {data.n} points from {csv}, model {model}, "
           f"noise {args.noise}, backend {args.backend}; nominal C0 from {source}")
     for f in args.predict:

@@ -4,15 +4,19 @@ from __future__ import annotations
 __all__ = ["add_fit_arguments", "finish_fit", "print_summary"]
 
 
-def add_fit_arguments(parser, *, draws: int = 1000) -> None:
-    """--out, --force, --seed, --chains, --draws, --tune, --progress/--no-progress."""
+def add_fit_arguments(parser, *, draws: int | None = 1000, tune: int | None = 1000) -> None:
+    """--out, --force, --seed, --chains, --draws, --tune, --progress/--no-progress.
+
+    ``draws``/``tune`` None: the command picks a default per backend."""
     parser.add_argument("--out", default=None, metavar="DIR",
                         help="write posterior.nc, summary.csv and verdict.json into DIR")
     parser.add_argument("--force", action="store_true", help="overwrite an earlier fit in DIR")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random generator (default 0)")
     parser.add_argument("--chains", type=int, default=4, help="chains (default 4)")
-    parser.add_argument("--draws", type=int, default=draws, help=f"kept draws per chain (default {draws})")
-    parser.add_argument("--tune", type=int, default=1000, help="warm-up steps per chain (default 1000)")
+    parser.add_argument("--draws", type=int, default=draws,
+                        help=f"kept draws per chain (default {draws or 'per backend'})")
+    parser.add_argument("--tune", type=int, default=tune,
+                        help=f"warm-up steps per chain (default {tune or 'per backend'})")
     parser.add_argument("--progress", action="store_true", default=None, help="always show progress bars")
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="never show progress bars")
 
