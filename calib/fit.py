@@ -25,7 +25,7 @@ from feeler.rundir import prepare_out_dir, write_json
 
 __all__ = ["FitResult", "Verdict", "DiagnosticWarning", "Thresholds", "make_result", "load",
            "require_ok", "diagnose", "summarize", "posterior_from_draws", "flat_draws",
-           "FIT_FILES"]
+           "FIT_FILES", "read_csv_columns"]
 
 FIT_FILES = ("posterior.nc", "summary.csv", "verdict.json")
 
@@ -117,16 +117,20 @@ def require_ok(result: FitResult, *, accept_failed: bool = False, what: str = "c
     return result
 
 
-def _read_summary(path: Path) -> pd.DataFrame:
+def read_csv_columns(path: str | Path, columns) -> pd.DataFrame:
+    """A CSV that must have ``columns``; unreadable or incomplete → one-line DataFileError."""
     try:
         table = pd.read_csv(path)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise DataFileError(path, f"not a readable CSV ({type(exc).__name__})") from None
-    missing = [c for c in SUMMARY_COLUMNS if c not in table.columns]
+    missing = [c for c in columns if c not in table.columns]
     if missing:
-        raise DataFileError(path, f"missing columns {', '.join(missing)}; "
-                                  f"expected {', '.join(SUMMARY_COLUMNS)}")
+        raise DataFileError(path, f"missing columns {', '.join(missing)}; needs {', '.join(columns)}")
     return table
+
+
+def _read_summary(path: Path) -> pd.DataFrame:
+    return read_csv_columns(path, SUMMARY_COLUMNS)
 
 
 def _read_verdict(path: Path) -> Verdict:

@@ -54,16 +54,12 @@ def read_calibration_csv(path: str | Path) -> CalibrationData:
     """
     import pandas as pd
 
+    from feeler.calib.fit import read_csv_columns
+
     path = Path(path)
     if not path.is_file():
         raise DataFileError(path, "no such calibration file")
-    try:
-        table = pd.read_csv(path)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise DataFileError(path, f"not a readable CSV ({type(exc).__name__})") from None
-    missing = [c for c in CSV_COLUMNS if c not in table.columns]
-    if missing:
-        raise DataFileError(path, f"missing columns {', '.join(missing)}; needs {', '.join(CSV_COLUMNS)}")
+    table = read_csv_columns(path, CSV_COLUMNS)
     values = {}
     for col in U_COLUMNS + F_COLUMNS:
         v = pd.to_numeric(table[col], errors="coerce").to_numpy(dtype=float)
