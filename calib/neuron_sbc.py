@@ -38,16 +38,17 @@ def simulate_neuron(rng: np.random.Generator, *, table: PeakTable, priors: Prior
 
 
 def fit_neuron_draws(labels, rng: np.random.Generator, *, table: PeakTable, priors: Priors,
-                     n_draws: int = 999) -> dict:
+                     n_draws: int = 999, tau_size: int = 160) -> dict:
     """Independent grid-posterior draws ``name -> ndarray[n_draws]``."""
-    draws = sample_grid(table, labels, priors, chains=1, draws=n_draws, rng=rng)
+    draws = sample_grid(table, labels, priors, chains=1, draws=n_draws, rng=rng, tau_size=tau_size)
     return {k: np.ravel(v) for k, v in draws.items()}
 
 
-def neuron_sbc_problem(scene_path=FOUR_PLATES, *, n_grid: int = 128):
-    """``(simulate, fit)`` for :func:`feeler.calib.sbc.run_sbc`, picklable."""
+def neuron_sbc_problem(scene_path=FOUR_PLATES, *, n_grid: int = 128, tau_size: int = 160):
+    """``(simulate, fit)`` for :func:`feeler.calib.sbc.run_sbc`, picklable (``tau_size``: grid
+    points on the τ axis of the fit; fewer is faster and slightly coarser)."""
     data = scene_scans(scene_path)[2]
     table = data.table(n_grid=n_grid)
     priors = fixed_priors(table)
     return (partial(simulate_neuron, table=table, priors=priors),
-            partial(fit_neuron_draws, table=table, priors=priors))
+            partial(fit_neuron_draws, table=table, priors=priors, tau_size=tau_size))

@@ -125,8 +125,9 @@ def test_grid_agrees_with_nuts(plates):
 def test_sbc_ranks_uniform_small():
     from feeler.calib.neuron_sbc import neuron_sbc_problem
     from feeler.calib.sbc import run_sbc
-    n = 200 if os.environ.get("FEELER_FULL") == "1" else 24
-    res = run_sbc(*neuron_sbc_problem(n_grid=64), n_datasets=n, seed=3, n_draws=49, scheduler="serial")
+    full = os.environ.get("FEELER_FULL") == "1"
+    problem = neuron_sbc_problem(n_grid=128 if full else 64, tau_size=160 if full else 48)
+    res = run_sbc(*problem, n_datasets=200 if full else 24, seed=3, n_draws=49, scheduler="serial")
     print("\n", res.table().to_string(index=False))
     assert res.failed() == []
 

@@ -1,0 +1,73 @@
+"""M2 speed/accuracy ladder on four-plates (issue 3 §7): every backend on the same scans.
+
+Per backend: wall time, min bulk ESS per second, and the error of posterior means and sds
+against a long NUTS reference (also against the grid, since NUTS itself may fail its
+diagnostics on this posterior — its verdict is printed). Goals of the default (grid)
+backend: R-hat ≤ 1.01, bulk ESS ≥ 400 within 5 s, ≥ 3× the ESS/s of emcee in the same run
+(recorded as a ratio).
+"""
+import warnings
+
+import numpy as np
+import pytest
+
+from _ratios import record_ratio
+from feeler.calib.neuron import fit_neuron
+from feeler.calib.neuron.synth import scene_scans
+
+NAMES = ("a", "tau_s", "h", "sigma_mm")
+RESULTS = {}
+
+
+def _fit(data, backend, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fit_neuron(data, backend=backend, seed=1, **kw)
+
+
+@pytest.fixture(scope="module")
+def data():
+    d = scene_scans()[2]
+    _fit(d, "grid", draws=100)                         # warm the neuron core's compile cache
+    return d
+
+
+@pytest.fixture(scope="module")
+def reference(data):
+    res = _fit(data, "nuts", draws=4000, tune=2000)
+    print(f"\nNUTS reference (4 x 4000): verdict ok={res.verdict.ok} {res.verdict.problems}")
+    return res.summary.set_index("name")
+
+
+def _row(res):
+    s = res.summary.set_index("name")
+    return {"seconds": res.seconds, "min_ess_per_s": float(s.loc[list(NAMES), "ess_bulk"].min() / res.seconds),
+            "max_r_hat": float(s.loc[list(NAMES), "r_hat"].max()), "summary": s, "ok": res.verdict.ok}
+
+
+def _errors(s, ref):
+    return {k: ((s.loc[k, "mean"] - ref.loc[k, "mean"]) / ref.loc[k, "sd"], s.loc[k, "sd"] / ref.loc[k, "sd"] - 1)
+            for k in NAMES}
+
+
+@pytest.mark.parametrize("backend, kw", [("grid", {}), ("nuts", {"draws": 1000, "tune": 1000}),
+                                         ("emcee", {"emcee_steps": 8000})])
+def test_m2_backend(benchmark, data, reference, backend, kw):
+    res = benchmark.pedantic(lambda: _fit(data, backend, **kw), rounds=1, iterations=1)
+    row = _row(res)
+    RESULTS[backend] = row
+    errs = _errors(row["summary"], reference)
+    benchmark.extra_info.update({"seconds": row["seconds"], "min_ess_per_s": row["min_ess_per_s"],
+                                 "max_r_hat": row["max_r_hat"], "verdict_ok": row["ok"]})
+    print(f"\n{backend}: {row['seconds']:.2f} s, min ESS/s {row['min_ess_per_s']:.1f}, max R-hat "
+          f"{row['max_r_hat']:.4f}, ok={row['ok']}; (mean error / ref sd, sd ratio - 1) vs NUTS ref: "
+          + ", ".join(f"{k} ({m:+.3f}, {s:+.3f})" for k, (m, s) in errs.items()))
+    if backend == "grid":
+        assert row["ok"] and row["max_r_hat"] <= 1.01
+        assert row["summary"].loc[list(NAMES), "ess_bulk"].min() >= 400
+    if backend == "emcee" and "grid" in RESULTS:
+        ratio = RESULTS["grid"]["min_ess_per_s"] / row["min_ess_per_s"]
+        record_ratio(benchmark, "grid ESS/s over emcee ESS/s", ratio, ">= 3")
+        g = RESULTS["grid"]["summary"]
+        print("grid vs emcee (mean diff / sd): " + ", ".join(
+            f"{k} {(g.loc[k, 'mean'] - row['summary'].loc[k, 'mean']) / g.loc[k, 'sd']:+.3f}" for k in NAMES))
