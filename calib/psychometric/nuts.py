@@ -62,7 +62,7 @@ def _build(cells: Cells, priors: Priors, *, hierarchical: bool, overdispersion: 
 
 def nuts_fit(cells: Cells, priors: Priors, *, hierarchical: bool, overdispersion: bool,
              rng: np.random.Generator, chains: int, draws: int, tune: int,
-             target_accept: float = 0.9, progressbar: bool = False) -> tuple[dict, dict]:
+             target_accept: float = 0.99, progressbar: bool = False) -> tuple[dict, dict]:
     """Sample M4 with NUTS.
 
     Returns:

@@ -33,6 +33,8 @@ def register(parser) -> None:
     psy.add_argument("--separate", action="store_true",
                      help="NUTS without pooling: independent priors per subject ('all' = every trial as one observer)")
     psy.add_argument("--overdispersion", action="store_true", help="beta-binomial counts")
+    psy.add_argument("--target-accept", type=float, default=0.99,
+                     help="NUTS target acceptance rate (default 0.99)")
     add_fit_arguments(psy)
     psy.set_defaults(run=run_psychophysics)
 
@@ -69,7 +71,7 @@ def run_psychophysics(args) -> int:
     result = fit_psychometric(trials, rng=np.random.default_rng(args.seed), backend=args.backend,
                               hierarchical=not args.separate, overdispersion=args.overdispersion,
                               chains=args.chains, draws=args.draws, tune=args.tune,
-                              progressbar=bool(args.progress))
+                              target_accept=args.target_accept, progressbar=bool(args.progress))
     print_summary(result)
     table = threshold_table(result, observed=trials)
     print("thresholds (µm; posterior mean and 95 % interval; DT = PSE → 75 % point):")

@@ -97,7 +97,8 @@ def test_outputs_and_round_trip(tmp_path, simulate):
 
 @pytest.mark.parametrize("kwargs, name", [(dict(backend="emcee"), "backend"),
                                           (dict(chains=0), "chains"), (dict(draws=2.5), "draws"),
-                                          (dict(tune=-1), "tune")])
+                                          (dict(tune=-1), "tune"),
+                                          (dict(target_accept=1.0), "target_accept")])
 def test_bad_arguments(simulate, kwargs, name):
     trials, _ = simulate(0, n_subjects=1)
     with pytest.raises(ArgumentError, match=name):
