@@ -1,0 +1,56 @@
+"""Run an acquisition campaign (a scan plan) on the stage and the tactile camera.
+
+  feeler acquire --stage /dev/ttyUSB0 --camera 0 --plan PLAN.toml --out RUN
+  feeler acquire --emulate --plan PLAN.toml --out RUN       # emulated stage + virtual camera
+  feeler acquire --emulate --plan PLAN.toml --out RUN --resume   # continue an interrupted run
+
+--camera is a device index, a video file or an image sequence (frames/%05d.png). With
+--emulate a Grbl emulator runs on a pty in a child process and, without --camera, a virtual
+camera renders the optical sensor for the stage's position over the plan's plate
+(recording RUN/video/scan_NNNN.avi, lossless FFV1, replayable with --camera).
+
+RUN/samples.csv receives every sample as it arrives (flushed and fsync-ed), RUN/scans.csv
+every complete scan in the format of `feeler simulate` (scan_id, plate, step_mm, speed_mm_s,
+t_s, x_mm, ux_mm, uy_mm, uz_mm, then stage position, frame time, areas and forces), and
+RUN/scene.toml is the plan: `feeler calibrate neuron RUN` reads the run directly. After a
+crash, --resume continues with the scans not yet done. Bad frames and bad status lines are
+logged, counted and never used; RUN/summary.json reports the counts. Displacement is read
+as U = C F with C the posterior mean of an M1 fit (--calibration DIR) or the nominal optics.
+"""
+from __future__ import annotations
+
+NAME = "acquire"
+HELP = "run a scan plan on the stage and camera (or --emulate) into a run directory"
+__all__ = ["NAME", "HELP", "register", "run"]
+
+
+def register(parser) -> None:
+    parser.add_argument("--plan", required=True, metavar="PLAN", help="scan-plan TOML file")
+    parser.add_argument("--out", required=True, metavar="RUN", help="run directory")
+    parser.add_argument("--stage", metavar="PORT", default=None,
+                        help="serial port of the Grbl stage (device path or pyserial URL)")
+    parser.add_argument("--camera", metavar="SRC", default=None,
+                        help="camera index, video file or image-sequence pattern")
+    parser.add_argument("--emulate", action="store_true",
+                        help="emulated stage on a pty (and a virtual camera unless --camera)")
+    parser.add_argument("--resume", action="store_true", help="continue an interrupted run in RUN")
+    parser.add_argument("--calibration", metavar="DIR", default=None,
+                        help="M1 fit directory (feeler calibrate sensor --out DIR): read U with its C")
+    parser.add_argument("--force", action="store_true", help="overwrite an earlier run in RUN")
+    parser.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from feeler.errors import ArgumentError
+    from feeler.hardware.acquire import acquire
+
+    if args.emulate and args.stage is not None:
+        raise ArgumentError("--stage", args.stage, "no port with --emulate (the emulator provides one)")
+    summary = acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,
+                      emulate=args.emulate, resume=args.resume, force=args.force,
+                      calibration=args.calibration)
+    state = "complete" if summary["complete"] else "incomplete"
+    print(f"{args.out}: {summary['scans_done']} of {summary['scans_planned']} scans ({state}), "
+          f"{summary['samples_written']} samples, {summary['bad_frames']} bad frames, "
+          f"{summary['bad_lines']} bad lines, {summary['partial_lines_dropped']} partial lines dropped")
+    return 0 if summary["complete"] else 1

@@ -1,0 +1,109 @@
+"""Scene kind ``scan-plan``: an acquisition campaign for ``feeler acquire`` (DESIGN §5).
+
+The stage carries the sensing element over ``plates`` laid along its scan axis (x). For
+each plate, ``repeats.scans_per_plate`` times: lift to ``surface_z_mm + clearance_mm``,
+go to the plate's start ``origin_x_mm`` (stage x of plate coordinate 0), lower onto the
+surface, press ``press_mm`` into it, traverse ``traverse_mm`` at ``speed_mm_s`` while a
+sample (stage position + camera frame) is taken every ``sample_period_s``, lift again.
+
+``[neuron]`` carries what ``feeler calibrate neuron`` reads from a run directory's
+``scene.toml`` (this plan is copied there); ``[optics]`` how frames are read;
+``[virtual]`` the plate and tip that the virtual camera of ``feeler acquire --emulate``
+renders (ignored with a real camera). Soft limits are checked against the stage's own
+limits when the campaign connects (:func:`feeler.hardware.acquire.plan.check_moves`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from feeler.errors import SceneError
+from feeler.scene import param
+
+__all__ = ["Scene", "Head", "Plates", "ScanMotion", "Repeats", "Neuron", "Optics", "Virtual"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Head:
+    kind: str = param(choices=("scan-plan",), doc="scene kind")
+    name: str = param(doc="short name of the campaign")
+    description: str = param("", doc="free text")
+    seed: int = param(0, lo=0, doc="seed of the virtual camera's shot noise (--emulate)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Plates:
+    heights_mm: tuple[float, ...] = param(lo=-5.0, hi=5.0, min_len=1,
+                                          doc="mm, step height of each plate (its label)")
+    origin_x_mm: tuple[float, ...] = param(lo=-10000.0, hi=10000.0, min_len=1,
+                                           doc="mm, stage x of each plate's scan start")
+    surface_z_mm: float = param(lo=-10000.0, hi=10000.0, doc="mm, stage z where the tip touches the plates")
+    y_mm: float = param(lo=-10000.0, hi=10000.0, doc="mm, stage y of the scan line")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScanMotion:
+    speed_mm_s: float = param(lo=0.0, lo_open=True, hi=1000.0, doc="mm/s, traverse speed")
+    traverse_mm: float = param(lo=0.0, lo_open=True, hi=1000.0, doc="mm, stroke of one scan")
+    sample_period_s: float = param(lo=0.01, hi=60.0, doc="s, interval between samples")
+    press_mm: float = param(lo=0.0, lo_open=True, hi=5.0, doc="mm, press depth into the plate")
+    clearance_mm: float = param(2.0, lo=0.0, lo_open=True, hi=100.0, doc="mm, lift above the surface between scans")
+    move_feed_mm_min: float = param(lo=0.0, lo_open=True, hi=1e5, doc="mm/min, feed of moves between scans")
+    press_feed_mm_min: float = param(lo=0.0, lo_open=True, hi=1e5, doc="mm/min, feed of lowering and pressing")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Repeats:
+    scans_per_plate: int = param(lo=1, hi=100000, doc="touches (scans) per plate")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Neuron:
+    length_mm: float = param(lo=0.0, lo_open=True, hi=1000.0,
+                             doc="mm, representative length: strain = U_y / length")
+    kernel: str = param("boxcar", choices=("boxcar", "exponential"), doc="temporal window shape")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Optics:
+    layout: str = param("", doc="layout TOML of the camera, relative to the plan; empty: a 4x4 grid, 640x480 px")
+    element: int = param(0, lo=0, hi=10000, doc="index of the scanning element in the layout")
+    blur_sd_px: float = param(1.2, lo=0.0, hi=10.0, doc="px, blur of the optics (extraction reach)")
+    # 300 px² rather than the optics' nominal 150: at blur 1.2 px the extractor needs a disc
+    # above ~170 px² somewhere in the frame to measure the peak level (measured).
+    rest_area_px2: float = param(300.0, lo=0.0, lo_open=True, hi=1e4,
+                                 doc="px², contact area of each conical feeler at zero force")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Virtual:
+    step_position_mm: float = param(lo=-1000.0, hi=1000.0, doc="mm, step edge in plate coordinates")
+    pad_width_mm: float = param(1.5, lo=0.0, hi=50.0, doc="mm, width of the tip's flat face")
+    shear_per_normal: float = param(0.0, lo=0.0, hi=5.0, doc="U_x / U_y from friction, dimensionless")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scene:
+    scene: Head
+    plates: Plates
+    scan: ScanMotion
+    repeats: Repeats
+    neuron: Neuron
+    optics: Optics = field(default_factory=Optics)
+    virtual: Virtual | None = None
+
+    @property
+    def n_scans(self) -> int:
+        return len(self.plates.heights_mm) * self.repeats.scans_per_plate
+
+    def check(self, path) -> None:
+        """One origin per plate; at least two samples per scan; τ-free checks only."""
+        p, s = self.plates, self.scan
+        if len(p.origin_x_mm) != len(p.heights_mm):
+            raise SceneError(path, "plates.origin_x_mm",
+                             f"{len(p.origin_x_mm)} origins for {len(p.heights_mm)} plates: one per plate")
+        if s.traverse_mm < s.speed_mm_s * s.sample_period_s:
+            raise SceneError(path, "scan.traverse_mm",
+                             f"{s.traverse_mm}: shorter than one sample step "
+                             f"(speed_mm_s*sample_period_s = {s.speed_mm_s * s.sample_period_s:g} mm)")
+        if s.traverse_mm / (s.speed_mm_s * s.sample_period_s) > 1e5:
+            raise SceneError(path, "scan.sample_period_s", f"{s.sample_period_s}: more than 1e5 samples per scan")

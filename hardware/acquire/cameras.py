@@ -1,0 +1,130 @@
+"""Cameras of a campaign: a real source through ``cv2.VideoCapture``, or the virtual camera.
+
+Both offer ``start_scan(scan_id)``, ``grab(stage_mm) -> Grab`` and ``close()``. A grab
+is a frame (grey uint8, the layout's size) or a reason why there is none; a bad frame is
+returned with its reason (the campaign counts and logs it and grabs again), never used.
+
+:class:`CaptureCamera` reads a device index, a video file or an image sequence (one frame
+per grab); a file that runs out of frames is an error naming it (:class:`DataFileError`).
+:class:`VirtualCamera` renders the optical sensor for the stage's position over the plan's
+plate (:mod:`.world`) and records every frame it delivers into a lossless FFV1 video per
+scan, ``video/scan_NNNN.avi``, which replays through :class:`CaptureCamera`.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from feeler.errors import DataFileError
+
+__all__ = ["Grab", "CaptureCamera", "VirtualCamera", "video_path"]
+
+log = logging.getLogger("feeler.acquire")
+
+
+@dataclass(frozen=True)
+class Grab:
+    """One frame: ``t_s`` (monotonic clock, s), ``frame`` (uint8[h, w] or None), ``problem``."""
+
+    t_s: float
+    frame: np.ndarray | None
+    problem: str | None = None
+
+
+def video_path(run_dir: Path, scan_id: int) -> Path:
+    """Where the virtual camera records scan ``scan_id``."""
+    return Path(run_dir) / "video" / f"scan_{scan_id:04d}.avi"
+
+
+class CaptureCamera:
+    """A device index, video file or ``%05d.png`` sequence, read one frame per grab.
+
+    Raises (on open): DataFileError naming the source (no device, no file, undecodable).
+    """
+
+    def __init__(self, src: str, size: tuple[int, int]):
+        from feeler.hardware.camera import open_source
+
+        self.src, self.size = src, tuple(size)
+        self.name = f"camera {src}" if str(src).isdigit() else str(src)
+        self.is_device = str(src).isdigit()
+        self._cap = open_source(int(src) if self.is_device else src)
+        self._previous, self.n_read = None, 0
+
+    def start_scan(self, scan_id: int) -> None:
+        pass
+
+    def end_scan(self) -> None:
+        pass
+
+    def grab(self, stage_mm) -> Grab:
+        import cv2
+
+        from feeler.hardware.camera.source import _frozen_tile
+
+        ok, frame = self._cap.read()
+        now = time.monotonic()
+        if not ok:
+            if self.is_device:
+                return Grab(now, None, "the camera delivered no frame")
+            raise DataFileError(self.name, f"no frame after {self.n_read} frames: the video ended "
+                                "(truncated or corrupt) before the plan did")
+        self.n_read += 1
+        gray = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        shape = (gray.shape[1], gray.shape[0])
+        if shape != self.size:
+            return Grab(now, None, f"size {shape[0]}×{shape[1]} px instead of {self.size[0]}×{self.size[1]}")
+        frozen, self._previous = _frozen_tile(gray, self._previous), gray
+        if frozen is not None:
+            return Grab(now, None, f"tile at column {frozen[0]}, row {frozen[1]} identical to the previous "
+                        "frame (decoder concealment or a stuck camera)")
+        return Grab(now, gray)
+
+    def close(self) -> None:
+        self._cap.release()
+
+
+class VirtualCamera:
+    """Renders the scanning element for the stage position; records each scan's video.
+
+    Args:
+        world (VirtualWorld): plate, tip and optics of the emulated set-up.
+        run_dir (Path): the run directory (videos go to ``video/``).
+        seed (int): root of the shot noise; scan ``i`` draws from ``SeedSequence([seed, i])``.
+    """
+
+    def __init__(self, world, run_dir: Path, seed: int):
+        self.world, self.run_dir, self.seed = world, Path(run_dir), seed
+        self.name = "virtual camera"
+        self._writer, self._rng, self._scan = None, None, None
+
+    def start_scan(self, scan_id: int) -> None:
+        import cv2
+
+        self.end_scan()
+        path = video_path(self.run_dir, scan_id)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        layout = self.world.layout
+        self._writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"FFV1"), 10.0,
+                                       (layout.width_px, layout.height_px), isColor=False)
+        if not self._writer.isOpened():
+            raise DataFileError(path, "cannot open a video writer (FFV1)")
+        self._rng = np.random.default_rng(np.random.SeedSequence([self.seed, scan_id]))
+        self._scan = scan_id
+
+    def grab(self, stage_mm) -> Grab:
+        frame = self.world.render(self._scan, stage_mm, self._rng)
+        self._writer.write(frame)
+        return Grab(time.monotonic(), frame)
+
+    def end_scan(self) -> None:
+        """Finish the scan's video file."""
+        if self._writer is not None:
+            self._writer.release()
+            self._writer = None
+
+    close = end_scan

@@ -1,0 +1,141 @@
+"""The campaign runner: drive the stage and the camera together through a scan plan.
+
+Per scan (:mod:`.plan` lists the moves): lift, go to the plate's start, lower, press, then
+start the traverse and take a sample at every scheduled time ``t_k = k · sample_period_s``
+after it began. A sample is the stage's status report (position) and a camera frame; the
+frame's contact areas of the scanning element (:class:`feeler.hardware.camera.AreaExtractor`)
+give the force by the area law and the displacement U = C F. Each sample is appended to
+``samples.csv`` durably before the next is taken; the complete scan then goes to
+``scans.csv`` and the journal (:mod:`.store`).
+
+A bad frame (undecodable, wrong size, frozen tile, or rejected by the extractor) or a
+bad status line is journalled, logged and counted; the sample is taken again from the
+next frame or query (up to :data:`MAX_TRIES` times, then the campaign stops with an
+error naming the camera or port). ``t_s`` is the scheduled time, the same for every scan
+(so the scans share one time base as the calibrations need); ``t_frame_s`` is when the
+frame actually arrived.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from feeler.errors import DataFileError
+from feeler.hardware.stage import ProtocolError, StageTimeout
+from feeler.models.optics import Layout, OpticsParams, displacement_from_force, force_from_areas
+
+from .plan import ScanSpec, moves_of, sample_times_s, scans_of
+from .store import RunStore
+
+__all__ = ["MAX_TRIES", "Setup", "run_campaign", "run_scan"]
+
+log = logging.getLogger("feeler.acquire")
+MAX_TRIES = 5
+
+
+@dataclass(frozen=True)
+class Setup:
+    """What a campaign needs besides the devices.
+
+    Attributes:
+        plan: the loaded ``scan-plan`` scene.
+        layout (Layout): the camera's view.
+        c_mm_per_n (ndarray[3, 3]): C used to read U = C F (mm/N).
+        optics (OpticsParams): the area law (rest area, gains).
+    """
+
+    plan: object
+    layout: Layout
+    c_mm_per_n: np.ndarray
+    optics: OpticsParams = OpticsParams()
+
+
+def run_campaign(setup: Setup, stage, camera, store: RunStore, extra: dict) -> dict:
+    """Run every scan not yet done; returns the final summary (also in ``summary.json``)."""
+    from feeler.hardware.camera import AreaExtractor
+
+    extract = AreaExtractor(setup.layout, blur_sd_px=setup.plan.optics.blur_sd_px)
+    scans = scans_of(setup.plan)
+    extra = {**extra, "scans_planned": len(scans)}
+    for scan in scans:
+        if scan.scan_id in store.done:
+            continue
+        rows = run_scan(setup, stage, camera, extract, store, scan)
+        store.finish_scan(scan.scan_id, rows)
+        store.write_summary({**extra, "complete": False})
+    return store.write_summary({**extra, "complete": len(store.done) == len(scans)})
+
+
+def run_scan(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpec) -> list[dict]:
+    """One scan (one touch); returns its rows, each already in ``samples.csv``."""
+    attempt = store.start_scan(scan.scan_id)
+    moves = moves_of(setup.plan, scan)
+    for move in moves[:4]:
+        _move(stage, move)
+    camera.start_scan(scan.scan_id)
+    rows = []
+    try:
+        _move(stage, moves[4], wait=False)
+        t0 = time.monotonic()
+        for k, t_k in enumerate(sample_times_s(setup.plan)):
+            time.sleep(max(0.0, t0 + t_k - time.monotonic()))
+            row = _sample(setup, stage, camera, extract, store, scan, k)
+            row.update(t_s=float(t_k), t_frame_s=row["t_frame_s"] - t0, attempt=attempt)
+            store.append_sample(row)
+            rows.append(row)
+        stage.wait_idle()
+    finally:
+        camera.end_scan()
+    _move(stage, moves[5])
+    return rows
+
+
+def _move(stage, move, wait: bool = True) -> None:
+    _, target, feed, axes = move
+    stage.move_to(**{f"{a}_mm": v for a, v in zip("xyz", target) if a in axes}, feed_mm_min=feed)
+    if wait:
+        stage.wait_idle()
+
+
+def _sample(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpec, k: int) -> dict:
+    problem = "no attempt"
+    for _ in range(MAX_TRIES):
+        pos = _status(stage, store, scan.scan_id, k).mpos_mm
+        grab = camera.grab(pos)
+        problem = grab.problem
+        if problem is None:
+            areas, problem = extract(grab.frame)
+        if problem is None:
+            break
+        log.warning("%s: scan %d sample %d: bad frame: %s", camera.name, scan.scan_id, k, problem)
+        store.event("bad_frame", scan_id=scan.scan_id, sample=k, reason=problem)
+    else:
+        raise DataFileError(camera.name, f"{MAX_TRIES} bad frames in a row at scan {scan.scan_id} "
+                            f"sample {k}; last: {problem}")
+    a = areas[setup.plan.optics.element]
+    f = force_from_areas(a, setup.optics)
+    u = displacement_from_force(f, setup.c_mm_per_n)
+    plan = setup.plan
+    return {"scan_id": scan.scan_id, "plate": scan.plate, "step_mm": scan.step_mm,
+            "speed_mm_s": float(plan.scan.speed_mm_s), "x_mm": float(pos[0] - scan.origin_x_mm),
+            "ux_mm": float(u[0]), "uy_mm": float(u[1]), "uz_mm": float(u[2]), "repeat": scan.repeat,
+            "t_frame_s": grab.t_s, "stage_x_mm": float(pos[0]), "stage_y_mm": float(pos[1]),
+            "stage_z_mm": float(pos[2]), **{f"area{i}_px2": float(v) for i, v in enumerate(a)},
+            "fx_n": float(f[0]), "fy_n": float(f[1]), "fz_n": float(f[2])}
+
+
+def _status(stage, store: RunStore, scan_id: int, k: int):
+    """The stage's status; a lost or damaged report is journalled as a bad line and retried."""
+    for tries in range(1, MAX_TRIES + 1):
+        try:
+            return stage.status()
+        except (ProtocolError, StageTimeout) as exc:
+            if (isinstance(exc, ProtocolError) and exc.code is not None) or tries == MAX_TRIES:
+                raise
+            log.warning("%s: scan %d sample %d: bad status line: %s", stage.port, scan_id, k, exc)
+            store.event("bad_line", scan_id=scan_id, sample=k, reason=str(exc))
+            stage.protocol.resync()
+    raise AssertionError("unreachable")

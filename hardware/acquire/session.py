@@ -1,0 +1,97 @@
+"""One ``feeler acquire`` session: open everything in a safe order, then run the campaign.
+
+Order: the plan and its layout, the C matrix, the camera, the stage (or the emulator),
+the plan's moves against the stage's soft limits — every one of them can refuse with a
+one-line error before the run directory is touched — then the run directory (new, or
+reopened with ``resume``), and the campaign.
+"""
+from __future__ import annotations
+
+import contextlib
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from feeler.errors import ArgumentError
+from feeler.models.optics import OpticsParams
+from feeler.rundir import write_json
+from feeler.scene import load_scene, scene_as_dict
+
+from .campaign import Setup, run_campaign
+from .plan import check_moves
+from .store import RunStore
+from .world import VirtualWorld, optics_of_plan, plan_layout
+
+__all__ = ["load_plan", "c_from_calibration", "acquire"]
+
+
+def load_plan(path: str | Path):
+    """Load a ``scan-plan`` scene (``ArgumentError`` for another kind)."""
+    plan = load_scene(path)
+    if plan.scene.kind != "scan-plan":
+        raise ArgumentError("--plan", str(path), f"a scan-plan scene, not {plan.scene.kind!r}")
+    return plan
+
+
+def c_from_calibration(directory: str | Path | None) -> tuple[np.ndarray, str]:
+    """C (3, 3) mm/N: the posterior mean of an M1 fit directory, or the optics' nominal C.
+
+    Raises:
+        DataFileError: an unreadable fit directory. CalibrationFailed: a failed fit.
+        ArgumentError: a fit without a C matrix (another model's posterior).
+    """
+    if directory is None:
+        return OpticsParams().c_matrix, "nominal optics"
+    from feeler.calib.fit import load, require_ok
+
+    result = require_ok(load(directory), what=f"M1 fit {directory}")
+    post = result.posterior["posterior"]
+    if "C" not in post:
+        raise ArgumentError("--calibration", str(directory), "an M1 fit directory (posterior with C)")
+    c = np.asarray(post["C"].mean(("chain", "draw")).values, dtype=float)
+    return c, f"posterior mean of {directory}"
+
+
+def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = None,
+            camera_src: str | None = None, emulate: bool = False, resume: bool = False,
+            force: bool = False, calibration: str | Path | None = None) -> dict:
+    """Run (or resume) a campaign into ``out``; returns the summary.
+
+    With ``emulate`` the stage is a Grbl emulator on a pty in a child process and, unless
+    ``camera_src`` is given, the camera is the virtual camera of the plan's ``[virtual]``
+    set-up. Otherwise ``stage_port`` and ``camera_src`` are required.
+    """
+    from feeler.hardware.stage import Stage
+
+    from .cameras import CaptureCamera, VirtualCamera
+
+    if resume and force:
+        raise ArgumentError("--force", True, "not together with --resume (resume never overwrites)")
+    if not emulate and (stage_port is None or camera_src is None):
+        raise ArgumentError("--stage/--camera", (stage_port, camera_src), "both, or --emulate")
+    plan = load_plan(plan_path)
+    c_mm_per_n, c_source = c_from_calibration(calibration)
+    setup = Setup(plan, plan_layout(plan, plan_path), c_mm_per_n, optics_of_plan(plan))
+    world = VirtualWorld.of_plan(plan, plan_path) if emulate and camera_src is None else None
+    with contextlib.ExitStack() as stack:
+        camera = None
+        if camera_src is not None:
+            camera = CaptureCamera(camera_src, (setup.layout.width_px, setup.layout.height_px))
+            stack.callback(camera.close)
+        if emulate:
+            from .emulated import campaign_emulator
+            stage_port = stack.enter_context(campaign_emulator())
+        stage = stack.enter_context(Stage.open(stage_port))
+        check_moves(plan, plan_path, stage.limits, stage.port)
+        store = RunStore.resume(out, plan_path) if resume else RunStore.create(out, plan_path, force=force)
+        if world is not None:
+            camera = VirtualCamera(world, store.out, plan.scene.seed)
+            stack.callback(camera.close)
+            if not resume:
+                write_json(store.out / "truth.json", {"synthetic": True, "scene": scene_as_dict(plan),
+                                                      "optics": asdict(world.optics),
+                                                      "camera": asdict(world.camera)})
+        extra = {"plan": str(plan_path), "stage": "emulator" if emulate else stage_port,
+                 "camera": camera.name, "c_mm_per_n": setup.c_mm_per_n.tolist(), "c_source": c_source}
+        return run_campaign(setup, stage, camera, store, extra)
