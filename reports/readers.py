@@ -1,0 +1,77 @@
+"""Readers of run files for the report: anything unreadable is a one-line DataFileError.
+
+A missing file is not an error here (the report lists it as missing); a file that exists
+but cannot be read — a corrupt NetCDF, a CSV with garbage or without its columns, a JSON
+that does not parse — stops the report with :class:`~feeler.errors.DataFileError`
+naming the file.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from feeler.errors import DataFileError
+
+__all__ = ["read_json", "read_table", "load_fit", "scene_text"]
+
+
+def read_json(path: str | Path, keys: tuple[str, ...] = ()) -> dict:
+    """A JSON object with at least ``keys``."""
+    path = Path(path)
+    try:
+        obj = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataFileError(path, f"not a readable JSON file ({type(exc).__name__})") from None
+    if not isinstance(obj, dict):
+        raise DataFileError(path, f"expected a JSON object, found {type(obj).__name__}")
+    missing = [k for k in keys if k not in obj]
+    if missing:
+        raise DataFileError(path, f"missing key(s) {', '.join(missing)}")
+    return obj
+
+
+def read_table(path: str | Path, columns: tuple[str, ...] = (), numeric: tuple[str, ...] = ()):
+    """A CSV (``#`` lines are comments, kept in ``attrs["comments"]``) with ``columns``,
+    of which ``numeric`` must hold finite numbers.
+
+    Returns:
+        pandas.DataFrame
+    """
+    import numpy as np
+    import pandas as pd
+
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+        frame = pd.read_csv(path, comment="#")
+    except (OSError, UnicodeDecodeError, ValueError, pd.errors.ParserError) as exc:
+        raise DataFileError(path, f"not a readable CSV ({type(exc).__name__})") from None
+    missing = [c for c in columns if c not in frame.columns]
+    if missing:
+        raise DataFileError(path, f"missing column(s) {', '.join(missing)}; needs {', '.join(columns)}")
+    if columns and frame.empty:
+        raise DataFileError(path, "no data rows")
+    for col in numeric:
+        values = pd.to_numeric(frame[col], errors="coerce").to_numpy(dtype=float)
+        if not np.all(np.isfinite(values)):
+            row = int(np.flatnonzero(~np.isfinite(values))[0]) + 1
+            raise DataFileError(path, f"column {col}: missing or non-numeric value at data row {row}")
+        frame[col] = values
+    frame.attrs["comments"] = [ln.lstrip()[1:].strip() for ln in text.splitlines() if ln.lstrip().startswith("#")]
+    return frame
+
+
+def load_fit(directory: str | Path):
+    """A :class:`feeler.calib.fit.FitResult` (corrupt posterior.nc etc. → DataFileError)."""
+    from feeler.calib.fit import load
+
+    return load(directory)
+
+
+def scene_text(path: str | Path) -> str:
+    """A scene file's text, for the appendix."""
+    path = Path(path)
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataFileError(path, f"not a readable text file ({type(exc).__name__})") from None
