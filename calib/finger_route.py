@@ -146,7 +146,8 @@ def fit_finger_route(trials: pd.DataFrame, *, rng: np.random.Generator, grid: Ro
     out = {k: v.reshape(chains, draws) for k, v in out.items()}
     attrs = {"model": "M4 finger route", "skin_level": level, "grid": json.dumps(asdict(grid)),
              "tau_grid_s": json.dumps(taus.tolist()),
-             "tau_marginal": json.dumps(prob.sum(axis=(1, 2)).tolist())}
+             "tau_marginal": json.dumps(prob.sum(axis=(1, 2)).tolist()),
+             "data_comments": "\n".join(trials.attrs.get("comments", []))}
     tree = posterior_from_draws(out, attrs=attrs)
     priors = {"tau_s": f"log-uniform on [{grid.tau_min_s}, {grid.tau_max_s}] s ({grid.n_tau} nodes)",
               "sigma_d_um": f"log-uniform on [{grid.sigma_d_min_um}, {grid.sigma_d_max_um}] µm",

@@ -50,7 +50,8 @@ def fit_psychometric(trials: pd.DataFrame, *, rng: np.random.Generator, backend:
     """Fit M4 to a validated trial table (:func:`feeler.psydata.read_trials`).
 
     Args:
-        trials: the 2AFC table; zero-trial rows contribute nothing.
+        trials: the 2AFC table; zero-trial rows contribute nothing. Its
+            ``attrs["comments"]`` (e.g. "synthetic ...") go into the posterior's attrs.
         rng: the seeded generator (NUTS seed or Laplace draws come from it).
         backend (str): "nuts" or "laplace" (laplace ignores ``hierarchical``).
         chains, draws, tune (int): draws per chain (Laplace: independent draws).
@@ -79,7 +80,7 @@ def fit_psychometric(trials: pd.DataFrame, *, rng: np.random.Generator, backend:
         stats, label, hierarchical = {}, "laplace (per subject)", False
     out["dt"] = dt_from_sigma(out["sigma"], out["lapse"][..., None])
     out["dt_all"] = dt_from_sigma(out["sigma_all"], out["lapse_all"][..., None])
-    tree = _tree(out, stats, cells, label)
+    tree = _tree(out, stats, cells, label, trials.attrs.get("comments", []))
     described = priors.described(hierarchical=hierarchical, overdispersion=overdispersion)
     result = make_result(tree, backend=label, priors=described, seconds=time.perf_counter() - start)
     return with_problems(result, problems)
@@ -124,12 +125,13 @@ _DIMS = {"pse": ["subject", "condition"], "sigma": ["subject", "condition"],
          "sd_log_sigma": ["condition"]}
 
 
-def _tree(out: dict, stats: dict, cells: Cells, label: str):
+def _tree(out: dict, stats: dict, cells: Cells, label: str, comments: list):
     dims = {k: v for k, v in _DIMS.items() if k in out and np.ndim(out[k]) == 2 + len(v)}
     observed = {"x_um": cells.x_um, "n_trials": cells.n, "n_comparison_higher": cells.k}
     return posterior_from_draws(out, dims=dims, sample_stats=stats or None, observed=observed,
                                 attrs=cells.attrs() | {"backend": label, "model": "M4 psychometric",
-                                                       "units": "heights in um"})
+                                                       "units": "heights in um",
+                                                       "data_comments": "\n".join(comments)})
 
 
 def threshold_table(result: FitResult, *, observed: pd.DataFrame | None = None) -> pd.DataFrame:

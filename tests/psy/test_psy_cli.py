@@ -30,6 +30,8 @@ def test_fit_psychophysics_laplace_writes_labelled_thresholds(data, tmp_path, ca
     assert "synthetic" in (tmp_path / "thresholds.csv").read_text().splitlines()[0].lower()
     for name in ("posterior.nc", "summary.csv", "verdict.json"):
         assert (tmp_path / name).is_file()
+    from feeler.calib.fit import load
+    assert "SYNTHETIC" in load(tmp_path).posterior["posterior"].attrs["data_comments"]
     assert main(["fit", "psychophysics", str(data), "--backend", "laplace", "--draws", "300",
                  "--out", str(tmp_path)]) == 2          # refuses to overwrite without --force
     assert "--force" in capsys.readouterr().err
