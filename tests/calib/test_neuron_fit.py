@@ -1,6 +1,7 @@
 """M2: the grid posterior is the model's posterior, parameters are recovered, failures are flagged."""
 import dataclasses
 import os
+import warnings
 
 import numpy as np
 import pytest
@@ -110,16 +111,20 @@ def test_bad_labels(plates):
 
 
 @pytest.mark.slow
-def test_grid_agrees_with_nuts(plates):
+def test_grid_agrees_with_emcee(plates):
+    # NUTS is not the cross-check here: on this posterior (rough in τ) it does not mix
+    # (R-hat 1.3 at 4 x 1000, see benchmarks/test_bench_m2.py); emcee does, slowly.
     d = simulate_labels(plates.table(), TRUTH, np.random.default_rng(11))
     data = dataclasses.replace(plates, step_mm=d)
-    draws = 1000 if os.environ.get("FEELER_FULL") == "1" else 500
-    g = fit_neuron(data, draws=draws).summary.set_index("name")
-    n = fit_neuron(data, backend="nuts", draws=draws, tune=draws).summary.set_index("name")
+    steps = 16000 if os.environ.get("FEELER_FULL") == "1" else 8000
+    g = fit_neuron(data, draws=1000).summary.set_index("name")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")                  # emcee's own verdict is not the point
+        e = fit_neuron(data, backend="emcee", emcee_steps=steps).summary.set_index("name")
     for k in ("a", "tau_s", "h", "sigma_mm"):
-        se = np.hypot(g.loc[k, "mcse_mean"], n.loc[k, "mcse_mean"])
-        assert abs(g.loc[k, "mean"] - n.loc[k, "mean"]) < 4 * se + 1e-3 * g.loc[k, "sd"], k
-        assert n.loc[k, "sd"] == pytest.approx(g.loc[k, "sd"], rel=0.15), k
+        se = np.hypot(g.loc[k, "mcse_mean"], e.loc[k, "mcse_mean"])
+        assert abs(g.loc[k, "mean"] - e.loc[k, "mean"]) < 4 * se, k
+        assert e.loc[k, "sd"] == pytest.approx(g.loc[k, "sd"], rel=0.15), k
 
 
 def test_sbc_ranks_uniform_small():
