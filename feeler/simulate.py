@@ -10,7 +10,8 @@ streams), so a scan's data do not depend on the order of the others.
 
 Files written into the run directory: ``scene.toml`` (byte copy), ``truth.json`` (the
 scene and every per-touch true parameter), ``scans.csv`` (long format, :data:`CSV_COLUMNS`)
-and, when asked, ``features.csv``.
+and, when asked, ``features.csv`` (and ``sensor.avi``, the rendered frames, when an
+``images``-fidelity scene sets ``optics.video``).
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from feeler.datasets import Scans, scan_features
+from feeler.errors import SceneError
 from feeler.models import probe, sensor, surface
 from feeler.rundir import prepare_out_dir, write_json
 from feeler.scene import load_scene, scene_as_dict
@@ -41,15 +43,24 @@ def plate_profile(surf, height_mm: float) -> surface.Profile:
     return surface.step(surf.position_mm, height_mm)
 
 
-def _sensor_params(scene):
+def _sensor_params(scene, scene_path=None, out_dir=None):
     if scene.sensor.fidelity == "displacement":
         n = scene.noise
         return sensor.DisplacementNoise(n.ux_sd_mm, n.uy_sd_mm, n.uz_sd_mm)
-    return scene.noise  # other fidelities take the scene's tables as they are plugged in
+    from feeler.scenes._optics import fidelity_params
+
+    return fidelity_params(scene.optics, scene.sensor.fidelity, scene_path=scene_path, out_dir=out_dir)
 
 
-def simulate_scans(scene) -> tuple[Scans, list[dict]]:
+def simulate_scans(scene, *, scene_path=None, out_dir=None) -> tuple[Scans, list[dict]]:
     """All scans of a robot-scan scene, and the true state of every touch.
+
+    At the ``images`` fidelity the scans are observed together (packed onto the camera's
+    elements, :mod:`feeler.sensor_images`) with one extra child of the seed; ``scene_path``
+    locates ``optics.layout``, ``out_dir`` receives ``sensor.avi`` when ``optics.video``.
+
+    Raises:
+        SceneError: frames rejected by the reader (``optics`` too blurred or noisy).
 
     Returns:
         scans (Scans): arrays ``(n_plates * scans_per_plate, n_time)``; scan_id =
@@ -62,10 +73,12 @@ def simulate_scans(scene) -> tuple[Scans, list[dict]]:
                                tilt_sd_deg=p.tilt_sd_deg, x0_sd_mm=m.x0_sd_mm,
                                drift_sd_mm_s=p.drift_sd_mm_s, shear_per_normal=p.shear_per_normal,
                                breakaway_frac=p.breakaway_frac, breakaway_s=p.breakaway_s)
-    noise = _sensor_params(scene)
+    noise = _sensor_params(scene, scene_path, out_dir)
+    fidelity = scene.sensor.fidelity
     per_plate = scene.repeats.scans_per_plate
     heights = scene.surface.heights_mm
-    children = np.random.SeedSequence(scene.scene.seed).spawn(len(heights) * per_plate)
+    n = len(heights) * per_plate
+    children = np.random.SeedSequence(scene.scene.seed).spawn(n + 1)
     t_all, x_all, u_all, touches = [], [], [], []
     for plate, height in enumerate(heights):
         profile = plate_profile(scene.surface, height)
@@ -74,12 +87,18 @@ def simulate_scans(scene) -> tuple[Scans, list[dict]]:
             probe_ss, sensor_ss = children[scan_id].spawn(2)
             touch = probe.draw_touch(params, motion, np.random.default_rng(probe_ss))
             t, x, u_true = probe.tip_displacement(profile, motion, params, touch)
-            u = sensor.observe(u_true, fidelity=scene.sensor.fidelity, params=noise,
-                               rng=np.random.default_rng(sensor_ss))
-            t_all.append(t), x_all.append(x), u_all.append(u)
+            if fidelity != "images":
+                u_true = sensor.observe(u_true, fidelity=fidelity, params=noise,
+                                        rng=np.random.default_rng(sensor_ss))
+            t_all.append(t), x_all.append(x), u_all.append(u_true)
             touches.append({"scan_id": scan_id, "plate": plate, "step_mm": height, **asdict(touch)})
     u = np.stack(u_all)
-    n = len(touches)
+    if fidelity == "images":
+        u = sensor.observe(u, fidelity=fidelity, params=noise, rng=np.random.default_rng(children[n]))
+        bad = np.flatnonzero(np.isnan(u).any(axis=(1, 2)))
+        if bad.size:
+            raise SceneError(scene_path, "optics", f"the frame reader rejected frames of {bad.size} scans "
+                             f"(first: scan {bad[0]}); see the log; lower blur_sd_px or the noise")
     scans = Scans(scan_id=np.arange(n), step_mm=np.repeat(np.asarray(heights, float), per_plate),
                   speed_mm_s=np.full(n, m.speed_mm_s), t_s=np.stack(t_all), x_mm=np.stack(x_all),
                   ux_mm=u[..., 0], uy_mm=u[..., 1], uz_mm=u[..., 2])
@@ -132,8 +151,10 @@ def simulate_robot_scan(scene, scene_path: str | Path, out: str | Path, force: b
     """Robot-scan scenes: ``scans.csv`` (and ``features.csv`` when asked)."""
     outputs = set(scene.scene.outputs)
     files = ["scene.toml", "truth.json", "scans.csv"] + (["features.csv"] if "features" in outputs else [])
+    if scene.optics is not None and scene.optics.video and scene.sensor.fidelity == "images":
+        files.append("sensor.avi")
     out = prepare_out_dir(out, files, force=force)
-    scans, touches = simulate_scans(scene)
+    scans, touches = simulate_scans(scene, scene_path=scene_path, out_dir=out)
     shutil.copyfile(scene_path, out / "scene.toml")
     write_json(out / "truth.json", {"scene": scene_as_dict(scene), "n_time": int(scans.t_s.shape[1]),
                                     "touches": touches})

@@ -21,11 +21,17 @@ CALIBRATION_FILES = ("calibration.csv", "truth.json", "scene.toml")
 _HEADER = "point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n"
 
 
-def draw_campaign(scene, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Commanded U (mm), true U (mm) and measured F (N), each ndarray[n, 3]."""
+def draw_campaign(scene, rng: np.random.Generator, scene_path=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Commanded U (mm), true U (mm) and measured F (N), each ndarray[n, 3].
+
+    At an optical fidelity F is read through the element (areas or rendered frames) with
+    the same ``rng`` after the stage errors; ``scene_path`` locates ``optics.layout``.
+    """
     u_cmd = commanded_displacements(scene.design)
     n = u_cmd.shape[0]
     u_true = u_cmd + scene.noise.stage_sd_mm * rng.standard_normal((n, 3))
+    if scene.sensor.fidelity != "displacement":
+        return u_cmd, u_true, _optical_force(scene, u_true, rng, scene_path)
     k = np.linalg.inv(np.asarray(scene.sensor.c_mm_per_n, dtype=float))
     if scene.noise.kind == "student":
         eta = rng.standard_t(scene.noise.student_nu, size=(n, 3))
@@ -33,6 +39,23 @@ def draw_campaign(scene, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarr
         eta = rng.standard_normal((n, 3))
     f = u_true @ k.T + eta * np.asarray(scene.noise.f_sd_n, dtype=float)
     return u_cmd, u_true, f
+
+
+def _optical_force(scene, u_true: np.ndarray, rng: np.random.Generator, scene_path) -> np.ndarray:
+    """F (n, 3) N read through the optical element whose C is the scene's true C."""
+    from feeler.errors import SceneError
+    from feeler.models import sensor
+    from feeler.models.optics import force_from_displacement
+    from feeler.scenes._optics import fidelity_params
+
+    c = np.asarray(scene.sensor.c_mm_per_n, dtype=float)
+    params = fidelity_params(scene.optics, scene.sensor.fidelity, scene_path=scene_path, c_mm_per_n=c)
+    u_read = sensor.observe(u_true[:, None, :], fidelity=scene.sensor.fidelity, params=params, rng=rng)[:, 0]
+    bad = np.flatnonzero(np.isnan(u_read).any(axis=1))
+    if bad.size:
+        raise SceneError(scene_path, "optics", f"the frame reader rejected the frames of {bad.size} "
+                         f"points (first: point {bad[0]}); see the log")
+    return force_from_displacement(u_read, c)
 
 
 def simulate_sensor_calibration(scene, out_dir: str | Path, force: bool = False,
@@ -52,7 +75,7 @@ def simulate_sensor_calibration(scene, out_dir: str | Path, force: bool = False,
     """
     out = prepare_out_dir(out_dir, CALIBRATION_FILES, force=force)
     rng = np.random.default_rng(scene.scene.seed)
-    u_cmd, u_true, f = draw_campaign(scene, rng)
+    u_cmd, u_true, f = draw_campaign(scene, rng, scene_path)
     ids = np.arange(u_cmd.shape[0])
     table = np.column_stack([ids, u_cmd, f])
     np.savetxt(out / "calibration.csv", table, delimiter=",", header=_HEADER, comments="",
@@ -76,6 +99,8 @@ def scene_to_toml(tables: dict) -> str:
     """TOML text of a scene as nested dicts (tables of numbers, strings, bools, lists)."""
     lines = []
     for name, table in tables.items():
+        if table is None:            # an optional table that is absent
+            continue
         lines.append(f"[{name}]")
         for key, value in table.items():
             if value is not None:

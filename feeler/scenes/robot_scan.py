@@ -2,6 +2,9 @@
 
 One plate per entry of ``surface.heights_mm``, each scanned ``repeats.scans_per_plate``
 times; every scan is a fresh touch (press, tilt, start offset and drift drawn anew).
+``[noise]`` is the sensor's white noise at the ``displacement`` fidelity; at ``areas`` and
+``images`` the noise comes from the optical element of the optional ``[optics]`` table
+(:mod:`feeler.scenes._optics`).
 """
 from __future__ import annotations
 
@@ -9,8 +12,9 @@ from dataclasses import dataclass, field
 
 from feeler.errors import SceneError
 from feeler.scene import param
+from feeler.scenes._optics import Optics, check_optics
 
-__all__ = ["Scene", "Head", "Surface", "MotionTable", "Probe", "Sensor", "Noise", "Neuron", "Repeats"]
+__all__ = ["Scene", "Head", "Surface", "MotionTable", "Probe", "Sensor", "Noise", "Neuron", "Repeats", "Optics"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -92,6 +96,7 @@ class Scene:
     neuron: Neuron
     repeats: Repeats
     sensor: Sensor = field(default_factory=Sensor)
+    optics: Optics | None = None
 
     def last_edge_mm(self) -> float:
         """Position of the last edge of every plate (mm)."""
@@ -105,6 +110,7 @@ class Scene:
     def check(self, path) -> None:
         """Cross-field rules: raise :class:`SceneError` on an impossible combination."""
         s, m, p = self.surface, self.motion, self.probe
+        check_optics(self.optics, self.sensor.fidelity, path)
         if s.profile == "step" and s.count != 1:
             raise SceneError(path, "surface.count", f"{s.count}: a single step has count = 1")
         if m.traverse_mm < 2 * m.speed_mm_s * m.dt_s:

@@ -4,7 +4,10 @@ The stage commands displacements U (mm) — normal presses along y, then shear o
 along x and z on top of a normal preload — each ``design.repeats`` times. The stage
 reaches U_true = U + N(0, ``noise.stage_sd_mm``²); the element's true compliance C
 (mm/N, ``sensor.c_mm_per_n``) gives the true force F = C⁻¹ U_true, and the sensor
-reports F + η, η per axis Gaussian or Student-t with scale ``noise.f_sd_n``. The
+reports F + η, η per axis Gaussian or Student-t with scale ``noise.f_sd_n`` (at
+``sensor.fidelity = "displacement"``); at ``"areas"`` or ``"images"`` it reports the force
+read from the element's contact areas / rendered camera frames (``[optics]``, whose C is
+replaced by the true C), and ``noise.f_sd_n`` is not used. The
 ``[prior]`` table is the lab's nominal knowledge (C₀ from the sensor's design), used by
 ``feeler calibrate sensor``. Axes as in the paper: x along the scan, y normal, z lateral.
 """
@@ -16,8 +19,9 @@ import numpy as np
 
 from feeler.errors import SceneError
 from feeler.scene import param
+from feeler.scenes._optics import Optics, check_optics
 
-__all__ = ["Scene", "Head", "Sensor", "Design", "Noise", "Prior", "commanded_displacements"]
+__all__ = ["Scene", "Head", "Sensor", "Design", "Noise", "Prior", "Optics", "commanded_displacements"]
 
 _MATRIX_DOC = "3x3 compliance matrix, rows = displacement axis x, y, z, columns = force axis, mm/N"
 
@@ -32,6 +36,8 @@ class Head:
 @dataclass(frozen=True)
 class Sensor:
     c_mm_per_n: tuple[tuple[float, ...], ...] = param(lo=-10.0, hi=10.0, min_len=3, doc=_MATRIX_DOC)
+    fidelity: str = param("displacement", choices=("displacement", "areas", "images"),
+                          doc="how the force is read: displacement (F + noise), areas, images")
 
 
 @dataclass(frozen=True)
@@ -68,9 +74,12 @@ class Scene:
     prior: Prior
     design: Design = Design()
     noise: Noise = Noise()
+    optics: Optics | None = None
 
     def check(self, path) -> None:
-        """3x3 invertible matrices, exactly 3 noise sds, a design that spans 3 axes."""
+        """3x3 invertible matrices, exactly 3 noise sds, a design that spans 3 axes,
+        ``[optics]`` only at an optical fidelity."""
+        check_optics(self.optics, self.sensor.fidelity, path)
         for key, m in (("sensor.c_mm_per_n", self.sensor.c_mm_per_n),
                        ("prior.c0_mm_per_n", self.prior.c0_mm_per_n)):
             if len(m) != 3 or any(len(row) != 3 for row in m):
