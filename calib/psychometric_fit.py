@@ -140,7 +140,7 @@ def threshold_table(result: FitResult, *, observed: pd.DataFrame | None = None) 
     Args:
         result: an M4 FitResult (also after :func:`feeler.calib.fit.load`).
         observed: the trial table; when given, (subject, condition) pairs without any
-            trial are left out.
+            trial are left out (and ``all`` rows of conditions nobody was tested in).
     Returns:
         DataFrame with ``THRESHOLD_COLUMNS``; subject ``all`` rows hold the pooled estimate.
     """
@@ -152,7 +152,7 @@ def threshold_table(result: FitResult, *, observed: pd.DataFrame | None = None) 
     for si, subject in enumerate(subjects + [POOLED]):
         pooled = subject == POOLED
         for ci, (_, v_std, v_cmp) in enumerate(conditions):
-            if has is not None and not pooled and (subject, ci) not in has:
+            if has is not None and (subject if not pooled else None, ci) not in has:
                 continue
             pick = (lambda v: post[v + "_all"].values[..., ci]) if pooled else \
                 (lambda v: post[v].values[..., si, ci])
@@ -165,7 +165,8 @@ def threshold_table(result: FitResult, *, observed: pd.DataFrame | None = None) 
 def _has_trials(trials: pd.DataFrame) -> set:
     cells = make_cells(trials)
     keep = cells.n > 0
-    return {(cells.subjects[s], c) for s, c in zip(cells.subject[keep], cells.condition[keep])}
+    pairs = {(cells.subjects[s], c) for s, c in zip(cells.subject[keep], cells.condition[keep])}
+    return pairs | {(None, c) for _, c in pairs}          # (None, c): anyone has trials in c
 
 
 def save_psychometric(result: FitResult, trials: pd.DataFrame, out_dir: str | Path, *,

@@ -70,6 +70,18 @@ def test_extremes_single_subject_all_correct_all_wrong_zero_rows(extreme):
         assert slow.dt_um > fast.dt_um     # all wrong: the fit can only flatten
 
 
+def test_untested_conditions_are_left_out_of_the_table(simulate):
+    trials, _ = simulate(9, n_subjects=2)
+    untested = trials.standard_speed_mm_s == 40.0
+    trials.loc[untested, ["n_trials", "n_comparison_higher"]] = 0
+    trials.loc[(trials.subject == "S2") & (trials.standard_speed_mm_s == 20.0),
+               ["n_trials", "n_comparison_higher"]] = 0
+    result = fit_psychometric(trials, rng=np.random.default_rng(0), backend="laplace", draws=200)
+    table = threshold_table(result, observed=trials)
+    assert list(zip(table.subject, table.standard_speed_mm_s)) == [("S1", 20.0), ("all", 20.0)]
+    assert len(threshold_table(result)) == 2 * 2 + 2          # unfiltered: every pair
+
+
 def test_zero_trial_rows_do_not_change_the_fit(simulate):
     trials, _ = simulate(7, n_subjects=2)
     padded = pd.concat([trials, trials.iloc[:3].assign(n_trials=0, n_comparison_higher=0)])
