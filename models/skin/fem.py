@@ -129,7 +129,7 @@ def _fem_cached(e_layers: tuple, nu: float, mesh: FingerMesh) -> FingerFEM:
     b, area = strain_operator(mesh.points, mesh.triangles)
     clamped = np.concatenate([2 * mesh.clamped, 2 * mesh.clamped + 1])
     free = np.setdiff1d(np.arange(2 * mesh.n_nodes), clamped)
-    lu = splu(k0[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A")
+    lu = splu(k0[free][:, free].tocsc(), permc_spec="COLAMD")
     contact_dof = 2 * mesh.surface + 1
     contact_pos = np.searchsorted(free, contact_dof)
     compliance = np.empty((len(contact_dof), len(contact_dof)))

@@ -12,7 +12,8 @@ from the antiderivative
     F(ξ, z) = (1−2ν)/2 · [z ln(ξ²+z²) − 2z + 2ξ atan(z/ξ)] − z + ξ atan(z/ξ),
 
 whose mixed second derivative is the bracketed term times ξ. A rounded edge (linear ramp
-of width e) is the average of the step response over the ramp (Gauss–Legendre, 8 points).
+of width e) is the average of the step response over the ramp, exact again through
+G = ∫ F dξ (eight evaluations of G per sample).
 Optionally scaled by a layering gain and shifted by the pressed-state strain (constants
 fitted to an L2 run, see :func:`fit_l0`).
 """
@@ -25,9 +26,6 @@ from feeler.models.skin.params import SkinParams, StepProfile
 
 __all__ = ["halfspace_strain", "step_kernel", "l0_slide_strain", "l0_strain_history", "fit_l0"]
 
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
-
-
 def halfspace_strain(xi_mm, depth_mm, nu: float):
     """The point formula Δε_y / h at (ξ, z) (1/mm; ndarray broadcast of the inputs)."""
     xi, z = np.asarray(xi_mm, dtype=float), np.asarray(depth_mm, dtype=float)
@@ -36,34 +34,46 @@ def halfspace_strain(xi_mm, depth_mm, nu: float):
 
 
 def _antiderivative(xi, z, nu):
+    """F(ξ, z) with ∂²F/∂ξ∂z = ξ[(1−2ν)/(ξ²+z²) + 2z²/(ξ²+z²)²] (z > 0), using
+    ξ atan(z/ξ) = (π/2)|ξ| − ξ atan(ξ/z) so that F is smooth through ξ = 0."""
+    a = 0.5 * np.pi * np.abs(xi) - xi * np.arctan(xi / z)
+    return 0.5 * (1 - 2 * nu) * z * np.log(xi * xi + z * z) + (2 - 2 * nu) * (a - z)
+
+
+def _antiderivative2(xi, z, nu):
+    """G(ξ, z) = ∫ F dξ, for the exact average over a linear ramp edge."""
     r2 = xi * xi + z * z
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xat = np.where(xi == 0.0, 0.0, xi * np.arctan(z / xi))
-    return 0.5 * (1 - 2 * nu) * (z * np.log(r2) - 2 * z + 2 * xat) - z + xat
+    at = np.arctan(xi / z)
+    log_part = z * (xi * np.log(r2) - 2 * xi + 2 * z * at)
+    a_part = 0.25 * np.pi * xi * np.abs(xi) - 0.5 * r2 * at + 0.5 * z * xi
+    return 0.5 * (1 - 2 * nu) * log_part + (2 - 2 * nu) * (a_part - z * xi)
 
 
 def step_kernel(xi_mm, params: SkinParams, edge_um: float = 0.0):
-    """Corpuscle-averaged strain per unit step height (ε_y per mm of step).
+    """Corpuscle-averaged strain per unit step height (ε_y per mm of step), exact.
 
     Args:
         xi_mm (ndarray[...]): corpuscle centre minus step centre along x, mm.
         params: ν and the corpuscle element (width, height, centre depth).
-        edge_um (float): width of the step's linear ramp in µm (0 = sharp).
+        edge_um (float): width of the step's linear ramp in µm (0 = sharp); the ramp is
+            averaged exactly with the second antiderivative.
     Returns:
         ndarray[...]: Δε_y / h (1/mm), without the L0 gain.
     """
     xi = np.asarray(xi_mm, dtype=float)
-    if edge_um > 0:
-        offsets = 0.5 * edge_um * 1e-3 * _GL_X
-        parts = [step_kernel(xi - o, params) for o in offsets]
-        return 0.5 * np.tensordot(_GL_W, np.stack(parts), axes=1)
     nu, w, d = params.nu, params.corpuscle_width_mm, params.corpuscle_height_mm
     z1 = params.corpuscle_depth_mm - d / 2
-    z2 = z1 + d
-    x1, x2 = xi - w / 2, xi + w / 2
-    area = (_antiderivative(x2, z2, nu) - _antiderivative(x1, z2, nu)
-            - _antiderivative(x2, z1, nu) + _antiderivative(x1, z1, nu))
-    return -area / (2 * np.pi * (1 - nu) * w * d)
+    total = np.zeros(np.shape(xi))
+    e = edge_um * 1e-3
+    for sx, dx in ((1.0, w / 2), (-1.0, -w / 2)):
+        for sz, z in ((1.0, z1 + d), (-1.0, z1)):
+            if e > 0:
+                corner = (_antiderivative2(xi + dx + e / 2, z, nu)
+                          - _antiderivative2(xi + dx - e / 2, z, nu)) / e
+            else:
+                corner = _antiderivative(xi + dx, z, nu)
+            total += sx * sz * corner
+    return -total / (2 * np.pi * (1 - nu) * w * d)
 
 
 def l0_slide_strain(step_um, speed_mm_s, t_s, *, params: SkinParams,

@@ -140,3 +140,11 @@ def test_sharp_profile_height():
     np.testing.assert_allclose(prof.height_mm([0.5, 1.0, 1.5]), [0.0, 0.005, 0.01])
     ramp = StepProfile(10.0, position_mm=1.0, edge_um=100.0)
     np.testing.assert_allclose(ramp.height_mm([0.9, 0.975, 1.0, 1.1]), [0.0, 0.0025, 0.005, 0.01])
+
+
+def test_exact_ramp_average_matches_quadrature_of_sharp_kernel():
+    xi = np.linspace(-12, 12, 4001)
+    nodes, weights = np.polynomial.legendre.leggauss(16)
+    e_mm = 0.05
+    ref = 0.5 * sum(w * step_kernel(xi - 0.5 * e_mm * x, P, 0.0) for x, w in zip(nodes, weights))
+    np.testing.assert_allclose(step_kernel(xi, P, 50.0), ref, rtol=1e-6, atol=1e-9)
