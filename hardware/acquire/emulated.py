@@ -17,7 +17,7 @@ from typing import Iterator
 
 from feeler.hardware.emulators import GrblConfig, GrblEmulator, serve_pty
 
-__all__ = ["campaign_emulator"]
+__all__ = ["campaign_emulator", "FAST_STAGE"]
 
 _PR_SET_PDEATHSIG = 1
 
@@ -31,9 +31,17 @@ def _child(config: GrblConfig, parent_pid: int, conn) -> None:
               lambda: bool(stop) or os.getppid() != parent_pid)
 
 
+#: the emulated machine of ``feeler acquire --emulate``: a quick desktop stage (all axes
+#: 6000 mm/min, 2000 mm/s², travel 200 × 200 × 50 mm) so that emulated campaigns run fast
+FAST_STAGE = GrblConfig(max_rate_mm_min=(6000.0, 6000.0, 6000.0), accel_mm_s2=(2000.0, 2000.0, 2000.0))
+
+
 @contextlib.contextmanager
-def campaign_emulator(config: GrblConfig = GrblConfig(), start_timeout_s: float = 30.0) -> Iterator[str]:
-    """Run a Grbl emulator in a child process; yields its pty device path."""
+def campaign_emulator(config: GrblConfig = FAST_STAGE, start_timeout_s: float = 30.0) -> Iterator[str]:
+    """Run a Grbl emulator in a child process; yields its pty device path.
+
+    Start it at the plan's first position with ``dataclasses.replace(FAST_STAGE, start_mm=...)``.
+    """
     ctx = multiprocessing.get_context("spawn")
     here, there = ctx.Pipe(duplex=False)
     process = ctx.Process(target=_child, args=(config, os.getpid(), there), daemon=True,

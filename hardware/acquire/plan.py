@@ -73,12 +73,15 @@ def check_moves(plan, plan_path: str | Path, limits, port: str) -> None:
     feed_keys = {"scan.traverse_mm": "scan.speed_mm_s", "plates.surface_z_mm": "scan.press_feed_mm_min",
                  "scan.press_mm": "scan.press_feed_mm_min"}
     for scan in scans_of(plan):
-        for key, target, feed, _ in moves_of(plan, scan):
+        for key, target, feed, axes in moves_of(plan, scan):
             if feed > limits.max_feed_mm_min:
                 fkey = feed_keys.get(key, "scan.move_feed_mm_min")
                 raise SceneError(plan_path, fkey, f"feed {feed:g} mm/min is above the ceiling "
                                  f"{limits.max_feed_mm_min:g} mm/min of {port}")
             for axis, value in zip(("x_mm", "y_mm", "z_mm"), target):
+                if axis[0] not in axes:
+                    continue
+                key = "plates.y_mm" if axis == "y_mm" else key
                 lo, hi = getattr(limits, axis)
                 if not lo <= value <= hi:
                     raise SceneError(plan_path, key, f"scan {scan.scan_id} moves {axis[0]} to {value:g} mm, "

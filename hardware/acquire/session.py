@@ -8,6 +8,7 @@ reopened with ``resume``), and the campaign.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 from dataclasses import asdict
 from pathlib import Path
 
@@ -19,7 +20,7 @@ from feeler.rundir import write_json
 from feeler.scene import load_scene, scene_as_dict
 
 from .campaign import Setup, run_campaign
-from .plan import check_moves
+from .plan import check_moves, moves_of, scans_of
 from .store import RunStore
 from .world import VirtualWorld, optics_of_plan, plan_layout
 
@@ -80,8 +81,11 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
             camera = CaptureCamera(camera_src, (setup.layout.width_px, setup.layout.height_px))
             stack.callback(camera.close)
         if emulate:
-            from .emulated import campaign_emulator
-            stage_port = stack.enter_context(campaign_emulator())
+            from .emulated import FAST_STAGE, campaign_emulator
+            start = moves_of(plan, scans_of(plan)[0])[1][1]          # over the first plate
+            config = dataclasses.replace(FAST_STAGE, start_mm=tuple(min(max(v, 0.0), t) for v, t in
+                                                                    zip(start, FAST_STAGE.travel_mm)))
+            stage_port = stack.enter_context(campaign_emulator(config))
         stage = stack.enter_context(Stage.open(stage_port))
         check_moves(plan, plan_path, stage.limits, stage.port)
         store = RunStore.resume(out, plan_path) if resume else RunStore.create(out, plan_path, force=force)

@@ -1,0 +1,124 @@
+"""Scan plans: schema rules, scans and moves, soft-limit checks, the virtual set-up (no devices)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from feeler.errors import SceneError
+from feeler.hardware.acquire import check_moves, load_plan, moves_of, sample_times_s, scans_of
+from feeler.hardware.acquire.world import VirtualWorld, plan_layout, tip_displacement_mm
+from feeler.hardware.stage import StageLimits
+from feeler.models.optics import force_from_areas
+
+DATA = Path(__file__).parent / "data"
+TINY = DATA / "tiny-plan.toml"
+SHIPPED = Path(__file__).parents[2] / "datasets-synthetic" / "plans" / "four-plates-plan.toml"
+
+
+def variant(tmp_path: Path, name: str = "plan.toml", **replace: str) -> Path:
+    text = TINY.read_text()
+    for old, new in replace.items():
+        assert old in text, old
+        text = text.replace(old, new)
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_shipped_plan_matches_four_plates_sampling():
+    plan = load_plan(SHIPPED)
+    t = sample_times_s(plan)
+    assert plan.n_scans == 96 and len(t) == 41 and t[-1] == pytest.approx(20.0)
+    assert plan_layout(plan, SHIPPED).name == "sensor-16"
+    check_moves(plan, SHIPPED, StageLimits(), "stage")       # inside a 200 x 200 x 50 mm stage
+
+
+def test_scans_are_numbered_plate_by_plate_and_moves_follow_the_plan():
+    plan = load_plan(TINY)
+    scans = scans_of(plan)
+    assert [(s.scan_id, s.plate, s.repeat, s.step_mm, s.origin_x_mm) for s in scans] == [
+        (0, 0, 0, 0.0, 10.0), (1, 0, 1, 0.0, 10.0), (2, 1, 0, 0.2, 14.0), (3, 1, 1, 0.2, 14.0)]
+    np.testing.assert_array_equal(sample_times_s(plan), np.arange(4) * 0.1)
+    moves = moves_of(plan, scans[2])
+    assert [m[1] for m in moves] == [(14.0, 10.0, 20.2), (14.0, 10.0, 20.2), (14.0, 10.0, 20.0),
+                                     (14.0, 10.0, 19.95), (17.0, 10.0, 19.95), (17.0, 10.0, 20.2)]
+    assert [m[2] for m in moves] == [6000.0, 6000.0, 3000.0, 3000.0, 600.0, 6000.0]
+    assert [m[3] for m in moves] == ["z", "xy", "z", "z", "x", "z"]
+
+
+@pytest.mark.parametrize("limits, key, words", [
+    (StageLimits(x_mm=(0.0, 16.0), max_feed_mm_min=1e4), "scan.traverse_mm", "moves x to 17 mm, beyond the soft limits [0, 16]"),
+    (StageLimits(x_mm=(0.0, 13.5), max_feed_mm_min=1e4), "plates.origin_x_mm[1]", "moves x to 14 mm"),
+    (StageLimits(z_mm=(19.96, 50.0), max_feed_mm_min=1e4), "scan.press_mm", "moves z to 19.95 mm"),
+    (StageLimits(z_mm=(0.0, 20.1), max_feed_mm_min=1e4), "scan.clearance_mm", "moves z to 20.2 mm"),
+    (StageLimits(y_mm=(20.0, 30.0), max_feed_mm_min=1e4), "plates.y_mm", "moves y to 10 mm"),
+    (StageLimits(max_feed_mm_min=5000.0), "scan.move_feed_mm_min", "feed 6000 mm/min is above the ceiling 5000"),
+    (StageLimits(max_feed_mm_min=500.0, z_mm=(0.0, 50.0)), "scan.move_feed_mm_min", "above the ceiling 500"),
+])
+def test_moves_beyond_the_stage_are_refused_naming_the_plan_key(limits, key, words):
+    with pytest.raises(SceneError) as err:
+        check_moves(load_plan(TINY), TINY, limits, "/dev/pts/9")
+    msg = str(err.value)
+    assert key in msg and words in msg and "/dev/pts/9" in msg and "\n" not in msg
+
+
+def test_traverse_feed_above_ceiling_names_the_speed(tmp_path):
+    path = variant(tmp_path, **{"move_feed_mm_min = 6000.0": "move_feed_mm_min = 500.0",
+                                "press_feed_mm_min = 3000.0": "press_feed_mm_min = 500.0"})
+    with pytest.raises(SceneError, match=r"scan\.speed_mm_s: feed 600 mm/min"):
+        check_moves(load_plan(path), path, StageLimits(max_feed_mm_min=550.0), "stage")
+
+
+@pytest.mark.parametrize("replace, key", [
+    ({"move_feed_mm_min = 6000.0": "move_feed_mm_min = 0.0"}, "scan.move_feed_mm_min"),
+    ({"speed_mm_s = 10.0": "speed_mm_s = 0"}, "scan.speed_mm_s"),
+    ({"origin_x_mm = [10.0, 14.0]": "origin_x_mm = [10.0]"}, "plates.origin_x_mm"),
+    ({"traverse_mm = 3.0": "traverse_mm = 0.5"}, "scan.traverse_mm"),
+    ({"sample_period_s = 0.1": "sample_period_s = 0.01", "traverse_mm = 3.0": "traverse_mm = 1000.0",
+      "speed_mm_s = 10.0": "speed_mm_s = 0.001"}, "scan.sample_period_s"),
+    ({"element = 5": "element = 16"}, "optics.element"),
+])
+def test_impossible_plans_are_refused_naming_the_key(tmp_path, replace, key):
+    path = variant(tmp_path, **replace)
+    with pytest.raises(SceneError) as err:
+        plan = load_plan(path)
+        plan_layout(plan, path)
+    assert key in str(err.value) and str(path) in str(err.value)
+
+
+def test_emulation_needs_the_virtual_table(tmp_path):
+    text = TINY.read_text()
+    path = tmp_path / "plan.toml"
+    path.write_text(text[: text.index("[virtual]")])
+    with pytest.raises(SceneError, match=r"virtual: missing \[virtual\] table"):
+        VirtualWorld.of_plan(load_plan(path), path)
+
+
+def test_tip_displacement_of_the_virtual_plate():
+    plan = load_plan(TINY)
+    v = plan.virtual
+    assert np.all(tip_displacement_mm(v, 20.0, 10.0, 0.2, (10.0, 10.0, 20.01)) == 0.0)   # lifted
+    before = tip_displacement_mm(v, 20.0, 10.0, 0.2, (10.0, 10.0, 19.95))            # before the step
+    after = tip_displacement_mm(v, 20.0, 10.0, 0.2, (13.0, 10.0, 19.95))             # past it (+1.5 mm)
+    np.testing.assert_allclose(before, [-0.3 * 0.05, 0.05, 0.0], rtol=1e-12)
+    np.testing.assert_allclose(after, [-0.3 * 0.25, 0.25, 0.0], rtol=1e-12)
+    mid = tip_displacement_mm(v, 20.0, 10.0, 0.2, (11.5, 10.0, 19.95))               # face centred on the edge
+    assert mid[1] == pytest.approx(0.15)
+
+
+def test_virtual_frame_reads_back_the_true_force():
+    from feeler.hardware.camera import AreaExtractor
+
+    plan = load_plan(TINY)
+    world = VirtualWorld.of_plan(plan, TINY)
+    stage = (13.0, 10.0, 19.95)
+    frame = world.render(2, stage, np.random.default_rng(0))
+    areas, problem = AreaExtractor(world.layout)(frame)
+    assert problem is None
+    f_true = np.linalg.solve(world.optics.c_matrix, world.truth_mm(2, stage))
+    rest = force_from_areas(areas[4], world.optics)            # a neighbour at zero force
+    np.testing.assert_allclose(rest, 0.0, atol=0.006)          # the reader's offset: < 1 px² per feeler
+    f = force_from_areas(areas[5], world.optics) - rest        # tared by the neighbour
+    np.testing.assert_allclose(f, f_true, atol=0.02 * np.abs(f_true).max())

@@ -1,0 +1,111 @@
+"""The run directory (append, journal, resume repair) and the capture camera, without devices."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from feeler.datasets import read_scans
+from feeler.errors import ArgumentError, DataFileError, OverwriteError
+from feeler.hardware.acquire import SAMPLE_COLUMNS, RunStore
+
+PLAN = Path(__file__).parent / "data" / "tiny-plan.toml"
+
+
+def row(scan_id: int, k: int, attempt: int = 0) -> dict:
+    r = {c: 0.5 * k + scan_id for c in SAMPLE_COLUMNS}
+    r.update(scan_id=scan_id, plate=scan_id // 2, repeat=scan_id % 2, step_mm=0.1 * (scan_id // 2),
+             speed_mm_s=10.0, t_s=0.1 * k, attempt=attempt)
+    return r
+
+
+def write_scan(store: RunStore, scan_id: int, n: int = 3) -> list[dict]:
+    attempt = store.start_scan(scan_id)
+    rows = [row(scan_id, k, attempt) for k in range(n)]
+    for r in rows:
+        store.append_sample(r)
+    store.finish_scan(scan_id, rows)
+    return rows
+
+
+def test_complete_scans_form_a_dataset_and_the_summary_counts(tmp_path):
+    store = RunStore.create(tmp_path / "run", PLAN)
+    for i in range(4):
+        write_scan(store, i)
+    store.event("bad_frame", scan_id=3, sample=1, reason="test")
+    summary = store.write_summary({"complete": True})
+    scans = read_scans(tmp_path / "run")
+    np.testing.assert_array_equal(scans.scan_id, [0, 1, 2, 3])
+    np.testing.assert_array_equal(scans.t_s[2], [0.0, 0.1, 0.2])
+    assert (tmp_path / "run" / "scene.toml").read_bytes() == PLAN.read_bytes()
+    assert summary == json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert (summary["scans_done"], summary["samples_written"], summary["bad_frames"], summary["runs"]) == (4, 12, 1, 1)
+    with pytest.raises(OverwriteError, match="--force"):
+        RunStore.create(tmp_path / "run", PLAN)
+
+
+def test_resume_drops_the_cut_line_and_a_scan_not_journalled(tmp_path):
+    out = tmp_path / "run"
+    store = RunStore.create(out, PLAN)
+    write_scan(store, 0)
+    kept = (out / "scans.csv").read_bytes()
+    # scan 1 written to scans.csv but the process died before its scan_done event ...
+    attempt = store.start_scan(1)
+    rows = [row(1, k, attempt) for k in range(3)]
+    for r in rows:
+        store.append_sample(r)
+    with open(out / "scans.csv", "a") as f:
+        f.write("".join(",".join(str(r[c]) for c in SAMPLE_COLUMNS[:-1]) + "\n" for r in rows))
+    # ... in the middle of the next sample's line
+    with open(out / "samples.csv", "a") as f:
+        f.write("1,0,0.0,10.0,0.3,1.2")
+    resumed = RunStore.resume(out, PLAN)
+    assert resumed.done == {0} and resumed.attempts[1] == 1
+    assert (out / "scans.csv").read_bytes() == kept
+    assert (out / "samples.csv").read_text().endswith("\n")
+    assert len((out / "samples.csv").read_text().splitlines()) == 1 + 6
+    write_scan(resumed, 1)
+    summary = resumed.write_summary({})
+    assert (summary["partial_lines_dropped"], summary["aborted_attempts"], summary["runs"]) == (1, 1, 2)
+    np.testing.assert_array_equal(read_scans(out).scan_id, [0, 1])
+    again = RunStore.resume(out, PLAN)                # counts survive a second resume
+    assert again.write_summary({})["partial_lines_dropped"] == 1 and again.done == {0, 1}
+
+
+def test_resume_refuses_another_plan_a_missing_file_and_a_bad_journal(tmp_path):
+    out = tmp_path / "run"
+    write_scan(RunStore.create(out, PLAN), 0)
+    other = tmp_path / "other.toml"
+    other.write_text(PLAN.read_text().replace("seed = 7", "seed = 8"))
+    with pytest.raises(ArgumentError, match="--plan"):
+        RunStore.resume(out, other)
+    with pytest.raises(DataFileError, match="not a run directory"):
+        RunStore.resume(tmp_path / "nothing", PLAN)
+    with open(out / "journal.jsonl", "a") as f:
+        f.write("{not json}\n")
+    with pytest.raises(DataFileError, match="journal.jsonl: line 4 is not a journal event"):
+        RunStore.resume(out, PLAN)
+
+
+def test_capture_camera_counts_bad_frames_and_names_a_short_video(tmp_path):
+    from feeler.hardware.acquire.cameras import CaptureCamera
+    from feeler.hardware.camera import write_video
+
+    rng = np.random.default_rng(0)
+    frames = rng.integers(10, 30, (3, 48, 64), dtype=np.uint8)
+    frames[2] = frames[1]                                    # a frozen frame
+    path = write_video(frames, tmp_path / "v.avi")
+    cam = CaptureCamera(str(path), (64, 48))
+    assert cam.grab(None).problem is None
+    assert cam.grab(None).problem is None
+    assert "identical to the previous frame" in cam.grab(None).problem
+    with pytest.raises(DataFileError, match=r"v\.avi: no frame after 3 frames"):
+        cam.grab(None)
+    wrong = CaptureCamera(str(path), (32, 48))
+    assert "instead of 32×48" in wrong.grab(None).problem
+    with pytest.raises(DataFileError, match="camera 57: no camera device"):
+        CaptureCamera("57", (64, 48))
+    with pytest.raises(DataFileError, match="no such video file"):
+        CaptureCamera(str(tmp_path / "none.avi"), (64, 48))
