@@ -15,6 +15,7 @@ reports). Stages of this issue:
 """
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Callable
 
@@ -105,9 +106,15 @@ def _figures(ctx: dict) -> None:
         plt.close(fig)
 
 
-#: the demo's stages, in order: (name, func(ctx))
+def _campaign_stages():
+    from feeler.demo_campaign import CAMPAIGN_STAGES
+    return CAMPAIGN_STAGES
+
+
+#: the demo's stages, in order: (name, func(ctx)); the campaign stages follow the robot's
 STAGES: list[tuple[str, Callable[[dict], None]]] = [
-    ("simulate", _simulate), ("features", _features), ("table", _table), ("figures", _figures)]
+    ("simulate", _simulate), ("features", _features), ("table", _table), ("figures", _figures),
+    *_campaign_stages()]
 
 
 def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | None = None,
@@ -118,7 +125,12 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
         OverwriteError: ``out`` holds demo results and ``force`` is false.
     """
     out = prepare_out_dir(out, ("robot_table.json", *FIGURES, "four-plates/scans.csv"), force=force)
-    ctx = {"out": out, "force": force, "scene_path": Path(scene_path or DEFAULT_SCENE), "print": echo}
-    for name, stage in (STAGES if stages is None else stages):
+    ctx = {"out": out, "force": force, "scene_path": Path(scene_path or DEFAULT_SCENE), "print": echo,
+           "seconds": {}}
+    todo = STAGES if stages is None else stages
+    for i, (name, stage) in enumerate(todo, 1):
+        echo(f"[{i}/{len(todo)}] {name} ...")
+        t0 = time.perf_counter()
         stage(ctx)
+        ctx["seconds"][name] = time.perf_counter() - t0
     return ctx

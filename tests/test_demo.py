@@ -21,8 +21,8 @@ def small(tmp_path):
 
 def test_demo_writes_figures_and_table(tmp_path, small):
     printed = []
-    ctx = run_demo(tmp_path / "demo", scene_path=small, echo=printed.append)
-    assert [name for name, _ in STAGES] == ["simulate", "features", "table", "figures"]
+    ctx = run_demo(tmp_path / "demo", scene_path=small, echo=printed.append, stages=STAGES[:4])
+    assert [name for name, _ in STAGES[:4]] == ["simulate", "features", "table", "figures"]
     for name in FIGURES:
         data = (tmp_path / "demo" / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000
@@ -30,7 +30,8 @@ def test_demo_writes_figures_and_table(tmp_path, small):
     assert [r["step_mm"] for r in table["plates"]] == [0.0, 0.05, 0.1, 0.2]
     assert all(r["n_scans"] == 4 for r in table["plates"])
     assert len(table["adjacent_pairs"]) == 3
-    text = printed[0]
+    assert printed[0] == "[1/4] simulate ..."
+    text = next(p for p in printed if "peak z" in p)
     assert "peak z" in text and "0.050 vs 0.100" in text
     assert ctx["z"].shape == ctx["scans"].uy_mm.shape
     # the table's numbers are the features of the run's files
@@ -45,9 +46,43 @@ def test_demo_refuses_to_overwrite_without_force(tmp_path, small):
     run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1], force=True)
 
 
-def test_demo_cli(tmp_path, small, capsys):
+def test_demo_cli_runs_the_whole_campaign(tmp_path, small, capsys):
     assert main(["demo", "--out", str(tmp_path / "d"), "--scene", str(small)]) == 0
     out = capsys.readouterr().out
     assert "2AFC" in out and "fig9_pulse_density.png" in out
+    for heading in ("M1 —", "M2 —", "held-out", "M3 —", "M4 —", "SYNTHETIC"):
+        assert heading in out, heading
+    d = tmp_path / "d"
+    for fit in ("m1", "m2", "m4"):
+        assert json.loads((d / fit / "verdict.json").read_text())["ok"], fit
+        assert (d / fit / "posterior.nc").stat().st_size > 0
+    assert (d / "classify" / "classification.csv").is_file()
+    assert (d / "discriminate" / "discrimination.json").is_file()
+    assert (d / "m4" / "thresholds.csv").is_file()
+    # every stage's full output is kept
+    assert (d / "logs" / "calibrate-neuron.txt").read_text().startswith("$ feeler calibrate neuron")
     assert main(["demo", "--out", str(tmp_path / "d"), "--scene", str(small)]) == 2
     assert "--force" in capsys.readouterr().err
+
+
+def test_held_out_scene_moves_only_the_seed(tmp_path):
+    from feeler.demo_campaign import HELD_OUT_SEED_OFFSET, held_out_scene
+    from feeler.scene import load_scene
+
+    a = load_scene(SHIPPED)
+    b = load_scene(held_out_scene(SHIPPED, tmp_path / "held.toml"))
+    assert b.scene.seed == a.scene.seed + HELD_OUT_SEED_OFFSET
+    assert b.surface == a.surface and b.noise == a.noise and b.repeats == a.repeats
+
+
+def test_a_failing_stage_is_named_and_earlier_results_stay(tmp_path, small):
+    from feeler.demo_campaign import StageFailed, _run
+
+    ctx = {"out": tmp_path, "print": lambda s: None}
+    (tmp_path / "kept.txt").write_text("earlier result")
+    with pytest.raises(StageFailed) as info:
+        _run(ctx, "calibrate-neuron", ["calibrate", "neuron", str(tmp_path / "missing")], keep=lambda l: l)
+    assert info.value.stage == "calibrate-neuron" and info.value.code == 2
+    assert "calibrate-neuron" in str(info.value) and "\n" not in str(info.value)
+    assert (tmp_path / "logs" / "calibrate-neuron.txt").is_file()
+    assert (tmp_path / "kept.txt").read_text() == "earlier result"

@@ -1,0 +1,133 @@
+"""The calibration campaign stages of ``feeler demo`` (after the robot stages of
+:mod:`feeler.demo`).
+
+Each stage runs the same sub-command a user would type (through :func:`feeler.cli.main`,
+in-process), so the demo and the CLI cannot drift apart. A stage's full output goes to
+``OUT/logs/<stage>.txt``; the terminal gets the lines that matter (summary tables,
+verdicts, the discrimination table). A stage whose command exits non-zero stops the demo
+with that stage named; earlier results stay on disk.
+
+Run-directory layout written here (the report reads it):
+
+- ``sensor-calibration/`` simulated calibration campaign; ``m1/`` its M1 posterior;
+- ``m2/`` the neuron's (a, τ, h, σ) posterior from ``four-plates/``;
+- ``held-out/`` fresh four-plates scans (seed + 10⁸); ``classify/`` their classification;
+- ``discriminate/`` the robot's 2AFC table, difference threshold, Weber fraction, PSE;
+- ``psychophysics/`` the synthetic human 2AFC data; ``m4/`` their psychometric fits.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import re
+from pathlib import Path
+
+from feeler.errors import FeelerError
+
+__all__ = ["CAMPAIGN_STAGES", "StageFailed", "held_out_scene"]
+
+DATA = Path(__file__).resolve().parents[1] / "datasets-synthetic"
+HELD_OUT_SEED_OFFSET = 100_000_000
+
+
+class StageFailed(FeelerError):
+    """A demo stage whose command exited non-zero (its log names the reason)."""
+
+    def __init__(self, stage: str, code: int, log: Path):
+        self.stage, self.code, self.log = stage, code, log
+        super().__init__(f"demo stage {stage!r} exited {code}; see {log}")
+
+
+def _run(ctx: dict, stage: str, argv: list[str], keep) -> None:
+    """Run ``feeler argv`` in-process, log everything, echo the lines ``keep`` selects."""
+    from feeler.cli import main
+
+    logs = ctx["out"] / "logs"
+    logs.mkdir(exist_ok=True)
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
+        code = main(argv)
+    text = buf.getvalue()
+    (logs / f"{stage}.txt").write_text(f"$ feeler {' '.join(argv)}\n{text}", encoding="utf-8")
+    if code != 0:
+        ctx["print"](text.rstrip())
+        raise StageFailed(stage, code, logs / f"{stage}.txt")
+    shown = keep(text.splitlines())
+    if shown:
+        ctx["print"]("\n".join(shown))
+
+
+def _from(marker: str):
+    """Keep the lines from the first one containing ``marker`` to the end."""
+    def keep(lines):
+        idx = next((i for i, line in enumerate(lines) if marker in line), len(lines))
+        return lines[idx:]
+    return keep
+
+
+def _matching(pattern: str):
+    return lambda lines: [line for line in lines if re.search(pattern, line)]
+
+
+def held_out_scene(scene_path: Path, dest: Path) -> Path:
+    """A copy of a robot-scan scene with its seed moved by 10⁸: fresh scans, same design."""
+    text = scene_path.read_text(encoding="utf-8")
+    new, n = re.subn(r"(?m)^(seed\s*=\s*)(\d+)", lambda m: f"{m[1]}{int(m[2]) + HELD_OUT_SEED_OFFSET}",
+                     text, count=1)
+    if n != 1:
+        raise FeelerError(f"{scene_path}: no 'seed = N' line to derive held-out scans from")
+    dest.write_text(new, encoding="utf-8")
+    return dest
+
+
+def _force(ctx) -> list[str]:
+    return ["--force"] if ctx["force"] else []
+
+
+def _calibrate_sensor(ctx: dict) -> None:
+    out = ctx["out"]
+    _run(ctx, "simulate-sensor-calibration",
+         ["simulate", str(DATA / "sensor-calibration.toml"), "--out", str(out / "sensor-calibration"),
+          *_force(ctx)], keep=lambda lines: [])
+    ctx["print"]("\nM1 — the sensor's force→displacement matrix C (exact conjugate posterior):")
+    _run(ctx, "calibrate-sensor", ["calibrate", "sensor", str(out / "sensor-calibration"), "--out",
+                                   str(out / "m1"), *_force(ctx)],
+         keep=lambda lines: [line for line in _from("name")(lines) if not line.lstrip().startswith("K[")])
+
+
+def _calibrate_neuron(ctx: dict) -> None:
+    ctx["print"]("\nM2 — the neuron's (a, τ, h) and decoder noise σ from the four plates (exact grid):")
+    _run(ctx, "calibrate-neuron", ["calibrate", "neuron", str(ctx["run_dir"]), "--out", str(ctx["out"] / "m2"),
+                                   "--no-progress", *_force(ctx)], keep=_from("name"))
+
+
+def _classify(ctx: dict) -> None:
+    out = ctx["out"]
+    scene = held_out_scene(ctx["scene_path"], out / "held-out-scene.toml")
+    _run(ctx, "simulate-held-out", ["simulate", str(scene), "--out", str(out / "held-out"), *_force(ctx)],
+         keep=lambda lines: [])
+    ctx["print"]("\nClassification of fresh (held-out) scans with confidence:")
+    _run(ctx, "classify", ["classify", str(out / "m2"), str(out / "held-out"), "--out", str(out / "classify"),
+                           *_force(ctx)], keep=_matching(r"classified as|wrote"))
+
+
+def _discriminate(ctx: dict) -> None:
+    ctx["print"]("\nM3 — the robot's discrimination (2AFC proportion correct):")
+    _run(ctx, "discriminate", ["discriminate", str(ctx["out"] / "m2"), "--out",
+                               str(ctx["out"] / "discriminate"), *_force(ctx)], keep=_from("low mm"))
+
+
+def _psychophysics(ctx: dict) -> None:
+    out = ctx["out"]
+    _run(ctx, "simulate-psychophysics", ["simulate", str(DATA / "psychophysics-2afc.toml"), "--out",
+                                         str(out / "psychophysics"), *_force(ctx)], keep=lambda lines: [])
+    ctx["print"]("\nM4 — human psychometric functions (SYNTHETIC 2AFC data), pooled rows:")
+    _run(ctx, "fit-psychophysics", ["fit", "psychophysics", str(out / "psychophysics" / "trials.csv"),
+                                    "--backend", "laplace", "--out", str(out / "m4"), *_force(ctx)],
+         keep=lambda lines: [line for line in lines if line.strip().startswith(("subject", "all", "wrote"))])
+
+
+#: (name, func(ctx)) appended to :data:`feeler.demo.STAGES`
+CAMPAIGN_STAGES = [("calibrate sensor", _calibrate_sensor), ("calibrate neuron", _calibrate_neuron),
+                   ("classify", _classify), ("discriminate", _discriminate),
+                   ("psychophysics", _psychophysics)]
