@@ -101,7 +101,8 @@ def _human_panel(ax, trials, pooled, *, synthetic: bool) -> None:
             if len(row):
                 pse, dt = float(row["pse_um"].iloc[0]), float(row["dt_um"].iloc[0])
                 x = np.linspace(pse - 4 * dt, pse + 4 * dt, 200)
-                ax.plot(x, norm.cdf((x - pse) / (dt / Z75)), color=f"C{k}", lw=1)
+                ax.plot(x, norm.cdf((x - pse) / (dt / Z75)), color=f"C{k}", lw=1,
+                        label=f"fit (PSE {pse:.3g} µm, DT {dt:.3g} µm)")
                 ax.axvline(pse, color=f"C{k}", lw=0.6, ls=":")
     ax.set(xlabel="comparison height (µm)", ylabel="P(comparison judged higher)", ylim=(-0.02, 1.02),
            title="Human" + tag)

@@ -61,5 +61,6 @@ def appendix_section(inv) -> Section:
         blocks.append(Note(scene_text(path), level="code", sources=(rel,)))
     if not blocks:
         blocks.append(Note("No scene files in this run."))
-    blocks.append(Table("Package versions", ("package", "version"), versions(), ("(this installation)",)))
+    blocks.append(Table("Package versions", ("package", "version"), versions(), (),
+                        caption="Installed when this report was made (not a file of the run)."))
     return Section("appendix", "Appendix: scene files and versions", tuple(blocks))
