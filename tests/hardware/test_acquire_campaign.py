@@ -1,0 +1,198 @@
+"""Campaigns against the Grbl emulator in a separate process over a real pty.
+
+One uninterrupted reference run (module fixture) is compared with a run killed with
+``kill -9`` mid-scan and resumed, and its recorded video is replayed as a camera.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feeler.cli import main
+from feeler.datasets import read_scans
+
+DATA = Path(__file__).parent / "data"
+TINY = DATA / "tiny-plan.toml"
+AREAS = [f"area{i}_px2" for i in range(4)]
+EXACT = ["scan_id", "plate", "step_mm", "speed_mm_s", "t_s", "repeat"]
+
+
+def one_scan_plan(tmp_path: Path) -> Path:
+    path = tmp_path / "one.toml"
+    path.write_text(TINY.read_text().replace("heights_mm = [0.0, 0.2]", "heights_mm = [0.0]")
+                    .replace("origin_x_mm = [10.0, 14.0]", "origin_x_mm = [10.0]")
+                    .replace("scans_per_plate = 2", "scans_per_plate = 1"))
+    return path
+
+
+def table(run: Path, name: str = "scans.csv") -> pd.DataFrame:
+    return pd.read_csv(run / name)
+
+
+def rerendered_areas(run: Path, plan_path: Path) -> np.ndarray:
+    """Areas of every row re-rendered from the recorded stage position and the scan's seed."""
+    from feeler.hardware.acquire.world import VirtualWorld
+    from feeler.hardware.acquire import load_plan
+    from feeler.hardware.camera import AreaExtractor
+
+    plan = load_plan(plan_path)
+    world = VirtualWorld.of_plan(plan, plan_path)
+    extract = AreaExtractor(world.layout, blur_sd_px=plan.optics.blur_sd_px)
+    out = []
+    for scan_id, rows in table(run).groupby("scan_id", sort=False):
+        rng = np.random.default_rng(np.random.SeedSequence([plan.scene.seed, int(scan_id)]))
+        for r in rows.itertuples():
+            frame = world.render(int(scan_id), (r.stage_x_mm, r.stage_y_mm, r.stage_z_mm), rng)
+            out.append(extract(frame)[0][plan.optics.element])
+    return np.array(out)
+
+
+def check_against_the_virtual_world(run: Path) -> None:
+    """Exact re-rendering, and U within the reader's accuracy of the true U."""
+    from feeler.hardware.acquire import load_plan
+    from feeler.hardware.acquire.world import VirtualWorld
+
+    rows = table(run)
+    np.testing.assert_array_equal(rerendered_areas(run, TINY), rows[AREAS].to_numpy())
+    world = VirtualWorld.of_plan(load_plan(TINY), TINY)
+    truth = np.array([world.truth_mm(int(r.scan_id), (r.stage_x_mm, r.stage_y_mm, r.stage_z_mm))
+                      for r in rows.itertuples()])
+    np.testing.assert_allclose(rows[["ux_mm", "uy_mm", "uz_mm"]].to_numpy(), truth, atol=0.006)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    from feeler.hardware.acquire import acquire
+
+    run = tmp_path_factory.mktemp("acq") / "reference"
+    summary = acquire(TINY, run, emulate=True)
+    return run, summary
+
+
+def test_emulated_campaign_is_a_neuron_dataset(reference):
+    from feeler.calib.neuron import data_from_scans
+    from feeler.commands._calibrate_neuron import locate_scans
+
+    run, summary = reference
+    assert summary["complete"] and (summary["scans_done"], summary["samples_written"]) == (4, 16)
+    assert (summary["bad_frames"], summary["bad_lines"], summary["aborted_attempts"]) == (0, 0, 0)
+    scans = read_scans(run)
+    np.testing.assert_array_equal(scans.step_mm, [0.0, 0.0, 0.2, 0.2])
+    np.testing.assert_allclose(scans.t_s, np.tile(np.arange(4) * 0.1, (4, 1)), atol=1e-12)
+    assert np.all(np.diff(scans.x_mm, axis=1) > 0.5)                  # the stage moved between samples
+    csv, length_mm, kernel = locate_scans(run, None)                  # what `calibrate neuron RUN` does
+    data = data_from_scans(read_scans(csv), length_mm=length_mm, kernel=kernel)
+    assert (length_mm, kernel, data.strain.shape) == (3.0, "boxcar", (4, 4))
+    assert table(run, "samples.csv").drop(columns="attempt").equals(table(run))
+    check_against_the_virtual_world(run)
+    assert sorted(p.name for p in (run / "video").iterdir()) == [f"scan_000{i}.avi" for i in range(4)]
+
+
+def test_replaying_the_recorded_video_gives_the_same_areas(reference, tmp_path):
+    from feeler.hardware.acquire import acquire
+
+    run, _ = reference
+    replay = tmp_path / "replay"
+    summary = acquire(one_scan_plan(tmp_path), replay, emulate=True,
+                      camera_src=str(run / "video" / "scan_0000.avi"))
+    assert summary["complete"] and summary["camera"].endswith("scan_0000.avi")
+    np.testing.assert_array_equal(table(replay)[AREAS].to_numpy(), table(run)[AREAS].to_numpy()[:4])
+
+
+def test_corrupt_video_mid_run_is_one_line_and_keeps_what_was_written(reference, tmp_path, capsys):
+    run, _ = reference
+    data = (run / "video" / "scan_0000.avi").read_bytes()
+    bad = tmp_path / "corrupt.avi"
+    half = len(data) // 2
+    bad.write_bytes(data[:half] + bytes(3000) + data[half + 3000:])
+    out = tmp_path / "run"
+    code = main(["acquire", "--emulate", "--camera", str(bad), "--plan", str(one_scan_plan(tmp_path)),
+                 "--out", str(out)])
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
+    assert code == 2 and len(err) == 1 and str(bad) in err[0] and "truncated or corrupt" in err[0]
+    samples = table(out, "samples.csv")
+    assert len(samples) >= 1 and list(samples["t_s"]) == [0.1 * k for k in range(len(samples))]
+    journal = (out / "journal.jsonl").read_text()
+    assert '"event": "bad_frame"' in journal and "identical to the previous frame" in journal
+
+
+def test_plan_beyond_the_soft_limits_is_refused_before_writing(tmp_path, capsys):
+    plan = tmp_path / "far.toml"
+    plan.write_text(TINY.read_text().replace("origin_x_mm = [10.0, 14.0]", "origin_x_mm = [10.0, 198.0]"))
+    code = main(["acquire", "--emulate", "--plan", str(plan), "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1
+    assert "scan.traverse_mm: scan 2 moves x to 201 mm, beyond the soft limits [0, 200] mm" in err[0]
+    assert not (tmp_path / "run").exists()
+
+
+def _children(pid: int) -> list[int]:
+    path = Path(f"/proc/{pid}/task/{pid}/children")
+    return [int(p) for p in path.read_text().split()] if path.exists() else []
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def test_kill_9_mid_scan_then_resume_completes_like_an_uninterrupted_run(reference, tmp_path, capsys):
+    ref, _ = reference
+    run = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "feeler", "acquire", "--emulate", "--plan", str(TINY), "--out", str(run)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    samples = run / "samples.csv"
+    deadline = time.monotonic() + 60
+    while not (samples.exists() and samples.read_text().count("\n") >= 1 + 6):   # scan 1, 2 of 4 samples
+        assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read() if proc.poll() else ""
+        time.sleep(0.005)
+    children = _children(proc.pid)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    proc.stderr.close()
+    deadline = time.monotonic() + 10
+    while any(_alive(c) for c in children) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    leftover = [c for c in children if _alive(c)]
+    for c in leftover:
+        os.kill(c, signal.SIGKILL)
+    assert children and not leftover, "the emulator outlived its killed campaign"
+
+    # readable right away: complete scans in scans.csv, every sample up to the one in flight
+    assert list(read_scans(run).scan_id) == [0]
+    lines = samples.read_text().splitlines()
+    rows = [ln.split(",") for ln in lines[1:] if ln.count(",") == len(lines[0].split(",")) - 1]
+    assert len(lines) - 1 - len(rows) <= 1                                       # at most one cut line
+    scan1 = [r for r in rows if r[0] == "1"]
+    assert [float(r[4]) for r in scan1] == [0.1 * k for k in range(len(scan1))] and len(scan1) >= 2
+
+    assert main(["acquire", "--emulate", "--plan", str(TINY), "--out", str(run), "--resume"]) == 0
+    assert "4 of 4 scans (complete)" in capsys.readouterr().out
+    import json
+    summary = json.loads((run / "summary.json").read_text())
+    assert (summary["runs"], summary["aborted_attempts"], summary["scans_done"]) == (2, 1, 4)
+    assert summary["partial_lines_dropped"] <= 1 and summary["samples_written"] == 16
+    got, want = table(run), table(ref)
+    pd.testing.assert_frame_equal(got[EXACT], want[EXACT])
+    np.testing.assert_allclose(got["x_mm"], want["x_mm"], atol=0.25)           # timing of the samples
+    check_against_the_virtual_world(run)
+    assert set(table(run, "samples.csv").query("scan_id == 1")["attempt"]) == {0, 1}
+
+
+def test_missing_camera_on_resume_changes_nothing(reference, tmp_path, capsys):
+    run, _ = reference
+    before = {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()}
+    code = main(["acquire", "--emulate", "--camera", "57", "--plan", str(TINY), "--out", str(run), "--resume"])
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
+    assert code == 2 and err == ["feeler: error: camera 57: no camera device at this index"]
+    assert {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()} == before
