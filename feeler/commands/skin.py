@@ -1,0 +1,62 @@
+"""Finger skin mechanics: the L0/L1/L2 ladder study and the paper's Figs 3–6.
+
+  feeler skin ladder [--out DIR] [--small]
+      L2 mesh-convergence study (peak step strain must change < 1 % between the two
+      finest meshes) and the trade table: seconds per slide (setup apart) and the error
+      of the peak strain rate against converged L2 for L0, L1, L2. Writes
+      convergence.csv, trade.csv, ladder.json and ladder.png.
+  feeler skin figures SCENE --out DIR [--level l0|l1|l2] [--force]
+      Figs 3–6 of the paper for a finger-steps scene (fig3_strain.png …
+      fig6_accepted.png), with fig5_peaks.csv, fig6_accepted.csv and figures.json.
+
+Example:
+    feeler skin figures datasets-synthetic/finger-steps.toml --out runs/finger-figs
+"""
+from __future__ import annotations
+
+__all__ = ["NAME", "HELP", "register"]
+
+NAME = "skin"
+HELP = "finger skin ladder study (L0/L1/L2) and the paper's Figs 3-6"
+
+
+def register(parser) -> None:
+    sub = parser.add_subparsers(title="skin commands", metavar="WHAT")
+    lad = sub.add_parser("ladder", help="mesh convergence and the L0/L1/L2 trade table")
+    lad.add_argument("--out", default="runs/skin-ladder", metavar="DIR", help="output directory")
+    lad.add_argument("--small", action="store_true", help="coarse meshes and time steps (a quick check)")
+    lad.add_argument("--force", action="store_true", help="overwrite existing results in DIR")
+    lad.set_defaults(run=run_ladder)
+    fig = sub.add_parser("figures", help="the paper's Figs 3-6 for a finger-steps scene")
+    fig.add_argument("scene", metavar="SCENE", help="finger-steps scene TOML")
+    fig.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    fig.add_argument("--level", choices=("l0", "l1", "l2"), help="override the scene's skin level")
+    fig.add_argument("--force", action="store_true", help="overwrite existing results in DIR")
+    fig.set_defaults(run=run_figures)
+    parser.set_defaults(run=lambda args: (parser.print_help(), 2)[1])
+
+
+def run_ladder(args) -> int:
+    from feeler.skin_study import ladder_files, run_ladder_study
+
+    from feeler.rundir import prepare_out_dir
+    out = prepare_out_dir(args.out, ladder_files(), force=args.force)
+    summary = run_ladder_study(out, small=args.small)
+    for line in summary["lines"]:
+        print(line)
+    return 0
+
+
+def run_figures(args) -> int:
+    from feeler.errors import SceneError
+    from feeler.scene import load_scene
+    from feeler.skin_study import figure_files, write_figures
+
+    scene = load_scene(args.scene)
+    if scene.scene.kind != "finger-steps":
+        raise SceneError(args.scene, "scene.kind", f"{scene.scene.kind!r}: skin figures need a finger-steps scene")
+    from feeler.rundir import prepare_out_dir
+    out = prepare_out_dir(args.out, figure_files(), force=args.force)
+    for line in write_figures(scene, out, level=args.level):
+        print(line)
+    return 0
