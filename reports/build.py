@@ -105,10 +105,13 @@ def render_html(inv: Inventory, sections) -> str:
 def write_pdf(html: str, path: str | Path) -> int:
     """Lay out ``html`` with WeasyPrint, write ``path``; returns the number of pages."""
     import weasyprint
-    from weasyprint.urls import URLFetcher
+    from weasyprint.urls import FatalURLFetchingError, URLFetcher
 
     # only inline data: URIs, and any other reference stops the rendering: no network
     fetcher = URLFetcher(allowed_protocols=("data",), fail_on_errors=True)
-    document = weasyprint.HTML(string=html, url_fetcher=fetcher).render()
+    try:
+        document = weasyprint.HTML(string=html, url_fetcher=fetcher).render()
+    except FatalURLFetchingError as exc:   # a BaseException in WeasyPrint 70
+        raise RuntimeError(f"{path}: {exc}; a report may reference inline data: URIs only") from None
     document.write_pdf(path)
     return len(document.pages)
