@@ -21,17 +21,19 @@ CALIBRATION_FILES = ("calibration.csv", "truth.json", "scene.toml")
 _HEADER = "point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n"
 
 
-def draw_campaign(scene, rng: np.random.Generator, scene_path=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def draw_campaign(scene, rng: np.random.Generator, scene_path=None,
+                  out_dir=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Commanded U (mm), true U (mm) and measured F (N), each ndarray[n, 3].
 
     At an optical fidelity F is read through the element (areas or rendered frames) with
-    the same ``rng`` after the stage errors; ``scene_path`` locates ``optics.layout``.
+    the same ``rng`` after the stage errors; ``scene_path`` locates ``optics.layout``,
+    ``out_dir`` receives ``sensor.avi`` when ``optics.video``.
     """
     u_cmd = commanded_displacements(scene.design)
     n = u_cmd.shape[0]
     u_true = u_cmd + scene.noise.stage_sd_mm * rng.standard_normal((n, 3))
     if scene.sensor.fidelity != "displacement":
-        return u_cmd, u_true, _optical_force(scene, u_true, rng, scene_path)
+        return u_cmd, u_true, _optical_force(scene, u_true, rng, scene_path, out_dir)
     k = np.linalg.inv(np.asarray(scene.sensor.c_mm_per_n, dtype=float))
     if scene.noise.kind == "student":
         eta = rng.standard_t(scene.noise.student_nu, size=(n, 3))
@@ -41,7 +43,7 @@ def draw_campaign(scene, rng: np.random.Generator, scene_path=None) -> tuple[np.
     return u_cmd, u_true, f
 
 
-def _optical_force(scene, u_true: np.ndarray, rng: np.random.Generator, scene_path) -> np.ndarray:
+def _optical_force(scene, u_true: np.ndarray, rng: np.random.Generator, scene_path, out_dir) -> np.ndarray:
     """F (n, 3) N read through the optical element whose C is the scene's true C."""
     from feeler.errors import SceneError
     from feeler.models import sensor
@@ -49,7 +51,8 @@ def _optical_force(scene, u_true: np.ndarray, rng: np.random.Generator, scene_pa
     from feeler.scenes._optics import fidelity_params
 
     c = np.asarray(scene.sensor.c_mm_per_n, dtype=float)
-    params = fidelity_params(scene.optics, scene.sensor.fidelity, scene_path=scene_path, c_mm_per_n=c)
+    params = fidelity_params(scene.optics, scene.sensor.fidelity, scene_path=scene_path, out_dir=out_dir,
+                             c_mm_per_n=c)
     u_read = sensor.observe(u_true[:, None, :], fidelity=scene.sensor.fidelity, params=params, rng=rng)[:, 0]
     bad = np.flatnonzero(np.isnan(u_read).any(axis=1))
     if bad.size:
@@ -73,9 +76,10 @@ def simulate_sensor_calibration(scene, out_dir: str | Path, force: bool = False,
     Raises:
         OverwriteError: a file exists and ``force`` is false.
     """
-    out = prepare_out_dir(out_dir, CALIBRATION_FILES, force=force)
+    video = scene.optics is not None and scene.optics.video and scene.sensor.fidelity == "images"
+    out = prepare_out_dir(out_dir, CALIBRATION_FILES + (("sensor.avi",) if video else ()), force=force)
     rng = np.random.default_rng(scene.scene.seed)
-    u_cmd, u_true, f = draw_campaign(scene, rng, scene_path)
+    u_cmd, u_true, f = draw_campaign(scene, rng, scene_path, out)
     ids = np.arange(u_cmd.shape[0])
     table = np.column_stack([ids, u_cmd, f])
     np.savetxt(out / "calibration.csv", table, delimiter=",", header=_HEADER, comments="",

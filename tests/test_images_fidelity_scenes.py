@@ -1,0 +1,104 @@
+"""four-plates and sensor-calibration at the optical fidelities: the [optics] table, the
+simulated datasets, and the M1 / M2 fits on them (small sizes)."""
+from __future__ import annotations
+
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feeler.datasets import read_scans
+from feeler.errors import SceneError
+from feeler.scene import load_scene
+from feeler.simulate import run_simulation
+
+SHIPPED = Path(__file__).parents[1] / "datasets-synthetic"
+FOUR_IMAGES = SHIPPED / "four-plates-images.toml"
+CAL_IMAGES = SHIPPED / "sensor-calibration-images.toml"
+
+
+def variant(src: Path, tmp_path: Path, name: str = "scene.toml", copy_layouts: bool = True, **replace) -> Path:
+    text = src.read_text()
+    for old, new in replace.items():
+        assert old in text, old
+        text = text.replace(old, new)
+    if copy_layouts:
+        (tmp_path / "layouts").mkdir(exist_ok=True)
+        (tmp_path / "layouts" / "sensor-16.toml").write_bytes((SHIPPED / "layouts" / "sensor-16.toml").read_bytes())
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("src, replace, key", [
+    (FOUR_IMAGES, {'fidelity = "images"': 'fidelity = "displacement"'}, "optics: only used when sensor.fidelity"),
+    (CAL_IMAGES, {'fidelity = "images"': 'fidelity = "displacement"'}, "optics: only used when sensor.fidelity"),
+    (FOUR_IMAGES, {'layout = "layouts/sensor-16.toml"': 'c_mm_per_n = [[1.0, 0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]'},
+     "optics.c_mm_per_n: must be 3 rows of 3"),
+    (FOUR_IMAGES, {'layout = "layouts/sensor-16.toml"': 'c_mm_per_n = [[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]]'},
+     "optics.c_mm_per_n[0]: needs at least 3 items"),
+    (CAL_IMAGES, {'layout = "layouts/sensor-16.toml"': 'c_mm_per_n = [[1, 2, 3], [2, 4, 6], [0, 0, 1]]'},
+     "optics.c_mm_per_n: must be invertible"),
+    (FOUR_IMAGES, {"rest_area_px2 = 300.0": "rest_area_px2 = 0.0"}, "optics.rest_area_px2"),
+    (CAL_IMAGES, {'fidelity = "images"': 'fidelity = "camera"'}, "sensor.fidelity"),
+])
+def test_optics_table_is_validated(tmp_path, src, replace, key):
+    with pytest.raises(SceneError, match=re.escape(key)):
+        load_scene(variant(src, tmp_path, **replace))
+
+
+def test_missing_layout_file_names_the_key(tmp_path):
+    path = variant(CAL_IMAGES, tmp_path, copy_layouts=False)
+    with pytest.raises(SceneError, match=r"optics\.layout: 'layouts/sensor-16\.toml': no such layout file"):
+        run_simulation(path, tmp_path / "run")
+
+
+def test_images_calibration_reads_forces_close_to_the_truth_and_video_changes_nothing(tmp_path):
+    import json
+
+    mem = run_simulation(CAL_IMAGES, tmp_path / "mem")
+    vid = run_simulation(variant(CAL_IMAGES, tmp_path, **{"photons_per_level = 40.0":
+                                                          "photons_per_level = 40.0\nvideo = true"}), tmp_path / "vid")
+    assert (vid / "sensor.avi").stat().st_size > 0 and not (mem / "sensor.avi").exists()
+    a, b = pd.read_csv(mem / "calibration.csv"), pd.read_csv(vid / "calibration.csv")
+    pd.testing.assert_frame_equal(a, b)                           # lossless video: same frames, same areas
+    truth = json.loads((mem / "truth.json").read_text())
+    f_true = np.asarray(truth["u_true_mm"]) @ np.asarray(truth["K_n_per_mm"]).T
+    err = a[["fx_n", "fy_n", "fz_n"]].to_numpy() - f_true
+    assert np.abs(err).max() < 0.02 and np.abs(err).max() > 0    # the reader's error, well below f_sd_n
+
+
+def test_m1_fit_on_the_images_calibration_recovers_c(tmp_path):
+    from feeler.calib.matrix import MatrixPrior, fit_matrix, read_calibration_csv
+
+    run = run_simulation(CAL_IMAGES, tmp_path / "run")
+    scene = load_scene(CAL_IMAGES)
+    prior = MatrixPrior(c0_mm_per_n=scene.prior.c0_mm_per_n, rel_sd=scene.prior.rel_sd,
+                        sigma_f_scale_n=scene.prior.sigma_f_scale_n)
+    result = fit_matrix(read_calibration_csv(run / "calibration.csv"), prior, backend="exact",
+                        rng=np.random.default_rng(1), chains=2, draws=500)
+    c_mean = result.posterior["posterior"]["C"].mean(("chain", "draw")).values
+    np.testing.assert_allclose(c_mean, scene.sensor.c_mm_per_n, atol=0.004)
+    assert result.verdict.ok
+
+
+def test_four_plates_at_images_is_a_dataset_and_m2_fits_it(tmp_path):
+    from feeler.calib.neuron import data_from_scans, fit_neuron
+
+    small = variant(FOUR_IMAGES, tmp_path, **{"scans_per_plate = 8": "scans_per_plate = 4"})
+    disp = variant(FOUR_IMAGES, tmp_path, "disp.toml", **{"scans_per_plate = 8": "scans_per_plate = 4",
+                                                         'fidelity = "images"': 'fidelity = "displacement"'})
+    disp.write_text(disp.read_text()[: disp.read_text().index("[optics]")])
+    img, ref = read_scans(run_simulation(small, tmp_path / "img")), read_scans(run_simulation(disp, tmp_path / "disp"))
+    np.testing.assert_array_equal(img.t_s, ref.t_s)
+    np.testing.assert_array_equal(img.x_mm, ref.x_mm)                  # same touches, same seed
+    d = img.uy_mm - ref.uy_mm                                          # images noise vs 2 um displacement noise
+    assert abs(d.mean()) < 0.002 and 0.001 < d.std() < 0.004
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = fit_neuron(data_from_scans(img, length_mm=3.0), backend="grid", chains=2, draws=200)
+    attrs = result.posterior["posterior"].attrs
+    assert attrs["ppc_coverage90"] >= 0.8 and np.isfinite(result.summary["mean"]).all()
