@@ -81,7 +81,10 @@ def _robot_panel(ax, disc) -> None:
     ax.axhline(0.75, color="grey", lw=0.8, ls="--")
     th = disc["threshold_mm"]
     ax.axvspan(th["lo95"], th["hi95"], color="C1", alpha=0.25, label=f"threshold {th['mean'] * 1e3:.3g} µm")
-    ax.set(xscale="symlog", xlabel="height difference (mm)", ylabel="proportion correct (2AFC)",
+    positive = np.concatenate([diff[diff > 0], [v for v in (th["lo95"], th["mean"]) if v > 0]])
+    if positive.size:                         # steps span decades: log axis over all of them
+        ax.set(xscale="log", xlim=(positive.min() / 2, positive.max() * 2))
+    ax.set(xlabel="height difference (mm)", ylabel="proportion correct (2AFC)",
            ylim=(0.4, 1.02), title=f"Robot (reference {disc.get('reference_mm', float('nan')):g} mm)")
     ax.legend(fontsize=7, loc="lower right")
 
