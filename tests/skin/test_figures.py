@@ -1,0 +1,70 @@
+"""The paper's Figs 3–6 claims, at small size with L2 (nonlinear contact, viscoelastic)."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from feeler.scene import load_scene
+from feeler.simulate_finger import finger_runs
+from feeler.skin_figures import figure_data
+from tests.skin.conftest import SMALL
+from tests.skin.test_scene_sim import SHIPPED
+
+
+@pytest.fixture(scope="module")
+def small_scene():
+    scene = load_scene(SHIPPED)
+    mesh = dataclasses.replace(scene.mesh, h_contact_mm=SMALL.h_contact_mm, h_corpuscle_mm=SMALL.h_corpuscle_mm,
+                               h_far_mm=SMALL.h_far_mm, grade=SMALL.grade)
+    loading = dataclasses.replace(scene.loading, travel_step_mm=0.05)
+    return dataclasses.replace(scene, mesh=mesh, loading=loading,
+                               model=dataclasses.replace(scene.model, level="l2"))
+
+
+@pytest.fixture(scope="module")
+def runs(small_scene):
+    return finger_runs(small_scene)
+
+
+def test_fig3_two_spikes_growing_with_height(runs):
+    peaks = {}
+    for r in runs:
+        e = r.eps_y[r.slide_start:] - r.eps_y[r.slide_start]
+        hi, lo = int(np.argmax(e)), int(np.argmin(e))
+        assert e[hi] > 0 > e[lo] and hi < lo                    # tension spike, then compression
+        x_hi, x_lo = r.x_mm[r.slide_start + hi], r.x_mm[r.slide_start + lo]
+        assert 4.0 < x_hi < 5.0 < x_lo < 6.0                    # both within 1 mm of the step
+        peaks.setdefault(r.speed_mm_s, []).append(e[hi] - e[lo])
+    for v, p in peaks.items():
+        assert np.all(np.diff(p) > 0)
+
+
+def test_fig4_fig5_normalised_linear_and_faster_is_higher(runs, small_scene):
+    data = figure_data(runs, small_scene.neuron, small_scene.loading.press_s)
+    assert data.peak_z[-1, -1] == pytest.approx(1.0)
+    assert max(z.max() for _, z in data.z_norm) == pytest.approx(1.0)
+    for f in data.fits:
+        assert f.r2 >= 0.98
+    assert np.all(data.peak_z[:, 1] > data.peak_z[:, 0])          # 40 mm/s above 20 mm/s
+
+
+def test_fig6_speed_effect_shrinks_with_tau(runs, small_scene):
+    data = figure_data(runs, small_scene.neuron, small_scene.loading.press_s)
+    assert np.all(np.diff(data.taus_s) > 0)
+    assert np.all(np.diff(data.speed_ratio) < 0) and np.all(data.speed_ratio > 1.0)
+    for k in range(len(data.taus_s)):
+        acc = data.accepted_um[k]
+        assert np.all(acc[:, 1] > acc[:, 0])                    # felt higher at 40 mm/s
+        mean_slope = np.mean(data.heights_um @ acc / (data.heights_um @ data.heights_um))
+        assert mean_slope == pytest.approx(1.0, rel=1e-12)      # κ from the mean regression slope
+
+
+@pytest.mark.parametrize("tau_s", [0.001, 10.0])
+def test_neuron_window_extremes(runs, small_scene, tau_s):
+    neuron = dataclasses.replace(small_scene.neuron, tau_s=tau_s, tau_sweep_s=(tau_s,))
+    data = figure_data(runs, neuron, small_scene.loading.press_s)
+    assert np.all(np.isfinite(data.accepted_um)) and np.all(data.peak_z > 0)
+    if tau_s >= 1.0:      # the window holds the whole slide: total variation, no speed effect
+        assert data.speed_ratio[0] == pytest.approx(1.0, abs=1e-3)
+    else:                 # a short window: u ≈ τ |ε̇| ∝ speed
+        assert data.speed_ratio[0] == pytest.approx(2.0, rel=0.1)
