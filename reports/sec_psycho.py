@@ -42,6 +42,12 @@ def _human(inv):
     return trials, pooled, note
 
 
+def _synthetic_label(what: str, note: str) -> list:
+    """[the SYNTHETIC note of the trial file] when its comments say so, else []."""
+    text = f"{what}: SYNTHETIC — " + note.replace("\n", " ")
+    return [Note(text, level="synthetic", sources=(TRIALS,))] if note else []
+
+
 def _standard_um(trials, speed) -> float:
     rows = trials[trials["standard_speed_mm_s"] == speed]["standard_um"].unique()
     return float(rows[0]) if len(rows) == 1 else float("nan")
@@ -51,8 +57,7 @@ def psychometric_section(inv, spec) -> Section:
     """Robot 2AFC curve (left) and human psychometric data and fits (right), with tables."""
     trials, pooled, note = _human(inv)
     disc = read_json(inv.run_dir / DISC, ("pairs", "threshold_mm", "weber", "pse")) if inv.has(DISC) else None
-    blocks = [Note("Human data: SYNTHETIC — " + note.replace("\n", " "), level="synthetic",
-                   sources=(TRIALS,))] if note else []
+    blocks = _synthetic_label("Human data", note)
     fig, (left, right) = subplots(2, width_in=4.4, height_in=3.6)
     if disc is not None:
         _robot_panel(left, disc)
@@ -168,8 +173,7 @@ def fig6_section(inv, spec) -> Section:
     ax.set(xlabel="presented step height (µm)", ylabel="accepted step height (µm)",
            title=f"Fig. 6 at τ = {tau_s * 1e3:.0f} ms (skin {level})")
     ax.legend(fontsize=7)
-    blocks = [Note("Human points: SYNTHETIC — " + note.replace("\n", " "), level="synthetic",
-                   sources=(TRIALS,))] if note else []
+    blocks = _synthetic_label("Human points", note)
     blocks.append(Figure("Accepted against presented step height", figure_uri(fig), (TAU, THRESH, TRIALS),
                          caption="Line: κ(τ)·peak z of the finger chain at the posterior median τ; "
                                  "points: pooled human PSEs of the standard."))
