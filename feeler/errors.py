@@ -14,6 +14,7 @@ __all__ = [
     "DataFileError",
     "OverwriteError",
     "CalibrationFailed",
+    "SolverError",
 ]
 
 
@@ -88,3 +89,16 @@ class CalibrationFailed(FeelerError):
         more = f" (+{len(verdict.problems) - 1} more)" if len(verdict.problems) > 1 else ""
         super().__init__(f"{what} failed its diagnostics: {first}{more}; "
                          f"pass --accept-failed to use it anyway")
+
+
+class SolverError(FeelerError):
+    """A numerical solver did not reach its tolerance (e.g. the skin model's contact).
+
+    Attributes:
+        solver (str): which solver.
+        residual (float): the remaining violation, in the solver's units.
+    """
+
+    def __init__(self, solver: str, residual: float, unit: str = ""):
+        self.solver, self.residual = solver, residual
+        super().__init__(f"{solver} did not converge: residual {residual:.3g}{' ' + unit if unit else ''}")

@@ -94,13 +94,17 @@ def plot_figures(runs, data: FigureData, out_dir, *, label: str) -> list:
     import matplotlib.pyplot as plt
 
     paths = []
-    fig, axes = plt.subplots(1, len(data.speeds_mm_s), figsize=(5 * len(data.speeds_mm_s), 3.6), squeeze=False)
+    n_v = len(data.speeds_mm_s)
+    fig, axes = plt.subplots(2, n_v, figsize=(5 * n_v, 6.4), squeeze=False)
     for j, v in enumerate(data.speeds_mm_s):
-        ax = axes[0, j]
+        ax, zoom = axes[0, j], axes[1, j]
         for r in runs:
             if r.speed_mm_s == v:
                 ax.plot(r.t_s, r.eps_y, lw=1, label=f"{r.step_um:g} µm")
+                s = r.slide_start
+                zoom.plot(r.t_s[s:], r.eps_y[s:] - r.eps_y[s], lw=1, label=f"{r.step_um:g} µm")
         ax.set(title=f"Fig 3 — ε_y at the corpuscle, {v:g} mm/s", xlabel="time (s)", ylabel="ε_y")
+        zoom.set(title="slide: change from the pressed state", xlabel="time (s)", ylabel="Δε_y")
         ax.legend(fontsize=7)
     paths.append(_save(fig, out_dir, "fig3_strain.png", label))
     fig, axes = plt.subplots(1, len(data.speeds_mm_s), figsize=(5 * len(data.speeds_mm_s), 3.6), squeeze=False)

@@ -51,7 +51,7 @@ def run_ladder_study(out: Path, *, small: bool = False, speed_mm_s: float = 20.0
     if 1.0 in factors[1:-1]:
         meshes["scene"] = base
     setup = {name: next(r.setup_s for r in rows if base.refined(r.factor) == spec) for name, spec in meshes.items()}
-    trade = trade_table(params, profile, speed_mm_s, meshes=meshes, reference="converged", setup_s=setup, dt_s=dt)
+    trade, fitted = trade_table(params, profile, speed_mm_s, meshes=meshes, reference="converged", setup_s=setup, dt_s=dt)
     with open(out / "trade.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["level", "mesh", "setup_s", "seconds_per_slide", "peak_rate_per_s", "rate_error"])
@@ -66,6 +66,7 @@ def run_ladder_study(out: Path, *, small: bool = False, speed_mm_s: float = 20.0
               "l1_speedup": l2.seconds_per_slide / l1.seconds_per_slide, "l1_rate_error": l1.rate_error,
               "l0_speedup": l2.seconds_per_slide / l0.seconds_per_slide,
               "l0_speedup_with_l2_setup": (l2.seconds_per_slide + l2.setup_s) / l0.seconds_per_slide,
+              "l0_fitted": {"l0_gain": fitted.l0_gain, "l0_base": fitted.l0_base},
               "convergence": [asdict(r) for r in rows], "trade": [asdict(t) for t in trade]}
     result["met"] = {"convergence": change["peak_step_eps"] < GOALS["convergence_change"],
                      "l1_speedup": result["l1_speedup"] >= GOALS["l1_speedup"],
@@ -76,6 +77,7 @@ def run_ladder_study(out: Path, *, small: bool = False, speed_mm_s: float = 20.0
                          f"peak-rate error {t.rate_error:.2%}" for t in trade),
                        f"L1 speed-up {result['l1_speedup']:.3g}x, L0 speed-up {result['l0_speedup']:.3g}x "
                        f"({result['l0_speedup_with_l2_setup']:.3g}x counting L2 setup)",
+                       f"L0 fitted to converged L2: gain {fitted.l0_gain:.4g}, base shift {fitted.l0_base:.4g}",
                        f"goals met: {result['met']}"]
     write_json(out / "ladder.json", result)
     _plot_trade(trade, out / "ladder.png")

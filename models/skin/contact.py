@@ -15,19 +15,11 @@ import numpy as np
 import scipy.linalg as la
 from scipy.optimize import nnls
 
-from feeler.errors import FeelerError
+from feeler.errors import SolverError
 
-__all__ = ["ContactError", "solve_contact", "single_thread_blas"]
+__all__ = ["solve_contact", "single_thread_blas"]
 
 MAX_ITER = 60
-
-
-class ContactError(FeelerError):
-    """The contact problem did not converge (carries the residual ``violation`` in mm)."""
-
-    def __init__(self, violation: float):
-        self.violation = violation
-        super().__init__(f"contact solver did not converge: complementarity violated by {violation:.3g} mm")
 
 
 def solve_contact(compliance: np.ndarray, need: np.ndarray, active: np.ndarray | None = None,
@@ -41,6 +33,8 @@ def solve_contact(compliance: np.ndarray, need: np.ndarray, active: np.ndarray |
         tol_mm (float): tolerance on penetration, scaled by max |need|.
     Returns:
         (p ndarray[n] N/mm, active ndarray[n] bool)
+    Raises:
+        SolverError: the complementarity conditions are violated beyond tolerance.
     """
     n = len(need)
     scale = max(float(np.max(np.abs(need))), 1e-30)
@@ -64,7 +58,7 @@ def solve_contact(compliance: np.ndarray, need: np.ndarray, active: np.ndarray |
     violation = max(float(-gap.min()), float(np.max(np.abs(gap[act]), initial=0.0)),
                     float(-p.min()) * float(np.max(np.diag(compliance))))
     if violation > 1e-6 * max(scale, 1e-3):
-        raise ContactError(violation)
+        raise SolverError("frictionless contact (active set)", violation, "mm")
     return np.maximum(p, 0.0), act
 
 

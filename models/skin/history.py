@@ -5,9 +5,25 @@ from feeler.errors import ArgumentError
 from feeler.models.skin.l0 import l0_strain_history
 from feeler.models.skin.params import SkinParams, StepProfile
 
-__all__ = ["LEVELS", "strain_history"]
+__all__ = ["LEVELS", "strain_history", "as_step_profile"]
 
 LEVELS = ("l0", "l1", "l2")
+
+
+def as_step_profile(profile, edge_um: float = 50.0) -> StepProfile:
+    """A :class:`StepProfile` from itself or from a one-edge ``feeler.models.surface.Profile``.
+
+    The surface module's edges are sharp; the skin ladder rounds them with a ramp of
+    ``edge_um`` (invisible at the corpuscle's depth, needed by the FEM).
+    """
+    if isinstance(profile, StepProfile):
+        return profile
+    from feeler.models.surface import Profile
+    if isinstance(profile, Profile):
+        if len(profile.edges_mm) != 1:
+            raise ArgumentError("profile", profile, "the skin ladder takes a plate with exactly one step")
+        return StepProfile(height_um=profile.jumps_mm[0] * 1e3, position_mm=profile.edges_mm[0], edge_um=edge_um)
+    raise ArgumentError("profile", profile, "a StepProfile or a one-step feeler.models.surface.Profile")
 
 
 def strain_history(profile: StepProfile, speed_mm_s: float, *, level: str = "l0",
@@ -15,7 +31,8 @@ def strain_history(profile: StepProfile, speed_mm_s: float, *, level: str = "l0"
     """Strain ε_y at the corpuscle for a step slid under the finger.
 
     Args:
-        profile: the step (height µm, position mm, edge ramp µm).
+        profile: the step: a :class:`StepProfile` (height µm, position mm, edge ramp µm)
+            or a one-step ``feeler.models.surface.Profile`` (edge rounded over 50 µm).
         speed_mm_s (float): sliding speed in mm/s, > 0.
         level (str): ``"l0"``, ``"l1"`` or ``"l2"``.
         params: the skin parameters (defaults: the paper's).
@@ -26,6 +43,7 @@ def strain_history(profile: StepProfile, speed_mm_s: float, *, level: str = "l0"
         (s) and the corpuscle-averaged normal strain (compression < 0).
     """
     params = SkinParams() if params is None else params
+    profile = as_step_profile(profile)
     if level == "l0":
         return l0_strain_history(profile, speed_mm_s, params=params, dt_s=dt_s)
     if level == "l1":

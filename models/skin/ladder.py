@@ -92,8 +92,11 @@ def converged_change(rows: list[ConvergenceRow]) -> dict[str, float]:
 
 def trade_table(params: SkinParams, profile: StepProfile, speed_mm_s: float, *,
                 meshes: dict[str, MeshSpec], reference: str, setup_s: dict[str, float],
-                dt_s: float | None = None, repeats: int = 5) -> list[TradeRow]:
+                dt_s: float | None = None, repeats: int = 5) -> tuple[list[TradeRow], SkinParams]:
     """Seconds per slide and peak-rate error against L2 on ``meshes[reference]``.
+
+    Returns the rows and ``params`` with the L0 gain and base shift fitted to the
+    reference L2 run (its "l0-fitted" row is therefore an in-sample fit).
 
     Args:
         meshes: named mesh specs; L2 and L1 run on each.
@@ -120,4 +123,4 @@ def trade_table(params: SkinParams, profile: StepProfile, speed_mm_s: float, *,
                               repeats * 4)
         rate = summarise(t, e, load.slide_start).peak_rate_per_s
         rows.append(TradeRow(label, "closed form", 0.0, secs, rate, abs(rate - ref_rate) / ref_rate))
-    return rows
+    return rows, fitted

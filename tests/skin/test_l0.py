@@ -148,3 +148,14 @@ def test_exact_ramp_average_matches_quadrature_of_sharp_kernel():
     e_mm = 0.05
     ref = 0.5 * sum(w * step_kernel(xi - 0.5 * e_mm * x, P, 0.0) for x, w in zip(nodes, weights))
     np.testing.assert_allclose(step_kernel(xi, P, 50.0), ref, rtol=1e-6, atol=1e-9)
+
+
+def test_surface_module_step_is_accepted():
+    from feeler.models import surface
+    t, e = strain_history(surface.step(5.0, 0.01), 20.0)
+    _, ref = strain_history(StepProfile(10.0, 5.0, 50.0), 20.0)
+    np.testing.assert_allclose(e, ref, rtol=1e-12)
+    with pytest.raises(ArgumentError, match="exactly one step"):
+        strain_history(surface.staircase(1.0, 1.0, 0.01, 3), 20.0)
+    with pytest.raises(ArgumentError, match="StepProfile"):
+        strain_history(10.0, 20.0)
