@@ -49,7 +49,7 @@ def run_ladder_study(out: Path, *, small: bool = False, speed_mm_s: float = 20.0
                         f"{s.pressed_eps:.8g}", f"{s.peak_step_eps:.8g}", f"{s.peak_rate_per_s:.8g}"])
     meshes = {"converged": base.refined(factors[-1]), "coarsest": base.refined(factors[0])}
     if 1.0 in factors[1:-1]:
-        meshes["scene"] = base
+        meshes["default"] = base
     setup = {name: next(r.setup_s for r in rows if base.refined(r.factor) == spec) for name, spec in meshes.items()}
     trade, fitted = trade_table(params, profile, speed_mm_s, meshes=meshes, reference="converged", setup_s=setup, dt_s=dt)
     with open(out / "trade.csv", "w", newline="") as fh:

@@ -27,7 +27,7 @@ from feeler.models.skin.loading import loading_history
 from feeler.models.skin.mesh import MeshSpec
 from feeler.models.skin.params import SkinParams, StepProfile
 
-__all__ = ["Influence", "influence", "l1_strain_history"]
+__all__ = ["Influence", "influence", "l1_strain_history", "l1_slide_strain"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,3 +90,28 @@ def l1_strain_history(profile: StepProfile, speed_mm_s: float, *, params: SkinPa
     sl = slice(load.slide_start, None)
     eps[sl] = inf.strain(profile, params.press_mm, load.travel_mm[sl])
     return load.t_s, eps
+
+
+def l1_slide_strain(step_um, speed_mm_s, t_s, *, params: SkinParams, mesh: MeshSpec | None = None,
+                    position_mm: float = 5.0, edge_um: float = 50.0, t0_s: float | None = None):
+    """Vectorised L1 slide, like :func:`feeler.models.skin.l0.l0_slide_strain`.
+
+    Args:
+        step_um (ndarray[...]): step heights in µm (broadcast against ``speed_mm_s``).
+        speed_mm_s (ndarray[...]): sliding speeds in mm/s, > 0.
+        t_s (ndarray[n_time]): times in seconds.
+        t0_s (float | None): start of the slide; None → press_s + hold_s.
+    Returns:
+        ndarray[..., n_time]: Δε_y from the pressed state (linear in the step height).
+    """
+    inf = influence(params, mesh)
+    t0 = params.press_s + params.hold_s if t0_s is None else t0_s
+    step, speed = np.broadcast_arrays(np.asarray(step_um, dtype=float), np.asarray(speed_mm_s, dtype=float))
+    unit = StepProfile(1.0, position_mm, edge_um)
+    out = np.empty(step.shape + (len(np.atleast_1d(t_s)),))
+    for v in np.unique(speed):
+        travel = np.clip((np.asarray(t_s, dtype=float) - t0) * v, 0.0, params.slide_mm)
+        response = unit.hat_average_mm(inf.x_mm, travel) @ inf.gain
+        mask = speed == v
+        out[mask] = step[mask][:, None] * response
+    return out

@@ -86,3 +86,17 @@ def test_pressed_contact_is_symmetric_and_compressive():
     assert inf.pressed_eps < 0
     assert inf.x_mm.min() == pytest.approx(-inf.x_mm.max(), abs=SMALL.h_contact_mm)
     assert np.all(inf.contact_force_n_mm >= 0)
+
+
+def test_vectorised_l1_matches_the_history_interface():
+    from feeler.models.skin.l1 import l1_slide_strain
+    t = np.linspace(0, 1.7, 700)
+    out = l1_slide_strain(np.array([[5.0], [15.0]]), np.array([20.0, 40.0]), t, params=P, mesh=SMALL)
+    assert out.shape == (2, 2, 700)
+    for i, h in enumerate((5.0, 15.0)):
+        for j, v in enumerate((20.0, 40.0)):
+            ts, e = strain_history(StepProfile(h), v, level="l1", params=P, mesh=SMALL, dt_s=0.05 / v)
+            s = loading_history(P, v, 0.05 / v).slide_start
+            mine = l1_slide_strain(h, v, ts, params=P, mesh=SMALL)
+            np.testing.assert_allclose(mine[s:], e[s:] - e[s], rtol=1e-9, atol=1e-14)
+            np.testing.assert_allclose(out[i, j], l1_slide_strain(h, v, t, params=P, mesh=SMALL), rtol=1e-12)
