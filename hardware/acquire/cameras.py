@@ -1,6 +1,7 @@
 """Cameras of a campaign: a real source through ``cv2.VideoCapture``, or the virtual camera.
 
-Both offer ``start_scan(scan_id)``, ``grab(stage_mm) -> Grab`` and ``close()``. A grab
+Both offer ``name``, ``start_scan(scan_id)``, ``grab(stage_mm) -> Grab``, ``end_scan()`` and
+``close()``. A grab
 is a frame (grey uint8, the layout's size) or a reason why there is none; a bad frame is
 returned with its reason (the campaign counts and logs it and grabs again), never used.
 

@@ -60,12 +60,16 @@ def run_campaign(setup: Setup, stage, camera, store: RunStore, extra: dict) -> d
     extract = AreaExtractor(setup.layout, blur_sd_px=setup.plan.optics.blur_sd_px)
     scans = scans_of(setup.plan)
     extra = {**extra, "scans_planned": len(scans)}
-    for scan in scans:
-        if scan.scan_id in store.done:
-            continue
-        rows = run_scan(setup, stage, camera, extract, store, scan)
-        store.finish_scan(scan.scan_id, rows)
-        store.write_summary({**extra, "complete": False})
+    try:
+        for scan in scans:
+            if scan.scan_id in store.done:
+                continue
+            rows = run_scan(setup, stage, camera, extract, store, scan)
+            store.finish_scan(scan.scan_id, rows)
+            store.write_summary({**extra, "complete": False})
+    except BaseException as exc:                 # the counts so far, and why the run stopped
+        store.write_summary({**extra, "complete": False, "stopped": f"{type(exc).__name__}: {exc}"})
+        raise
     return store.write_summary({**extra, "complete": len(store.done) == len(scans)})
 
 

@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ import pytest
 
 from feeler.cli import main
 from feeler.datasets import read_scans
+from feeler.errors import CalibrationFailed
 
 DATA = Path(__file__).parent / "data"
 TINY = DATA / "tiny-plan.toml"
@@ -96,15 +98,47 @@ def test_emulated_campaign_is_a_neuron_dataset(reference):
     assert sorted(p.name for p in (run / "video").iterdir()) == [f"scan_000{i}.avi" for i in range(4)]
 
 
-def test_replaying_the_recorded_video_gives_the_same_areas(reference, tmp_path):
+def m1_fit_dir(tmp_path: Path, draws: int) -> tuple[Path, np.ndarray]:
+    """An M1 fit directory (exact backend on the shipped calibration campaign) and its mean C."""
+    from feeler.calib.matrix import MatrixPrior, fit_matrix, read_calibration_csv
+    from feeler.simulate import run_simulation
+
+    scene = Path(__file__).parents[2] / "datasets-synthetic" / "sensor-calibration.toml"
+    run = run_simulation(scene, tmp_path / "cal", force=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")                     # the failed fit is meant to fail
+        result = fit_matrix(read_calibration_csv(run / "calibration.csv"),
+                            MatrixPrior(c0_mm_per_n=((0.25, 0, 0), (0, 0.2, 0), (0, 0, 0.25))),
+                            rng=np.random.default_rng(0), chains=2, draws=draws)
+    out = result.save(tmp_path / f"fit{draws}")
+    return out, result.posterior["posterior"]["C"].mean(("chain", "draw")).values
+
+
+def test_replay_with_a_frozen_frame_and_a_calibrated_c(reference, tmp_path):
+    """The recorded video with frame 1 repeated: one bad frame counted and skipped, the
+    same areas as the virtual camera's, and U read through the M1 posterior mean."""
     from feeler.hardware.acquire import acquire
+    from feeler.hardware.camera import write_video
+    from feeler.hardware.camera.source import FrameReader
 
     run, _ = reference
+    frames = np.array([f for _, f in FrameReader(run / "video" / "scan_0000.avi")])
+    video = write_video(frames[[0, 1, 1, 2, 3]], tmp_path / "frozen.avi")
+    plan = one_scan_plan(tmp_path)
     replay = tmp_path / "replay"
-    summary = acquire(one_scan_plan(tmp_path), replay, emulate=True,
-                      camera_src=str(run / "video" / "scan_0000.avi"))
-    assert summary["complete"] and summary["camera"].endswith("scan_0000.avi")
-    np.testing.assert_array_equal(table(replay)[AREAS].to_numpy(), table(run)[AREAS].to_numpy()[:4])
+    failed, _ = m1_fit_dir(tmp_path, 100)                  # too few draws: fails its diagnostics
+    with pytest.raises(CalibrationFailed, match="accept-failed"):
+        acquire(plan, replay, emulate=True, camera_src=str(video), calibration=failed)
+    assert not replay.exists()
+    fit, c_mean = m1_fit_dir(tmp_path, 1000)
+    summary = acquire(plan, replay, emulate=True, camera_src=str(video), calibration=fit)
+    assert summary["complete"] and summary["bad_frames"] == 1 and summary["camera"] == str(video)
+    assert summary["c_source"] == f"posterior mean of {fit}"
+    got = table(replay)
+    np.testing.assert_array_equal(got[AREAS].to_numpy(), table(run)[AREAS].to_numpy()[:4])
+    f = got[["fx_n", "fy_n", "fz_n"]].to_numpy()
+    np.testing.assert_allclose(got[["ux_mm", "uy_mm", "uz_mm"]].to_numpy(), f @ c_mean.T, rtol=1e-12, atol=1e-15)
+    assert '"reason": "tile at column' in (replay / "journal.jsonl").read_text()
 
 
 def test_corrupt_video_mid_run_is_one_line_and_keeps_what_was_written(reference, tmp_path, capsys):

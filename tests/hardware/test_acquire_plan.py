@@ -122,3 +122,23 @@ def test_virtual_frame_reads_back_the_true_force():
     np.testing.assert_allclose(rest, 0.0, atol=0.006)          # the reader's offset: < 1 px² per feeler
     f = force_from_areas(areas[5], world.optics) - rest        # tared by the neighbour
     np.testing.assert_allclose(f, f_true, atol=0.02 * np.abs(f_true).max())
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--emulate", "--stage", "/dev/ttyUSB0"], "--stage='/dev/ttyUSB0': no port with --emulate"),
+    (["--emulate", "--resume", "--force"], "--force"),
+    (["--stage", "/dev/ttyUSB0"], "--stage/--camera"),
+    (["--camera", "0"], "--stage/--camera"),
+    (["--emulate", "--plan-kind"], "four-plates.toml': a scan-plan scene, not 'robot-scan'"),
+])
+def test_acquire_arguments_are_checked_before_any_device(tmp_path, capsys, argv, words):
+    from feeler.cli import main
+
+    plan = TINY
+    if "--plan-kind" in argv:
+        argv = [a for a in argv if a != "--plan-kind"]
+        plan = Path(__file__).parents[2] / "datasets-synthetic" / "four-plates.toml"
+    code = main(["acquire", "--plan", str(plan), "--out", str(tmp_path / "run"), *argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and words in err[0], err
+    assert not (tmp_path / "run").exists()

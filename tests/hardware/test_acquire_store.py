@@ -109,3 +109,45 @@ def test_capture_camera_counts_bad_frames_and_names_a_short_video(tmp_path):
         CaptureCamera("57", (64, 48))
     with pytest.raises(DataFileError, match="no such video file"):
         CaptureCamera(str(tmp_path / "none.avi"), (64, 48))
+
+
+def test_a_bad_status_line_is_journalled_counted_and_retried(tmp_path):
+    from feeler.hardware.acquire.campaign import MAX_TRIES, _status
+    from feeler.hardware.stage import ProtocolError
+
+    class Flaky:                                   # fails ``fails`` times, then answers
+        port = "/dev/pts/1"
+
+        def __init__(self, fails, code=None):
+            self.fails, self.code, self.resyncs = fails, code, 0
+            self.protocol = self
+
+        def resync(self):
+            self.resyncs += 1
+
+        def status(self):
+            if self.fails:
+                self.fails -= 1
+                raise ProtocolError(self.code, b"<Idle|MPos:1.0,2")
+            return "status"
+
+    store = RunStore.create(tmp_path / "run", PLAN)
+    stage = Flaky(2)
+    assert _status(stage, store, 3, 1) == "status" and stage.resyncs == 2
+    assert store.write_summary({})["bad_lines"] == 2
+    assert (tmp_path / "run" / "journal.jsonl").read_text().count('"event": "bad_line"') == 2
+    with pytest.raises(ProtocolError):
+        _status(Flaky(MAX_TRIES), store, 3, 2)     # a port that keeps garbling stops the run
+    with pytest.raises(ProtocolError):
+        _status(Flaky(1, code=20), store, 3, 3)    # error:N is the controller's answer, not noise
+    assert store.write_summary({})["bad_lines"] == 2 + MAX_TRIES - 1
+
+
+def test_calibration_directory_must_be_a_passing_m1_fit(tmp_path):
+    from feeler.hardware.acquire import c_from_calibration
+    from feeler.models.optics import OpticsParams
+
+    c, source = c_from_calibration(None)
+    np.testing.assert_array_equal(c, OpticsParams().c_matrix) and source == "nominal optics"
+    with pytest.raises(DataFileError, match="posterior.nc: missing"):
+        c_from_calibration(tmp_path)
