@@ -20,7 +20,7 @@ from feeler.rundir import prepare_out_dir, write_json
 from feeler.scene import scene_as_dict
 
 __all__ = ["CSV_COLUMNS", "FingerRun", "skin_params_of", "mesh_spec_of", "finger_runs",
-           "simulate_finger_steps"]
+           "simulate_finger_steps", "simulate_finger_scene"]
 
 CSV_COLUMNS = ("step_um", "speed_mm_s", "t_s", "x_mm", "eps_y")
 
@@ -95,3 +95,8 @@ def simulate_finger_steps(scene, out_dir: str | Path, force: bool = False,
     if scene_path is not None:
         shutil.copyfile(scene_path, out / "scene.toml")
     return {name: out / name for name in files}
+
+
+def simulate_finger_scene(scene, scene_path: str | Path, out: str | Path, force: bool) -> None:
+    """The :data:`feeler.simulate.SIMULATORS` entry point for ``finger-steps`` scenes."""
+    simulate_finger_steps(scene, out, force=force, scene_path=scene_path)

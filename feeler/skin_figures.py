@@ -127,7 +127,7 @@ def plot_figures(runs, data: FigureData, out_dir, *, label: str) -> list:
     for k, tau in enumerate(data.taus_s):
         for j, v in enumerate(data.speeds_mm_s):
             ax.plot(data.heights_um, data.accepted_um[k, :, j], styles[j % 4], marker="o", ms=3,
-                    label=f"τ = {tau * 1e3:g} ms, {v:g} mm/s")
+                    color=f"C{k % 10}", label=f"τ = {tau * 1e3:g} ms, {v:g} mm/s")
     ax.plot(data.heights_um, data.heights_um, "k-", lw=0.5)
     ax.set(title="Fig 6 — accepted vs presented step height", xlabel="presented (µm)", ylabel="accepted (µm)")
     ax.legend(fontsize=6, ncol=2)

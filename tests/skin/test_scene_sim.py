@@ -89,3 +89,10 @@ def test_cli_figures_rejects_other_scene_kinds(tmp_path, capsys):
     other = Path(__file__).resolve().parents[2] / "datasets-synthetic" / "psychophysics-2afc.toml"
     assert main(["skin", "figures", str(other), "--out", str(tmp_path / "g")]) == 2
     assert "finger-steps" in capsys.readouterr().err
+
+
+def test_simulators_registry_entry_point(tmp_path):
+    from feeler.simulate_finger import simulate_finger_scene
+    scene_path = _scene(tmp_path)
+    simulate_finger_scene(load_scene(scene_path), scene_path, tmp_path / "r", False)
+    assert {p.name for p in (tmp_path / "r").iterdir()} == {"strain.csv", "truth.json", "scene.toml"}
