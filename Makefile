@@ -11,7 +11,7 @@ export UV_PROJECT_ENVIRONMENT := $(VENV)
 export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
 export MPLBACKEND := Agg
 
-.PHONY: env demo test bench clean help
+.PHONY: env demo test bench browser clean help
 
 help:  ## list the targets
 	@grep -E '^[a-z]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
@@ -26,7 +26,10 @@ env: $(VENV)/.synced  ## create or update the environment from uv.lock
 demo: env  ## simulate, decode and calibrate on the shipped default scenes; results in runs/demo/
 	$(BIN)/feeler demo --out runs/demo --force
 
-test: env  ## run the whole test suite (slow suites at a small size)
+browser:  ## headless Chromium for the report rendering test (Debian packages; needs root)
+	-@bash .ci/install-browser
+
+test: env browser  ## run the whole test suite (slow suites at a small size)
 	$(BIN)/python -m pytest
 
 bench: env  ## run the benchmarks (pytest-benchmark); ratios are printed at the end

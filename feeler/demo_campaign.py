@@ -13,7 +13,9 @@ Run-directory layout written here (the report reads it):
 - ``m2/`` the neuron's (a, τ, h, σ) posterior from ``four-plates/``;
 - ``held-out/`` fresh four-plates scans (seed + 10⁸); ``classify/`` their classification;
 - ``discriminate/`` the robot's 2AFC table, difference threshold, Weber fraction, PSE;
-- ``psychophysics/`` the synthetic human 2AFC data; ``m4/`` their psychometric fits.
+- ``psychophysics/`` the synthetic human 2AFC data; ``m4/`` their psychometric fits;
+- ``finger-route/`` τ and σ_d inferred from the human data through the finger chain;
+- ``report.html`` and ``report.pdf`` (:mod:`feeler.reports`) from all of the above.
 """
 from __future__ import annotations
 
@@ -127,7 +129,24 @@ def _psychophysics(ctx: dict) -> None:
          keep=lambda lines: [line for line in lines if line.strip().startswith(("subject", "all", "wrote"))])
 
 
+def _finger_route(ctx: dict) -> None:
+    ctx["print"]("\nThe model route: τ and decision noise σ_d from the (SYNTHETIC) human data "
+                 "through skin L0 → neuron → observer:")
+    _run(ctx, "fit-finger-route", ["fit", "finger-route", str(ctx["out"] / "psychophysics" / "trials.csv"),
+                                   "--out", str(ctx["out"] / "finger-route"), "--no-progress", *_force(ctx)],
+         keep=_matching(r"^\s*(tau_s|sigma_d)|τ|tau ≤|P\(|verdict"))
+
+
+def _report(ctx: dict) -> None:
+    from feeler.reports import build_report
+
+    report = build_report(ctx["out"])
+    ctx["report"] = report
+    ctx["print"](f"\nreport: {report.html}" + (f" and {report.pdf} ({report.n_pages} pages)" if report.pdf else ""))
+
+
 #: (name, func(ctx)) appended to :data:`feeler.demo.STAGES`
 CAMPAIGN_STAGES = [("calibrate sensor", _calibrate_sensor), ("calibrate neuron", _calibrate_neuron),
                    ("classify", _classify), ("discriminate", _discriminate),
-                   ("psychophysics", _psychophysics)]
+                   ("psychophysics", _psychophysics), ("finger route", _finger_route),
+                   ("report", _report)]

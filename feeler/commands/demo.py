@@ -1,17 +1,26 @@
-"""Run the demo: the paper's robot experiment on the shipped four-plates scene.
+"""Run the demo: a whole calibration campaign on the shipped synthetic scenes.
 
-Simulates datasets-synthetic/four-plates.toml into OUT/four-plates/, runs the FA-I
-neuron on every scan, prints a per-plate table (peak z mean ± sd, raw U_dot_y peak, the
-ΔU_y jump, and the 2AFC proportion correct of each adjacent plate pair by peak z and by
-raw U_dot_y), and writes figures like the paper's Figs 7-9 (PNG) and robot_table.json
-into OUT. This is what `make demo` runs.
+This is what `make demo` runs. Stages, each with its progress line:
+  1-4  simulate datasets-synthetic/four-plates.toml into OUT/four-plates/, run the FA-I
+       neuron on every scan, print the per-plate table (peak z, raw U_dot_y peak, the
+       ΔU_y jump, 2AFC proportion correct of adjacent plates) and draw Figs 7-9;
+  5    simulate the sensor-calibration campaign and fit the force→displacement matrix
+       (M1, exact conjugate posterior) into OUT/m1/;
+  6    fit the neuron's (a, tau, h, sigma) on the four plates (M2, exact grid) into OUT/m2/;
+  7    classify fresh held-out scans with confidence (OUT/classify/);
+  8    the robot's discrimination: 2AFC table, difference threshold, Weber fraction, PSE;
+  9    simulate the SYNTHETIC human 2AFC data and fit psychometric functions (M4);
+  10   infer tau and the decision noise through the finger chain;
+  11   write OUT/report.html and OUT/report.pdf.
+Every stage's full output is kept in OUT/logs/. A closing table lists each stage's time
+and verdict.
 """
 from __future__ import annotations
 
 __all__ = ["NAME", "HELP", "register"]
 
 NAME = "demo"
-HELP = "simulate four-plates, decode with the neuron, print the table, draw Figs 7-9"
+HELP = "the main job: simulate, calibrate, classify, discriminate, fit humans, write the report"
 
 
 def register(parser) -> None:
@@ -23,8 +32,37 @@ def register(parser) -> None:
 
 
 def run(args) -> int:
+    import json
+
     from feeler.demo import FIGURES, run_demo
 
     ctx = run_demo(args.out, force=args.force, scene_path=args.scene)
-    print(f"figures: {', '.join(str(ctx['out'] / f) for f in FIGURES)}")
+    out = ctx["out"]
+    print("\nsummary" + "-" * 62)
+    print(f"{'stage':20s} {'seconds':>8s}   result")
+    for name, sec in ctx["seconds"].items():
+        print(f"{name:20s} {sec:8.1f}   {_result(out, name, json)}")
+    print(f"{'total':20s} {sum(ctx['seconds'].values()):8.1f}")
+    print(f"figures: {', '.join(str(out / f) for f in FIGURES)}")
+    if "report" in ctx:
+        print(f"report:  {ctx['report'].html}")
     return 0
+
+
+_FITS = {"calibrate sensor": "m1", "calibrate neuron": "m2", "psychophysics": "m4", "finger route": "finger-route"}
+
+
+def _result(out, stage: str, json) -> str:
+    """One line per stage for the closing table, read back from the run's files."""
+    if stage in _FITS:
+        path = out / _FITS[stage] / "verdict.json"
+        if path.is_file():
+            v = json.loads(path.read_text())
+            return f"verdict {'ok' if v['ok'] else 'FAILED: ' + '; '.join(v['problems'])} ({path.parent.name}/)"
+    if stage == "discriminate" and (out / "discriminate" / "discrimination.json").is_file():
+        return "2AFC table, threshold and PSE in discriminate/discrimination.json"
+    if stage == "classify" and (out / "classify" / "classification.csv").is_file():
+        return "held-out scans classified in classify/classification.csv"
+    if stage == "table" and (out / "robot_table.json").is_file():
+        return "per-plate table in robot_table.json"
+    return "done"
