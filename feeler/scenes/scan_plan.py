@@ -96,7 +96,8 @@ class Scene:
         return len(self.plates.heights_mm) * self.repeats.scans_per_plate
 
     def check(self, path) -> None:
-        """One origin per plate; at least two samples per scan; τ-free checks only."""
+        """One origin per plate, at least two samples per scan, at most 1e5. (Soft limits
+        need the stage's settings: :func:`feeler.hardware.acquire.plan.check_moves`.)"""
         p, s = self.plates, self.scan
         if len(p.origin_x_mm) != len(p.heights_mm):
             raise SceneError(path, "plates.origin_x_mm",

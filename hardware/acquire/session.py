@@ -62,6 +62,16 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
     With ``emulate`` the stage is a Grbl emulator on a pty in a child process and, unless
     ``camera_src`` is given, the camera is the virtual camera of the plan's ``[virtual]``
     set-up. Otherwise ``stage_port`` and ``camera_src`` are required.
+
+    Raises (before the run directory is touched):
+        ArgumentError: conflicting or missing arguments, a plan of another kind.
+        SceneError: an invalid plan, or a move beyond the stage's soft limits or feed ceiling.
+        DataFileError: a camera or video that cannot be opened, an unreadable fit directory.
+        CalibrationFailed: ``calibration`` is a fit that failed its diagnostics.
+        PortError: a stage port that does not exist, is busy or is not permitted.
+    Raises during the run (``samples.csv`` and ``journal.jsonl`` keep every sample so far,
+    ``summary.json`` says why it stopped): DataFileError (a video that ends early, too many
+    bad frames in a row), StageError (alarm, timeout, repeated bad lines).
     """
     from feeler.hardware.stage import Stage
 

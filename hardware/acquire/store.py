@@ -70,10 +70,12 @@ class RunStore:
 
     @classmethod
     def create(cls, out, plan_path: str | Path, *, force: bool = False) -> "RunStore":
-        """A new run directory (refuses to overwrite an earlier run without ``force``)."""
-        out = prepare_out_dir(out, FILES, force=force)
+        """A new run directory (refuses to overwrite an earlier run without ``force``;
+        with it, the earlier run's files and ``video/`` are removed first)."""
+        out = prepare_out_dir(out, FILES + ("video",), force=force)
         for name in FILES[1:]:
             (out / name).unlink(missing_ok=True)
+        shutil.rmtree(out / "video", ignore_errors=True)
         shutil.copyfile(plan_path, out / "scene.toml")
         store = cls(out)
         for name, cols in (("samples.csv", SAMPLE_COLUMNS), ("scans.csv", SCAN_COLUMNS)):

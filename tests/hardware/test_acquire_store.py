@@ -44,6 +44,11 @@ def test_complete_scans_form_a_dataset_and_the_summary_counts(tmp_path):
     assert (summary["scans_done"], summary["samples_written"], summary["bad_frames"], summary["runs"]) == (4, 12, 1, 1)
     with pytest.raises(OverwriteError, match="--force"):
         RunStore.create(tmp_path / "run", PLAN)
+    (tmp_path / "run" / "video").mkdir()
+    (tmp_path / "run" / "video" / "scan_0009.avi").write_bytes(b"old")
+    fresh = RunStore.create(tmp_path / "run", PLAN, force=True)
+    assert not (tmp_path / "run" / "video").exists() and fresh.done == set()
+    assert len((tmp_path / "run" / "scans.csv").read_text().splitlines()) == 1
 
 
 def test_resume_drops_the_cut_line_and_a_scan_not_journalled(tmp_path):
@@ -151,3 +156,15 @@ def test_calibration_directory_must_be_a_passing_m1_fit(tmp_path):
     np.testing.assert_array_equal(c, OpticsParams().c_matrix) and source == "nominal optics"
     with pytest.raises(DataFileError, match="posterior.nc: missing"):
         c_from_calibration(tmp_path)
+
+
+def test_a_missing_stage_port_is_one_line_and_writes_nothing(tmp_path, capsys):
+    from feeler.cli import main
+    from feeler.hardware.camera import write_video
+
+    video = write_video(np.zeros((2, 48, 64), np.uint8), tmp_path / "v.avi")
+    code = main(["acquire", "--stage", str(tmp_path / "ttyNOPE"), "--camera", str(video), "--plan", str(PLAN),
+                 "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "ttyNOPE" in err[0]
+    assert not (tmp_path / "run").exists()
