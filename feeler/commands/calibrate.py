@@ -22,6 +22,7 @@ HELP = "Bayesian calibration of a sensor's matrix (calibrate sensor) and more"
 SUBCOMMANDS = [
     ("sensor", "feeler.commands._calibrate_sensor"),
     ("neuron", "feeler.commands._calibrate_neuron"),
+    ("sensors", "feeler.commands._calibrate_sensors"),
 ]
 
 
