@@ -1,4 +1,6 @@
 """L1 influence functions: exact adjoint identity, agreement with L2, extremes."""
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.sparse.linalg import splu
@@ -100,3 +102,27 @@ def test_vectorised_l1_matches_the_history_interface():
             mine = l1_slide_strain(h, v, ts, params=P, mesh=SMALL)
             np.testing.assert_allclose(mine[s:], e[s:] - e[s], rtol=1e-9, atol=1e-14)
             np.testing.assert_allclose(out[i, j], l1_slide_strain(h, v, t, params=P, mesh=SMALL), rtol=1e-12)
+
+
+def test_half_space_limit_matches_l0():
+    # homogeneous skin, large finger: the step response tends to the half-space formula
+    params = SkinParams(e_mpa=(0.05, 0.05, 0.05), radius_mm=20.0, press_mm=2.0)
+    mesh = dataclasses.replace(SMALL, h_far_mm=3.0, contact_half_width_mm=15.0)
+    t, e1 = strain_history(StepProfile(10.0), 20.0, level="l1", params=params, mesh=mesh, dt_s=DT)
+    _, e0 = strain_history(StepProfile(10.0), 20.0, level="l0", params=params, dt_s=DT)
+    s = loading_history(params, 20.0, DT).slide_start
+    d1, d0 = e1[s:] - e1[s], e0[s:]
+    assert np.ptp(d1) == pytest.approx(np.ptp(d0), rel=0.03)
+    assert d1.max() == pytest.approx(d0.max(), rel=0.08)
+    assert d1.min() == pytest.approx(d0.min(), rel=0.08)
+    # the layered paper finger departs from it: the soft dermis under the stiff epidermis
+    _, layered = _slide("l1", StepProfile(10.0))
+    assert np.ptp(layered - layered[0]) > 1.2 * np.ptp(d0)
+
+
+def test_l2_at_1_mm_s_is_the_elastic_l1():
+    t, e2 = l2_strain_history(StepProfile(10.0), 1.0, params=P, mesh=SMALL, dt_s=0.1)
+    _, e1 = strain_history(StepProfile(10.0), 1.0, level="l1", params=P, mesh=SMALL, dt_s=0.1)
+    s = loading_history(P, 1.0, 0.1).slide_start
+    peak = np.ptp(e2[s:])
+    assert np.max(np.abs((e2[s:] - e2[s]) - (e1[s:] - e1[s]))) < 0.01 * peak
