@@ -13,7 +13,8 @@ RUN/samples.csv receives every sample as it arrives (flushed and fsync-ed), RUN/
 every complete scan in the format of `feeler simulate` (scan_id, plate, step_mm, speed_mm_s,
 t_s, x_mm, ux_mm, uy_mm, uz_mm, then stage position, frame time, areas and forces), and
 RUN/scene.toml is the plan: `feeler calibrate neuron RUN` reads the run directly. After a
-crash, --resume continues with the scans not yet done. Bad frames and bad status lines are
+crash, --resume continues with the scans not yet done; Ctrl-C or SIGTERM stop a run
+cleanly (exit 130, RUN/summary.json says where). Bad frames and bad status lines are
 logged, counted and never used; RUN/summary.json reports the counts. Displacement is read
 as U = C F with C the posterior mean of an M1 fit (--calibration DIR) or the nominal optics.
 """
@@ -40,10 +41,17 @@ def register(parser) -> None:
     parser.set_defaults(run=run)
 
 
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
 def run(args) -> int:
+    import signal
+
     from feeler.errors import ArgumentError
     from feeler.hardware.acquire import acquire
 
+    signal.signal(signal.SIGTERM, _interrupt)      # stop like Ctrl-C: the summary says why
     if args.emulate and args.stage is not None:
         raise ArgumentError("--stage", args.stage, "no port with --emulate (the emulator provides one)")
     summary = acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,

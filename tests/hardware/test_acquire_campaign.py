@@ -223,6 +223,22 @@ def test_kill_9_mid_scan_then_resume_completes_like_an_uninterrupted_run(referen
     assert set(table(run, "samples.csv").query("scan_id == 1")["attempt"]) == {0, 1}
 
 
+def test_sigterm_stops_the_run_cleanly_and_says_where(tmp_path):
+    run = tmp_path / "stopped"
+    cmd = [sys.executable, "-m", "feeler", "acquire", "--emulate", "--plan", str(TINY), "--out", str(run)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not ((run / "samples.csv").exists() and (run / "samples.csv").read_text().count("\n") >= 3):
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.005)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    import json
+    summary = json.loads((run / "summary.json").read_text())
+    assert proc.returncode == 130 and "feeler: interrupted" in err
+    assert summary["complete"] is False and summary["stopped"] == "KeyboardInterrupt: signal 15"
+
+
 def test_missing_camera_on_resume_changes_nothing(reference, tmp_path, capsys):
     run, _ = reference
     before = {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()}
