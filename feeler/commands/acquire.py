@@ -34,6 +34,8 @@ def register(parser) -> None:
                         help="camera index, video file or image-sequence pattern")
     parser.add_argument("--emulate", action="store_true",
                         help="emulated stage on a pty (and a virtual camera unless --camera)")
+    parser.add_argument("--fault", action="append", default=[], metavar="SPEC",
+                        help="with --emulate: inject a stage fault, as `feeler emulate stage --fault`")
     parser.add_argument("--resume", action="store_true", help="continue an interrupted run in RUN")
     parser.add_argument("--calibration", metavar="DIR", default=None,
                         help="M1 fit directory (feeler calibrate sensor --out DIR): read U with its C")
@@ -50,13 +52,15 @@ def run(args) -> int:
 
     from feeler.errors import ArgumentError
     from feeler.hardware.acquire import acquire
+    from feeler.hardware.emulators import parse_fault
 
     signal.signal(signal.SIGTERM, _interrupt)      # stop like Ctrl-C: the summary says why
     if args.emulate and args.stage is not None:
         raise ArgumentError("--stage", args.stage, "no port with --emulate (the emulator provides one)")
     summary = acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,
                       emulate=args.emulate, resume=args.resume, force=args.force,
-                      calibration=args.calibration)
+                      calibration=args.calibration,
+                      emulator_faults=tuple(parse_fault(spec) for spec in args.fault))
     state = "complete" if summary["complete"] else "incomplete"
     print(f"{args.out}: {summary['scans_done']} of {summary['scans_planned']} scans ({state}), "
           f"{summary['samples_written']} samples, {summary['bad_frames']} bad frames, "

@@ -22,12 +22,12 @@ __all__ = ["campaign_emulator", "FAST_STAGE"]
 _PR_SET_PDEATHSIG = 1
 
 
-def _child(config: GrblConfig, parent_pid: int, conn) -> None:
+def _child(config: GrblConfig, faults: tuple, parent_pid: int, conn) -> None:
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
     if sys.platform.startswith("linux"):
         ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
-    serve_pty(GrblEmulator(config, (), 0), conn.send,
+    serve_pty(GrblEmulator(config, faults, 0), conn.send,
               lambda: bool(stop) or os.getppid() != parent_pid)
 
 
@@ -37,14 +37,16 @@ FAST_STAGE = GrblConfig(max_rate_mm_min=(6000.0, 6000.0, 6000.0), accel_mm_s2=(2
 
 
 @contextlib.contextmanager
-def campaign_emulator(config: GrblConfig = FAST_STAGE, start_timeout_s: float = 30.0) -> Iterator[str]:
-    """Run a Grbl emulator in a child process; yields its pty device path.
+def campaign_emulator(config: GrblConfig = FAST_STAGE, faults: tuple = (),
+                      start_timeout_s: float = 30.0) -> Iterator[str]:
+    """Run a Grbl emulator (with injected ``faults``, :class:`~feeler.hardware.emulators.Fault`)
+    in a child process; yields its pty device path.
 
     Start it at the plan's first position with ``dataclasses.replace(FAST_STAGE, start_mm=...)``.
     """
     ctx = multiprocessing.get_context("spawn")
     here, there = ctx.Pipe(duplex=False)
-    process = ctx.Process(target=_child, args=(config, os.getpid(), there), daemon=True,
+    process = ctx.Process(target=_child, args=(config, tuple(faults), os.getpid(), there), daemon=True,
                           name="grbl-emulator")
     process.start()
     try:

@@ -56,12 +56,14 @@ def c_from_calibration(directory: str | Path | None) -> tuple[np.ndarray, str]:
 
 def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = None,
             camera_src: str | None = None, emulate: bool = False, resume: bool = False,
-            force: bool = False, calibration: str | Path | None = None) -> dict:
+            force: bool = False, calibration: str | Path | None = None,
+            emulator_faults: tuple = ()) -> dict:
     """Run (or resume) a campaign into ``out``; returns the summary.
 
     With ``emulate`` the stage is a Grbl emulator on a pty in a child process and, unless
     ``camera_src`` is given, the camera is the virtual camera of the plan's ``[virtual]``
-    set-up. Otherwise ``stage_port`` and ``camera_src`` are required.
+    set-up, and ``emulator_faults`` (:class:`~feeler.hardware.emulators.Fault`) are injected
+    into the emulator. Otherwise ``stage_port`` and ``camera_src`` are required.
 
     Raises (before the run directory is touched):
         ArgumentError: conflicting or missing arguments, a plan of another kind.
@@ -79,6 +81,8 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
 
     if resume and force:
         raise ArgumentError("--force", True, "not together with --resume (resume never overwrites)")
+    if emulator_faults and not emulate:
+        raise ArgumentError("--fault", len(emulator_faults), "only with --emulate")
     if not emulate and (stage_port is None or camera_src is None):
         raise ArgumentError("--stage/--camera", (stage_port, camera_src), "both, or --emulate")
     plan = load_plan(plan_path)
@@ -95,7 +99,7 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
             start = moves_of(plan, scans_of(plan)[0])[1][1]          # over the first plate
             config = dataclasses.replace(FAST_STAGE, start_mm=tuple(min(max(v, 0.0), t) for v, t in
                                                                     zip(start, FAST_STAGE.travel_mm)))
-            stage_port = stack.enter_context(campaign_emulator(config))
+            stage_port = stack.enter_context(campaign_emulator(config, emulator_faults))
         stage = stack.enter_context(Stage.open(stage_port))
         check_moves(plan, plan_path, stage.limits, stage.port)
         store = RunStore.resume(out, plan_path) if resume else RunStore.create(out, plan_path, force=force)

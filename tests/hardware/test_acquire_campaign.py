@@ -141,6 +141,21 @@ def test_replay_with_a_frozen_frame_and_a_calibrated_c(reference, tmp_path):
     assert '"reason": "tile at column' in (replay / "journal.jsonl").read_text()
 
 
+def test_garbled_and_truncated_status_replies_are_never_used(tmp_path, capsys):
+    """Faults in the emulator: the driver re-queries, the campaign completes, and every
+    recorded position is one the virtual camera really rendered (exact re-rendering)."""
+    plan = one_scan_plan(tmp_path)
+    run = tmp_path / "faulty"
+    faults = ["garble:reply=status,nth=6", "truncate:reply=status,nth=12"]     # (a drop costs a 2 s timeout)
+    argv = ["acquire", "--emulate", "--plan", str(plan), "--out", str(run)]
+    assert main(argv + [a for f in faults for a in ("--fault", f)]) == 0
+    assert "1 of 1 scans (complete)" in capsys.readouterr().out
+    np.testing.assert_array_equal(rerendered_areas(run, plan), table(run)[AREAS].to_numpy())
+    assert main(["acquire", "--stage", "x", "--camera", "0", "--fault", faults[0], "--plan", str(plan),
+                 "--out", str(tmp_path / "no")]) == 2
+    assert "--fault" in capsys.readouterr().err
+
+
 def test_corrupt_video_mid_run_is_one_line_and_keeps_what_was_written(reference, tmp_path, capsys):
     run, _ = reference
     data = (run / "video" / "scan_0000.avi").read_bytes()
