@@ -102,3 +102,22 @@ def test_four_plates_at_images_is_a_dataset_and_m2_fits_it(tmp_path):
         result = fit_neuron(data_from_scans(img, length_mm=3.0), backend="grid", chains=2, draws=200)
     attrs = result.posterior["posterior"].attrs
     assert attrs["ppc_coverage90"] >= 0.8 and np.isfinite(result.summary["mean"]).all()
+
+
+def test_areas_fidelity_needs_no_opencv_and_reads_close_to_the_truth(tmp_path):
+    import subprocess
+    import sys
+
+    scene = variant(FOUR_IMAGES, tmp_path, **{'fidelity = "images"': 'fidelity = "areas"',
+                                              "scans_per_plate = 8": "scans_per_plate = 2"})
+    code = ("import sys; from feeler.simulate import run_simulation; "
+            f"run_simulation({str(scene)!r}, {str(tmp_path / 'run')!r}); "
+            "print(sorted(m for m in ('cv2', 'pymc') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+    disp = variant(FOUR_IMAGES, tmp_path, "disp.toml", **{'fidelity = "images"': 'fidelity = "displacement"',
+                                                         "scans_per_plate = 8": "scans_per_plate = 2"})
+    disp.write_text(disp.read_text()[: disp.read_text().index("[optics]")])
+    a, d = read_scans(tmp_path / "run"), read_scans(run_simulation(disp, tmp_path / "disp"))
+    np.testing.assert_array_equal(a.x_mm, d.x_mm)
+    assert 0.001 < np.std(a.uy_mm - d.uy_mm) < 0.004 and not np.array_equal(a.uy_mm, d.uy_mm)
