@@ -14,10 +14,14 @@ from the antiderivative
 whose mixed second derivative is the bracketed term times ξ. A rounded edge (linear ramp
 of width e) is the average of the step response over the ramp, exact again through
 G = ∫ F dξ (eight evaluations of G per sample).
+
+In L0 the press is a linear ramp of the base shift (L0 models the slide only).
 Optionally scaled by a layering gain and shifted by the pressed-state strain (constants
 fitted to an L2 run, see :func:`fit_l0`).
 """
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -25,6 +29,7 @@ from feeler.models.skin.loading import loading_history
 from feeler.models.skin.params import SkinParams, StepProfile
 
 __all__ = ["halfspace_strain", "step_kernel", "l0_slide_strain", "l0_strain_history", "fit_l0"]
+
 
 def halfspace_strain(xi_mm, depth_mm, nu: float):
     """The point formula Δε_y / h at (ξ, z) (1/mm; ndarray broadcast of the inputs)."""
@@ -122,7 +127,6 @@ def fit_l0(profile: StepProfile, eps_ref, load_travel_mm, *, params: SkinParams)
     Returns:
         SkinParams: ``params`` with ``l0_gain`` and ``l0_base`` replaced.
     """
-    import dataclasses
     kern = profile.height_um * 1e-3 * step_kernel(np.asarray(load_travel_mm) - profile.position_mm,
                                                   params, profile.edge_um)
     design = np.column_stack([kern, np.ones_like(kern)])
