@@ -81,23 +81,19 @@ def test_cli_exit_codes_and_one_line_errors(tmp_path, capsys):
     scene = small_scene(tmp_path)
     assert main(["simulate", str(scene), "--out", str(tmp_path / "run")]) == 0
     capsys.readouterr()
+    optics_at_displacement = small_scene(tmp_path, "optics.toml")
+    optics_at_displacement.write_text(optics_at_displacement.read_text()
+                                      + '\n[optics]\nlayout = "layouts/sensor-16.toml"\n')
     cases = [
         ["simulate", str(scene), "--out", str(tmp_path / "run")],                  # exists, no --force
         ["simulate", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "x")],   # missing scene
-        ["simulate", str(small_scene(tmp_path, "areas.toml", **{'fidelity = "displacement"': 'fidelity = "areas"'})),
-         "--out", str(tmp_path / "y")],
+        ["simulate", str(optics_at_displacement), "--out", str(tmp_path / "y")],
     ]
-    expected = ["--force", "no such scene file", "fidelity"]
-    from feeler.models import sensor
-    saved = sensor.FIDELITIES.get("areas")
-    sensor.FIDELITIES["areas"] = None      # until the optics helper plugs the level in
-    try:
-        for argv, words in zip(cases, expected):
-            assert main(argv) == 2
-            err = capsys.readouterr().err
-            assert err.count("\n") == 1 and words in err
-    finally:
-        sensor.FIDELITIES["areas"] = saved
+    expected = ["--force", "no such scene file", "optics: only used when sensor.fidelity"]
+    for argv, words in zip(cases, expected):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and words in err
     assert main(["simulate", str(scene), "--out", str(tmp_path / "run"), "--force"]) == 0
 
 
