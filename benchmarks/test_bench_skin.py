@@ -1,7 +1,8 @@
 """Skin ladder speed per slide as ratios to L2 timed in the same run (issue 5).
 
-Goals: L1 ≥ 100× faster per slide than L2, L0 ≥ 10⁴×. Default mesh, 15 µm step at
-20 mm/s, 10 µm of travel per step. Each level's one-off setup (mesh, assembly,
+Goals: L1 ≥ 100× faster per slide than L2, L0 ≥ 10⁴×. L2 and L1 on the converged mesh
+of ``feeler skin ladder`` (2× the default sizes: the trade table's reference), 15 µm step
+at 20 mm/s, 10 µm of travel per step. Each level's one-off setup (mesh, assembly,
 factorisation, compliance, adjoint) is done before timing; ``feeler skin ladder``
 reports it apart.
 """
@@ -12,7 +13,7 @@ from feeler.models.skin import SkinParams, StepProfile, strain_history
 from feeler.models.skin.l1 import influence
 from feeler.models.skin.mesh import MeshSpec
 
-PARAMS, MESH, PROFILE, SPEED = SkinParams(), MeshSpec(), StepProfile(15.0), 20.0
+PARAMS, MESH, PROFILE, SPEED = SkinParams(), MeshSpec().refined(2.0), StepProfile(15.0), 20.0
 
 
 @pytest.fixture(scope="module")
