@@ -15,6 +15,7 @@ Run-directory layout written here (the report reads it):
 - ``discriminate/`` the robot's 2AFC table, difference threshold, Weber fraction, PSE;
 - ``psychophysics/`` the synthetic human 2AFC data; ``m4/`` their psychometric fits;
 - ``finger-route/`` τ and σ_d inferred from the human data through the finger chain;
+- ``finger/`` strain histories of the finger-steps scene (skin level L1);
 - ``report.html`` and ``report.pdf`` (:mod:`feeler.reports`) from all of the above.
 """
 from __future__ import annotations
@@ -137,6 +138,12 @@ def _finger_route(ctx: dict) -> None:
          keep=_matching(r"^\s*(tau_s|sigma_d)|τ|tau ≤|P\(|verdict"))
 
 
+def _finger(ctx: dict) -> None:
+    ctx["print"]("\nFinger skin: strain histories at the corpuscle for the paper's steps (finger-steps):")
+    _run(ctx, "simulate-finger-steps", ["simulate", str(DATA / "finger-steps.toml"), "--out",
+                                        str(ctx["out"] / "finger"), *_force(ctx)], keep=_matching(r"wrote"))
+
+
 def _report(ctx: dict) -> None:
     from feeler.reports import build_report
 
@@ -148,5 +155,5 @@ def _report(ctx: dict) -> None:
 #: (name, func(ctx)) appended to :data:`feeler.demo.STAGES`
 CAMPAIGN_STAGES = [("calibrate sensor", _calibrate_sensor), ("calibrate neuron", _calibrate_neuron),
                    ("classify", _classify), ("discriminate", _discriminate),
-                   ("psychophysics", _psychophysics), ("finger route", _finger_route),
+                   ("psychophysics", _psychophysics), ("finger route", _finger_route), ("finger skin", _finger),
                    ("report", _report)]

@@ -183,4 +183,5 @@ SIMULATORS = {
     "robot-scan": "feeler.simulate:simulate_robot_scan",
     "sensor-calibration": "feeler.simulate:_simulate_calibration",
     "psychophysics-2afc": "feeler.simulate:_simulate_psychophysics",
+    "finger-steps": "feeler.simulate_finger:simulate_finger_scene",
 }

@@ -6,7 +6,8 @@ import pytest
 from feeler.cli import main
 
 ROOT = Path(__file__).resolve().parents[1] / "datasets-synthetic"
-CASES = [("sensor-calibration", "calibration.csv"), ("psychophysics-2afc", "trials.csv")]
+CASES = [("sensor-calibration", "calibration.csv"), ("psychophysics-2afc", "trials.csv"),
+         ("finger-steps", "strain.csv")]
 
 
 @pytest.mark.parametrize("name, data", CASES)
