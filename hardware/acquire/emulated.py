@@ -1,35 +1,17 @@
-"""The Grbl emulator of ``feeler acquire --emulate``, in a child process tied to its parent.
+"""The Grbl emulator of ``feeler acquire --emulate``: a fast stage in a child process.
 
-Like :func:`feeler.hardware.emulators.emulator_process` (spawned, serving a real pty), but
-the child asks Linux for ``SIGTERM`` when its parent dies (``PR_SET_PDEATHSIG``), so a
-campaign killed with ``kill -9`` does not leave an emulator behind; it also stops when its
-parent's pid changes (other platforms).
+It is :func:`feeler.hardware.emulators.emulator_process` (spawned, serving a real pty, tied
+to its parent so that a campaign killed with ``kill -9`` leaves no emulator behind) with
+the quick machine :data:`FAST_STAGE`.
 """
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import multiprocessing
-import os
-import signal
-import sys
 from typing import Iterator
 
-from feeler.hardware.emulators import GrblConfig, GrblEmulator, serve_pty
+from feeler.hardware.emulators import GrblConfig, emulator_process
 
 __all__ = ["campaign_emulator", "FAST_STAGE"]
-
-_PR_SET_PDEATHSIG = 1
-
-
-def _child(config: GrblConfig, faults: tuple, parent_pid: int, conn) -> None:
-    stop = []
-    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
-    if sys.platform.startswith("linux"):
-        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
-    serve_pty(GrblEmulator(config, faults, 0), conn.send,
-              lambda: bool(stop) or os.getppid() != parent_pid)
-
 
 #: the emulated machine of ``feeler acquire --emulate``: a quick desktop stage (all axes
 #: 6000 mm/min, 2000 mm/s², travel 200 × 200 × 50 mm) so that emulated campaigns run fast
@@ -44,19 +26,5 @@ def campaign_emulator(config: GrblConfig = FAST_STAGE, faults: tuple = (),
 
     Start it at the plan's first position with ``dataclasses.replace(FAST_STAGE, start_mm=...)``.
     """
-    ctx = multiprocessing.get_context("spawn")
-    here, there = ctx.Pipe(duplex=False)
-    process = ctx.Process(target=_child, args=(config, tuple(faults), os.getpid(), there), daemon=True,
-                          name="grbl-emulator")
-    process.start()
-    try:
-        if not here.poll(start_timeout_s):
-            raise RuntimeError(f"emulator did not start within {start_timeout_s} s")
-        yield here.recv()
-    finally:
-        process.terminate()
-        process.join(5.0)
-        if process.is_alive():
-            process.kill()
-            process.join()
-        here.close()
+    with emulator_process(config, tuple(faults), seed=0, start_timeout_s=start_timeout_s) as emu:
+        yield emu.path

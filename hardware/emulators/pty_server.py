@@ -4,14 +4,19 @@
 (e.g. ``/dev/pts/7``) and shuttles bytes until stopped; a driver opens that path exactly
 as it would open ``/dev/ttyUSB0``. ``emulator_process`` runs it in a separate process
 (``multiprocessing`` spawn) for tests and ``--emulate`` runs, yielding the device path.
+The child dies with its parent: on Linux it asks for ``SIGTERM`` when the parent dies
+(``PR_SET_PDEATHSIG``), and on every platform it stops once its parent pid changes, so a
+test run or a campaign killed with ``kill -9`` leaves no emulator behind.
 """
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import multiprocessing
 import os
 import select
 import signal
+import sys
 import time
 import tty
 from dataclasses import dataclass
@@ -72,19 +77,34 @@ class EmulatorProcess:
         return self.process.is_alive()
 
 
-def _child(config: GrblConfig, faults: tuple[Fault, ...], seed: int, conn) -> None:
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    """Ask Linux for SIGTERM when the parent dies (note: when the parent *thread* that
+    started the child exits; ``emulator_process`` is a context manager, so it is stopped
+    before that thread can end)."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+
+
+def _child(config: GrblConfig, faults: tuple[Fault, ...], seed: int, parent_pid: int, conn) -> None:
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
-    serve_pty(GrblEmulator(config, faults, seed), conn.send, lambda: bool(stop))
+    _die_with_parent()
+    # the ppid check also covers a parent that died before prctl ran, and non-Linux systems
+    serve_pty(GrblEmulator(config, faults, seed), conn.send,
+              lambda: bool(stop) or os.getppid() != parent_pid)
 
 
 @contextlib.contextmanager
 def emulator_process(config: GrblConfig = GrblConfig(), faults: tuple[Fault, ...] = (),
                      seed: int = 0, start_timeout_s: float = 30.0) -> Iterator[EmulatorProcess]:
-    """Run an emulator in a child process; yields once its pty path is known."""
+    """Run an emulator in a child process tied to this one; yields once its pty path is known."""
     ctx = multiprocessing.get_context("spawn")
     here, there = ctx.Pipe(duplex=False)
-    process = ctx.Process(target=_child, args=(config, tuple(faults), seed, there),
+    process = ctx.Process(target=_child, args=(config, tuple(faults), seed, os.getpid(), there),
                           daemon=True, name="grbl-emulator")
     process.start()
     try:
