@@ -11,7 +11,10 @@ give the force by the area law and the displacement U = C F. Each sample is appe
 A bad frame (undecodable, wrong size, frozen tile, or rejected by the extractor) or a
 bad status line is journalled, logged and counted; the sample is taken again from the
 next frame or query (up to :data:`MAX_TRIES` times, then the campaign stops with an
-error naming the camera or port). ``t_s`` is the scheduled time, the same for every scan
+error naming the camera or port). Damaged or lost replies that the stage driver itself
+recovered from (``stage.recovered``: status queried again, move re-sent) are journalled
+as bad lines too, each once, after the sample or scan in which they happened; so the
+summary's ``bad_lines`` counts every damaged line. ``t_s`` is the scheduled time, the same for every scan
 (so the scans share one time base as the calibrations need); ``t_frame_s`` is when the
 frame actually arrived.
 """
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,21 +64,28 @@ def run_campaign(setup: Setup, stage, camera, store: RunStore, extra: dict) -> d
     extract = AreaExtractor(setup.layout, blur_sd_px=setup.plan.optics.blur_sd_px)
     scans = scans_of(setup.plan)
     extra = {**extra, "scans_planned": len(scans)}
+    seen: Counter = Counter()                    # driver recoveries already journalled
     try:
         for scan in scans:
             if scan.scan_id in store.done:
                 continue
-            rows = run_scan(setup, stage, camera, extract, store, scan)
+            rows = run_scan(setup, stage, camera, extract, store, scan, seen=seen)
             store.finish_scan(scan.scan_id, rows)
             store.write_summary({**extra, "complete": False})
     except BaseException as exc:                 # the counts so far, and why the run stopped
+        _journal_recovered(stage, store, seen, None, None)
         store.write_summary({**extra, "complete": False, "stopped": f"{type(exc).__name__}: {exc}"})
         raise
     return store.write_summary({**extra, "complete": len(store.done) == len(scans)})
 
 
-def run_scan(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpec) -> list[dict]:
-    """One scan (one touch); returns its rows, each already in ``samples.csv``."""
+def run_scan(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpec, *,
+             seen: Counter | None = None) -> list[dict]:
+    """One scan (one touch); returns its rows, each already in ``samples.csv``.
+
+    ``seen`` (updated): the stage driver's recoveries already journalled (default: none).
+    """
+    seen = Counter() if seen is None else seen
     attempt = store.start_scan(scan.scan_id)
     moves = moves_of(setup.plan, scan)
     for move in moves[:4]:
@@ -86,7 +97,7 @@ def run_scan(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSp
         t0 = time.monotonic()
         for k, t_k in enumerate(sample_times_s(setup.plan)):
             time.sleep(max(0.0, t0 + t_k - time.monotonic()))
-            row = _sample(setup, stage, camera, extract, store, scan, k)
+            row = _sample(setup, stage, camera, extract, store, scan, k, seen)
             row.update(t_s=float(t_k), t_frame_s=row["t_frame_s"] - t0, attempt=attempt)
             store.append_sample(row)
             rows.append(row)
@@ -94,6 +105,7 @@ def run_scan(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSp
     finally:
         camera.end_scan()
     _move(stage, moves[5])
+    _journal_recovered(stage, store, seen, scan.scan_id, None)
     return rows
 
 
@@ -104,10 +116,11 @@ def _move(stage, move, wait: bool = True) -> None:
         stage.wait_idle()
 
 
-def _sample(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpec, k: int) -> dict:
+def _sample(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpec, k: int,
+            seen: Counter) -> dict:
     problem = "no attempt"
     for _ in range(MAX_TRIES):
-        pos = _status(stage, store, scan.scan_id, k).mpos_mm
+        pos = _status(stage, store, scan.scan_id, k, seen).mpos_mm
         grab = camera.grab(pos)
         problem = grab.problem
         if problem is None:
@@ -131,11 +144,14 @@ def _sample(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpe
             "fx_n": float(f[0]), "fy_n": float(f[1]), "fz_n": float(f[2])}
 
 
-def _status(stage, store: RunStore, scan_id: int, k: int):
-    """The stage's status; a lost or damaged report is journalled as a bad line and retried."""
+def _status(stage, store: RunStore, scan_id: int, k: int, seen: Counter | None = None):
+    """The stage's status; a lost or damaged report is journalled as a bad line and retried
+    (as are those the driver recovered from since ``seen``, see :func:`_journal_recovered`)."""
     for tries in range(1, MAX_TRIES + 1):
         try:
-            return stage.status()
+            status = stage.status()
+            _journal_recovered(stage, store, Counter() if seen is None else seen, scan_id, k)
+            return status
         except (ProtocolError, StageTimeout) as exc:
             if (isinstance(exc, ProtocolError) and exc.code is not None) or tries == MAX_TRIES:
                 raise
@@ -143,3 +159,13 @@ def _status(stage, store: RunStore, scan_id: int, k: int):
             store.event("bad_line", scan_id=scan_id, sample=k, reason=str(exc))
             stage.protocol.resync()
     raise AssertionError("unreachable")
+
+
+def _journal_recovered(stage, store: RunStore, seen: Counter, scan_id: int | None, k: int | None) -> None:
+    """Journal one ``bad_line`` per reply the stage driver recovered from since ``seen``
+    (a stage without a ``recovered`` count, e.g. a test fake, has none); updates ``seen``."""
+    now = getattr(stage, "recovered", None) or {}
+    for key in sorted(now):
+        for _ in range(now[key] - seen[key]):
+            store.event("bad_line", scan_id=scan_id, sample=k, reason=f"recovered by the driver: {key}")
+        seen[key] = now[key]

@@ -119,10 +119,18 @@ class Stage:
             if isinstance(exc, ProtocolError) and exc.code is not None:
                 raise
             log.warning("%s: %s; resynchronising and re-sending %r", self.port, exc, line)
+            self.protocol.count_recovered("ok", exc)
             self.protocol.resync()
             self.protocol.send(line)
 
     # ---- state
+    @property
+    def recovered(self) -> dict[str, int]:
+        """Damaged or lost replies recovered from since opening (a copy), e.g.
+        ``{"status_malformed": 2, "ok_lost": 1}``: keys ``"<reply>_<damage>"``, see
+        :attr:`GrblProtocol.recovered <feeler.hardware.stage.protocol.GrblProtocol>`."""
+        return dict(self.protocol.recovered)
+
     def status(self) -> Status:
         """The controller's status report (position, state, feed)."""
         status = self.protocol.status()

@@ -5,11 +5,15 @@ the lengths of unacknowledged lines, ``\\n`` included, stays within the controll
 receive buffer, ``RX_BUFFER_BYTES - 1`` = 127 bytes), matches every ``ok``/``error:N`` to
 the oldest line in flight, sends the real-time ``?``, ``!``, ``~`` and Ctrl-X bytes, and
 turns controller status into exceptions in exactly one place, :meth:`GrblProtocol._check`.
+
+Damaged or lost replies that the driver recovers from (a status report queried again, a
+move re-sent by the device layer) are counted in :attr:`GrblProtocol.recovered`, keyed
+``"<reply>_<damage>"`` (:func:`damage_of`), so a campaign can report them as bad lines.
 """
 from __future__ import annotations
 
 import logging
-from collections import deque
+from collections import Counter, deque
 
 from feeler.errors import ArgumentError
 from feeler.hardware.stage.errors import ProtocolError, StageAlarm, StageTimeout
@@ -17,13 +21,26 @@ from feeler.hardware.stage.replies import (Alarm, Banner, Error, Message, Ok, Re
                                            Status, parse_reply)
 from feeler.hardware.stage.transport import Transport
 
-__all__ = ["GrblProtocol", "RX_BUFFER_BYTES", "MAX_LINE_CHARS", "parse_reply"]
+__all__ = ["GrblProtocol", "RX_BUFFER_BYTES", "MAX_LINE_CHARS", "DAMAGES", "damage_of", "parse_reply"]
 
 log = logging.getLogger("feeler.hardware.stage")
 
 RX_BUFFER_BYTES = 128
 MAX_LINE_CHARS = 78
 _REALTIME = set("?!~\x18")
+
+#: how a reply can be damaged: not valid Grbl (garbled, or a cut line run into the next),
+#: cut short with no line end before the deadline (truncated), or never arrived (lost)
+DAMAGES = ("malformed", "short_read", "lost")
+
+
+def damage_of(exc: Exception) -> str | None:
+    """Which of :data:`DAMAGES` ``exc`` reports, or None for a real answer (``error:N``)."""
+    if isinstance(exc, ProtocolError):
+        return "malformed" if exc.code is None else None
+    if isinstance(exc, StageTimeout):
+        return "short_read" if exc.partial else "lost"
+    return None
 
 
 class GrblProtocol:
@@ -33,6 +50,11 @@ class GrblProtocol:
         transport: the byte layer.
         reply_timeout_s (float): deadline for each awaited reply, seconds.
         status_retries (int): extra ``?`` queries after a lost or damaged status report.
+
+    Attributes:
+        recovered (Counter[str]): damaged or lost replies recovered from so far, keyed
+            ``"status_<damage>"`` (queried again) or ``"ok_<damage>"`` (move re-sent,
+            counted by :meth:`count_recovered`), ``<damage>`` one of :data:`DAMAGES`.
     """
 
     def __init__(self, transport: Transport, *, reply_timeout_s: float = 2.0,
@@ -42,6 +64,11 @@ class GrblProtocol:
         self.in_flight: deque[str] = deque()
         self.messages: deque[Message] = deque(maxlen=64)
         self.last_alarm: int | None = None
+        self.recovered: Counter[str] = Counter()
+
+    def count_recovered(self, reply: str, exc: Exception) -> None:
+        """Count one damaged or lost ``reply`` (e.g. ``"ok"``) that is being recovered."""
+        self.recovered[f"{reply}_{damage_of(exc)}"] += 1
 
     @property
     def in_flight_bytes(self) -> int:
@@ -119,10 +146,10 @@ class GrblProtocol:
                 while not isinstance(reply := self._read_reply("status report"), Status):
                     pass
             except (StageTimeout, ProtocolError) as exc:
-                retry = exc.code is None if isinstance(exc, ProtocolError) else True
-                if not retry or self.in_flight or attempt == self.status_retries:
+                if damage_of(exc) is None or self.in_flight or attempt == self.status_retries:
                     raise
                 log.debug("%s: retrying status after %s", self.transport.name, exc)
+                self.count_recovered("status", exc)
                 continue
             if attempt and not self.in_flight:
                 self.transport.discard_input(0.05)  # a late report of an earlier query
