@@ -1,8 +1,8 @@
 """M2 speed/accuracy ladder on four-plates (issue 3 §7): every backend on the same scans.
 
 Per backend: wall time, min bulk ESS per second, and the error of posterior means and sds
-against a long NUTS reference (also against the grid, since NUTS itself may fail its
-diagnostics on this posterior — its verdict is printed). Goals of the default (grid)
+against a long NUTS reference (NUTS samples (a, h, σ) with τ integrated out and draws τ
+from its conditional, see calib/neuron/mcmc.py; its verdict is printed). Goals of the default (grid)
 backend: R-hat ≤ 1.01, bulk ESS ≥ 400 within 5 s, ≥ 3× the ESS/s of emcee in the same run
 (recorded as a ratio).
 """
