@@ -32,8 +32,9 @@ browser:  ## headless Chromium for the report rendering test (Debian packages; n
 test: env browser  ## run the whole test suite (slow suites at a small size)
 	$(BIN)/python -m pytest
 
-bench: env  ## run the benchmarks (pytest-benchmark); ratios are printed at the end
-	$(BIN)/python -m pytest benchmarks --benchmark-enable -p no:cacheprovider
+bench: env  ## run the benchmarks (pytest-benchmark); ratios printed at the end and kept in runs/benchmarks/
+	@mkdir -p runs/benchmarks
+	$(BIN)/python -m pytest benchmarks --benchmark-enable -p no:cacheprovider --benchmark-json runs/benchmarks/benchmarks.json
 
 clean:  ## remove the environment, caches and generated runs
 	rm -rf $(VENV) .cache runs .pytest_cache .benchmarks

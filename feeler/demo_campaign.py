@@ -16,6 +16,7 @@ Run-directory layout written here (the report reads it):
 - ``psychophysics/`` the synthetic human 2AFC data; ``m4/`` their psychometric fits;
 - ``finger-route/`` τ and σ_d inferred from the human data through the finger chain;
 - ``finger/`` strain histories of the finger-steps scene (skin level L1);
+- ``benchmarks/`` the speed/accuracy tables of the last ``make bench``, when there are any;
 - ``report.html`` and ``report.pdf`` (:mod:`feeler.reports`) from all of the above.
 """
 from __future__ import annotations
@@ -144,6 +145,23 @@ def _finger(ctx: dict) -> None:
                                         str(ctx["out"] / "finger"), *_force(ctx)], keep=_matching(r"wrote"))
 
 
+def _speed_tables(ctx: dict) -> None:
+    """Copy the speed/accuracy tables of the last ``make bench`` (runs/benchmarks/*.csv)."""
+    import shutil
+
+    src = Path(ctx["out"]).resolve().parent / "benchmarks"
+    tables = sorted(src.glob("*.csv")) if src.is_dir() else []
+    if not tables:
+        ctx["print"](f"\nspeed/accuracy tables: none in {src} (run `make bench` to measure them)")
+        return
+    dest = ctx["out"] / "benchmarks"
+    dest.mkdir(exist_ok=True)
+    for table in tables:
+        shutil.copyfile(table, dest / table.name)
+    (dest / "SOURCE.txt").write_text(f"copied from {src} (written by `make bench`)\n", encoding="utf-8")
+    ctx["print"](f"\nspeed/accuracy tables from {src}: {', '.join(t.name for t in tables)}")
+
+
 def _report(ctx: dict) -> None:
     from feeler.reports import build_report
 
@@ -156,4 +174,5 @@ def _report(ctx: dict) -> None:
 CAMPAIGN_STAGES = [("calibrate sensor", _calibrate_sensor), ("calibrate neuron", _calibrate_neuron),
                    ("classify", _classify), ("discriminate", _discriminate),
                    ("psychophysics", _psychophysics), ("finger route", _finger_route), ("finger skin", _finger),
+                   ("speed tables", _speed_tables),
                    ("report", _report)]

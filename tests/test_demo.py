@@ -86,3 +86,20 @@ def test_a_failing_stage_is_named_and_earlier_results_stay(tmp_path, small):
     assert "calibrate-neuron" in str(info.value) and "\n" not in str(info.value)
     assert (tmp_path / "logs" / "calibrate-neuron.txt").is_file()
     assert (tmp_path / "kept.txt").read_text() == "earlier result"
+
+
+def test_speed_tables_of_the_last_bench_are_copied_with_their_source(tmp_path):
+    from feeler.demo_campaign import _speed_tables
+
+    printed = []
+    out = tmp_path / "runs" / "demo"
+    out.mkdir(parents=True)
+    ctx = {"out": out, "print": printed.append}
+    _speed_tables(ctx)                                   # nothing measured yet: says so
+    assert "make bench" in printed[-1] and not (out / "benchmarks").exists()
+    bench = tmp_path / "runs" / "benchmarks"
+    bench.mkdir()
+    (bench / "ratios.csv").write_text("benchmark,ratio,goal\nx,0.5,>= 0.25\n")
+    _speed_tables(ctx)
+    assert (out / "benchmarks" / "ratios.csv").read_text() == (bench / "ratios.csv").read_text()
+    assert str(bench) in (out / "benchmarks" / "SOURCE.txt").read_text()
