@@ -22,7 +22,7 @@ def _demo(out, env) -> float:
 def test_demo_cold_start(benchmark, tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), MPLBACKEND="Agg",
                PYTENSOR_FLAGS=f"base_compiledir={tmp_path / 'pytensor'}")
-    cold = benchmark.pedantic(_demo, args=(tmp_path / "cold", env), rounds=1, iterations=1)
+    benchmark.pedantic(_demo, args=(tmp_path / "cold", env), rounds=1, iterations=1)
     cold = benchmark.stats["min"]
     warm = _demo(tmp_path / "warm", env)
     benchmark.extra_info.update({"cold_s": cold, "warm_s": warm})
