@@ -42,7 +42,7 @@ def variant(src: Path, tmp_path: Path, name: str = "scene.toml", copy_layouts: b
      "optics.c_mm_per_n[0]: needs at least 3 items"),
     (CAL_IMAGES, {'layout = "layouts/sensor-16.toml"': 'c_mm_per_n = [[1, 2, 3], [2, 4, 6], [0, 0, 1]]'},
      "optics.c_mm_per_n: must be invertible"),
-    (FOUR_IMAGES, {"rest_area_px2 = 300.0": "rest_area_px2 = 0.0"}, "optics.rest_area_px2"),
+    (FOUR_IMAGES, {"rest_area_px2 = 150.0": "rest_area_px2 = 0.0"}, "optics.rest_area_px2"),
     (CAL_IMAGES, {'fidelity = "images"': 'fidelity = "camera"'}, "sensor.fidelity"),
 ])
 def test_optics_table_is_validated(tmp_path, src, replace, key):
