@@ -6,7 +6,7 @@ import numpy as np
 from feeler.errors import ArgumentError
 from feeler.models.neuron import kernels
 from feeler.models.neuron.uniform import boxcar_uniform
-from feeler.models.neuron.validate import check_signal, check_weights, uniform_step
+from feeler.models.neuron.validate import check_signal, check_times_uniform, check_weights
 
 __all__ = ["Engine"]
 
@@ -37,7 +37,8 @@ class Engine:
         records then take the pointer-free boxcar loop."""
         with_w = self.weights is not None
         s, tt = check_signal(strain, t, min_ndim=2 if with_w else 1, t_prev=self.t_last,
-                             check_finite=False)
+                             check_finite=False, check_times=False)
+        dt = check_times_uniform(tt)  # one pass: validity of t and, if uniform, its step
         n = tt.shape[0]
         if self.shape is None:
             if with_w:
@@ -52,8 +53,7 @@ class Engine:
         w = self.weights if with_w else _ONE
         if self.carry is None:
             self.carry = kernels.Carry(x.shape[0])
-        dt = uniform_step(tt) if whole and self.kernel == "boxcar" else None
-        if dt is not None:
+        if dt is not None and whole and self.kernel == "boxcar":
             out = boxcar_uniform(x, w, dt, self.tau, self.carry, a=a, h=h, clamp=clamp)
         else:
             run = kernels.exponential if self.kernel == "exponential" else kernels.boxcar

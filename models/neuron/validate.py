@@ -8,7 +8,7 @@ import numpy as np
 
 from feeler.errors import ArgumentError
 
-__all__ = ["check_params", "check_kernel", "check_signal", "check_weights", "uniform_step"]
+__all__ = ["check_params", "check_kernel", "check_signal", "check_weights", "check_times_uniform"]
 
 KERNELS = ("boxcar", "exponential")
 
@@ -50,13 +50,14 @@ def check_kernel(kernel: object) -> str:
     return kernel  # type: ignore[return-value]
 
 
-def check_signal(strain: object, t: object, *, min_ndim: int = 1,
-                 t_prev: float | None = None, check_finite: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def check_signal(strain: object, t: object, *, min_ndim: int = 1, t_prev: float | None = None,
+                 check_finite: bool = True, check_times: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """``strain (..., n)`` finite, ``t (n,)`` finite and strictly increasing (after
     ``t_prev`` when a stream continues). Returns float64 arrays.
 
     ``check_finite=False`` skips the scan of the strain for NaN/inf; the kernels detect
-    them in one pass instead (they persist in the running sums) and call back here."""
+    them in one pass instead (they persist in the running sums) and call back here.
+    ``check_times=False`` leaves the scan of t to :func:`check_times_uniform`."""
     s = np.asarray(strain)
     if not (np.issubdtype(s.dtype, np.floating) or np.issubdtype(s.dtype, np.integer)):
         raise ArgumentError("strain", f"dtype {s.dtype}", "must be a real numeric array")
@@ -74,12 +75,10 @@ def check_signal(strain: object, t: object, *, min_ndim: int = 1,
     if tt.shape[0] != s.shape[-1]:
         raise ArgumentError("t", f"length {tt.shape[0]}",
                             f"must match the last axis of strain (n_time = {s.shape[-1]})")
-    i = int(_first_bad_time(tt))
-    if i >= 0:
-        if not np.isfinite(tt[i]):
-            raise ArgumentError("t", f"{tt[i]} at index {i}", "must be finite")
-        raise ArgumentError("t", f"{tt[i]} at index {i} after {tt[i - 1]}",
-                            "must be strictly increasing")
+    if check_times:
+        i, _ = _scan_times(tt, 0.0)
+        if i >= 0:
+            _raise_bad_time(tt, i)
     if t_prev is not None and tt.shape[0] and tt[0] <= t_prev:
         raise ArgumentError("t", f"{tt[0]} at the chunk start",
                             f"must continue after the previous chunk's last time {t_prev}")
@@ -88,6 +87,12 @@ def check_signal(strain: object, t: object, *, min_ndim: int = 1,
         raise ArgumentError("strain", f"{s[idx]} at index {tuple(int(i) for i in idx)}",
                             "samples must be finite (no NaN or inf)")
     return s, tt
+
+
+def _raise_bad_time(t: np.ndarray, i: int) -> None:
+    if not np.isfinite(t[i]):
+        raise ArgumentError("t", f"{t[i]} at index {i}", "must be finite")
+    raise ArgumentError("t", f"{t[i]} at index {i} after {t[i - 1]}", "must be strictly increasing")
 
 
 def check_weights(weights: object, n_receptors: int) -> np.ndarray:
@@ -101,34 +106,36 @@ def check_weights(weights: object, n_receptors: int) -> np.ndarray:
 
 
 @nb.njit(cache=True, nogil=True)
-def _first_bad_time(t):
-    """Index of the first non-finite or non-increasing time, or −1 (one pass)."""
-    for i in range(t.shape[0]):
-        if not math.isfinite(t[i]) or (i > 0 and not t[i] > t[i - 1]):
-            return i
-    return -1
-
-
-@nb.njit(cache=True, nogil=True)
-def _max_step_deviation(t, dt):
+def _scan_times(t, dt):
+    """One pass over t: (index of the first non-finite or non-increasing time or −1,
+    the largest |t_i − t_{i−1} − dt|)."""
     worst = 0.0
+    if t.shape[0] and not math.isfinite(t[0]):
+        return 0, worst
     for i in range(1, t.shape[0]):
-        d = abs((t[i] - t[i - 1]) - dt)
-        if d > worst:
-            worst = d
-    return worst
+        d = t[i] - t[i - 1]
+        if not (d > 0.0) or not math.isfinite(t[i]):
+            return i, worst
+        worst = max(worst, abs(d - dt))
+    return -1, worst
 
 
 # relative spread of the sampling interval below which a record counts as uniform
 UNIFORM_RTOL = 1e-9
 
 
-def uniform_step(t: np.ndarray) -> float | None:
-    """The sampling interval when ``t`` (valid, float64) is uniform to 1e-9 relative, else None."""
+def check_times_uniform(t: np.ndarray) -> float | None:
+    """Check ``t`` (float64, 1-D) like :func:`check_signal` does and, in the same pass,
+    return its sampling interval when it is uniform (else None).
+
+    Uniform: every step within 1e-9·Δt of Δt, or within the rounding of the time stamps
+    themselves (a few ulp of the largest |t|: 10⁷ samples at 1 ms carry ~2e-12 s)."""
     n = t.shape[0]
+    dt = (t[-1] - t[0]) / (n - 1) if n >= 2 else 0.0
+    i, worst = _scan_times(t, dt if math.isfinite(dt) else 0.0)
+    if i >= 0:
+        _raise_bad_time(t, i)
     if n < 2:
         return None
-    dt = (t[-1] - t[0]) / (n - 1)
-    if n > 2 and _max_step_deviation(t, dt) > UNIFORM_RTOL * dt:
-        return None
-    return float(dt)
+    tol = UNIFORM_RTOL * dt + 4 * np.spacing(max(abs(t[0]), abs(t[-1])))
+    return float(dt) if n == 2 or worst <= tol else None
