@@ -24,7 +24,7 @@ import numpy as np
 
 from feeler.models.neuron import kernels
 
-__all__ = ["boxcar_uniform"]
+__all__ = ["boxcar_uniform", "window_shape", "UniformStream"]
 
 
 @nb.njit(inline="always")
@@ -94,7 +94,7 @@ _EPS = 2.0 ** -52
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _lanes(x, w0, m, frac, a, h, clamp, out):
+def _lanes(x, w0, m, frac, a, h, clamp, out, start):
     """u₁ or z of ``w0·x`` (one receptor, ``x (n,)``) with τ = (m + frac)·Δt.
 
     Four lanes slide with plain adds. Rounding of a plain slide is at most
@@ -102,13 +102,17 @@ def _lanes(x, w0, m, frac, a, h, clamp, out):
     so the sum is re-derived exactly every ``period`` samples, and a block in which the
     window sum fell below ``big/ratio`` (a quiet window after loud ones) is recomputed
     with the compensated slide: every output keeps a relative error ≤ ``_TOL``.
+    Outputs ``start`` … n − 1 are written (earlier ones are the caller's: a stream's
+    first samples, whose window reaches into the previous chunk).
     Returns the sum of the lanes' final window sums, NaN if a NaN/inf entered anywhere."""
     n = x.shape[0]
-    seg = n // 4
+    seg = (n - start) // 4
     period = max(_BLOCK, ((4 * m) // _BLOCK + 1) * _BLOCK)
     ratio = max(2.0, _TOL / (period * _EPS))
-    b1, b2, b3 = seg, 2 * seg, 3 * seg
-    s0, s1, s2, s3 = 0.0, _window_before(x, b1, m), _window_before(x, b2, m), _window_before(x, b3, m)
+    b0 = start
+    b1, b2, b3 = b0 + seg, b0 + 2 * seg, b0 + 3 * seg
+    s0, s1 = _window_before(x, b0, m), _window_before(x, b1, m)
+    s2, s3 = _window_before(x, b2, m), _window_before(x, b3, m)
     g0, g1, g2, g3 = s0, s1, s2, s3
     done = 0
     poisoned = False
@@ -116,12 +120,12 @@ def _lanes(x, w0, m, frac, a, h, clamp, out):
         hi = min(lo + _BLOCK, seg)
         f0 = f1 = f2 = f3 = False
         for j in range(lo, hi):
-            c = _c(x, j)
-            cj = _cj(x, j, m, c)
+            c = _c(x, b0 + j)
+            cj = _cj(x, b0 + j, m, c)
             s0 += c - cj
             g0 = max(g0, s0)
             f0 |= s0 * ratio < g0
-            _emit(out, j, w0 * (s0 + frac * cj), a, h, clamp)
+            _emit(out, b0 + j, w0 * (s0 + frac * cj), a, h, clamp)
             c = _c(x, b1 + j)
             cj = _cj(x, b1 + j, m, c)
             s1 += c - cj
@@ -145,7 +149,8 @@ def _lanes(x, w0, m, frac, a, h, clamp, out):
         poisoned |= not (math.isfinite(s0) and math.isfinite(s1) and math.isfinite(s2) and math.isfinite(s3))
         resync = done >= period
         if f0 or resync:
-            s0 = _exact_span(x, lo, hi, w0, m, frac, a, h, clamp, out) if f0 else _window_before(x, hi, m)
+            s0 = _exact_span(x, b0 + lo, b0 + hi, w0, m, frac, a, h, clamp, out) if f0 \
+                else _window_before(x, b0 + hi, m)
             g0 = s0
         if f1 or resync:
             s1 = _exact_span(x, b1 + lo, b1 + hi, w0, m, frac, a, h, clamp, out) if f1 \
@@ -161,27 +166,32 @@ def _lanes(x, w0, m, frac, a, h, clamp, out):
             g3 = s3
         if resync:
             done = 0
-    s3 = _exact_span(x, 4 * seg, n, w0, m, frac, a, h, clamp, out) if n > 4 * seg else s3
+    s3 = _exact_span(x, b0 + 4 * seg, n, w0, m, frac, a, h, clamp, out) if n > b0 + 4 * seg else s3
     total = w0 * (s0 + s1 + s2 + s3)
     return np.nan if poisoned else total
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _uniform_row(x, w, m, frac, a, h, clamp, out):
+def _uniform_row(x, w, m, frac, a, h, clamp, out, start):
     """A whole record sampled every Δt with τ = (m + frac)·Δt, m ≥ 0, 0 ≤ frac < 1:
 
         u1_k = Σ_{j=k−m+1..k} c_j + frac·c_{k−m}    (c_j = 0 for j ≤ 0)
 
     Same quantity as :func:`_window` without the pointer walk or the division; the
     increments are recomputed from the strain (no array of them is stored) and the
-    slide adds the exact difference c_k − c_{k−m} (TwoSum) to the compensated sum."""
+    slide adds the exact difference c_k − c_{k−m} (TwoSum) to the compensated sum.
+    Outputs from ``start`` on (the state before it is summed exactly first)."""
     n = x.shape[1]
     nr = x.shape[0]
     s = 0.0
     comp = 0.0
-    if n:
+    for j in range(max(start - m, 1), start):
+        for r in range(nr):
+            s, e = _two_sum(s, w[r] * abs(x[r, j] - x[r, j - 1]))
+            comp += e
+    if start == 0 and n:
         out[0] = 0.0
-    for k in range(1, n):
+    for k in range(max(start, 1), n):
         ck = 0.0
         for r in range(nr):
             ck += w[r] * abs(x[r, k] - x[r, k - 1])
@@ -206,31 +216,87 @@ def _uniform_row(x, w, m, frac, a, h, clamp, out):
     return s + comp
 
 
-def _uniform_rows_py(x, w, m, frac, a, h, clamp, out, final):
+def _uniform_rows_py(x, w, m, frac, a, h, clamp, out, final, start):
     n = x.shape[2]
-    lanes = x.shape[1] == 1 and n >= 64 and m < n // 8
+    lanes = x.shape[1] == 1 and n - start >= 64 and m < (n - start) // 8
     for r in nb.prange(x.shape[0]):
         if lanes:
-            final[r] = _lanes(x[r, 0], w[0], m, frac, a, h, clamp, out[r])
+            final[r] = _lanes(x[r, 0], w[0], m, frac, a, h, clamp, out[r], start)
         else:
-            final[r] = _uniform_row(x[r], w, m, frac, a, h, clamp, out[r])
+            final[r] = _uniform_row(x[r], w, m, frac, a, h, clamp, out[r], start)
 
 
 _uniform_rows_par = nb.njit(cache=True, parallel=True)(_uniform_rows_py)
 _uniform_rows_ser = nb.njit(cache=True)(_uniform_rows_py)
 
 
-def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, carry, *,
-                   a: float = 1.0, h: float = 0.0, clamp: bool = False) -> np.ndarray:
-    """Boxcar z or u₁ of a whole record ``x (rows, n_rec, n)`` sampled every ``dt``.
-
-    ``carry.sum`` receives the final running sums (non-finite when a NaN/inf entered);
-    the carry cannot continue a stream after this call."""
-    rows, n = x.shape[0], x.shape[2]
+def window_shape(dt: float, tau: float, n: int) -> tuple[int, float]:
+    """(m, frac) with τ = (m + frac)·Δt; beyond a record of n samples the window is the
+    whole record (m = n + 1, frac = 0)."""
     ratio = tau / dt
-    m = int(min(math.floor(ratio), n + 1))  # beyond the record the window is the whole record
-    frac = ratio - math.floor(ratio) if m <= n else 0.0
+    m = int(min(math.floor(ratio), n + 1))
+    return m, (ratio - math.floor(ratio) if m <= n else 0.0)
+
+
+def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, final: np.ndarray, *,
+                   a: float = 1.0, h: float = 0.0, clamp: bool = False, start: int = 0) -> np.ndarray:
+    """Boxcar z or u₁ of ``x (rows, n_rec, n)`` sampled every ``dt``: a whole record
+    (``x[..., 0]`` is its first sample), outputs from ``start`` on (earlier entries of the
+    returned array are left unset).
+
+    ``final (rows,)`` receives the final window sums (NaN when a NaN/inf entered)."""
+    rows, n = x.shape[0], x.shape[2]
+    mm, frac = window_shape(dt, tau, n)
     out = np.empty((rows, n))
     run = kernels.pick(_uniform_rows_par, _uniform_rows_ser, rows, n)
-    run(x, w, m, frac, float(a), float(h), clamp, out, carry.sum)
+    run(x, w, mm, frac, float(a), float(h), clamp, out, final, start)
     return out
+
+
+class UniformStream:
+    """The boxcar stream of uniformly sampled single-receptor chunks, on the fast loops.
+
+    Keeps the last m + 2 samples (strain and time) as history: the first m + 1 outputs of
+    a chunk are computed on history + chunk head, the rest on the chunk alone from
+    ``start = m + 1``. :meth:`general_carry` hands over to the general loop (for a chunk
+    that breaks the uniform sampling) by replaying the history."""
+
+    def __init__(self, rows: int, dt: float, tau: float):
+        self.dt, self.tau = dt, tau
+        self.m = int(math.floor(tau / dt))
+        self.hist_x = np.empty((rows, 1, 0))
+        self.hist_t = np.empty(0)
+
+    def accepts(self, dt: float) -> bool:
+        return abs(dt - self.dt) <= 1e-9 * self.dt
+
+    def push(self, x: np.ndarray, w: np.ndarray, t: np.ndarray, final: np.ndarray, *, a: float,
+             h: float, clamp: bool) -> np.ndarray:
+        rows, n = x.shape[0], x.shape[2]
+        head = min(n, self.m + 1)
+        H = self.hist_t.shape[0]
+        out = np.empty((rows, n))
+        f_head = np.zeros(rows)
+        xx = np.ascontiguousarray(np.concatenate([self.hist_x, x[:, :, :head]], axis=2))
+        out[:, :head] = boxcar_uniform(xx, w, self.dt, self.tau, f_head, a=a, h=h, clamp=clamp,
+                                       start=H)[:, H:]
+        final[:] = f_head
+        if n > head:
+            f_rest = np.zeros(rows)
+            out[:, head:] = boxcar_uniform(x, w, self.dt, self.tau, f_rest, a=a, h=h, clamp=clamp,
+                                           start=head)[:, head:]
+            final += f_rest
+        keep = self.m + 2
+        if n >= keep:
+            self.hist_x, self.hist_t = x[:, :, n - keep:].copy(), t[n - keep:].copy()
+        else:
+            self.hist_x = np.concatenate([self.hist_x, x], axis=2)[:, :, -keep:]
+            self.hist_t = np.concatenate([self.hist_t, t])[-keep:]
+        return out
+
+    def general_carry(self, w: np.ndarray) -> "kernels.Carry":
+        """The general loop's carry after the samples seen so far (history replayed)."""
+        carry = kernels.Carry(self.hist_x.shape[0])
+        if self.hist_t.shape[0]:
+            kernels.boxcar(np.ascontiguousarray(self.hist_x), w, self.hist_t, self.tau, carry)
+        return carry

@@ -5,7 +5,7 @@ import numpy as np
 
 from feeler.errors import ArgumentError
 from feeler.models.neuron import kernels
-from feeler.models.neuron.uniform import boxcar_uniform
+from feeler.models.neuron.uniform import UniformStream, boxcar_uniform
 from feeler.models.neuron.validate import check_signal, check_times_uniform, check_weights
 
 __all__ = ["Engine"]
@@ -28,6 +28,8 @@ class Engine:
         self.carry: kernels.Carry | None = None
         self.shape: tuple | None = None  # leading shape of the strain, fixed by the first chunk
         self.t_last: float | None = None
+        self.uniform: UniformStream | None = None  # boxcar streams of uniform chunks
+        self.general = False                        # set once a chunk broke uniform sampling
 
     def run(self, strain, t, *, a: float = 1.0, h: float = 0.0, clamp: bool = False,
             whole: bool = False) -> np.ndarray:
@@ -38,7 +40,8 @@ class Engine:
         with_w = self.weights is not None
         s, tt = check_signal(strain, t, min_ndim=2 if with_w else 1, t_prev=self.t_last,
                              check_finite=False, check_times=False)
-        dt = check_times_uniform(tt)  # one pass: validity of t and, if uniform, its step
+        # one pass: validity of t and, if uniform (continuing the previous chunk), its step
+        dt = check_times_uniform(tt if self.t_last is None else np.concatenate([[self.t_last], tt]))
         n = tt.shape[0]
         if self.shape is None:
             if with_w:
@@ -53,16 +56,26 @@ class Engine:
         w = self.weights if with_w else _ONE
         if self.carry is None:
             self.carry = kernels.Carry(x.shape[0])
-        if dt is not None and whole and self.kernel == "boxcar":
-            out = boxcar_uniform(x, w, dt, self.tau, self.carry, a=a, h=h, clamp=clamp)
+        if n == 0:
+            return np.empty((*lead, 0))
+        boxcar = self.kernel == "boxcar"
+        if boxcar and whole and dt is not None:
+            out = boxcar_uniform(x, w, dt, self.tau, self.carry.sum, a=a, h=h, clamp=clamp)
+        elif (boxcar and not self.general and n_rec == 1 and dt is not None
+              and (self.uniform is None or self.uniform.accepts(dt))):
+            if self.uniform is None:
+                self.uniform = UniformStream(x.shape[0], dt, self.tau)
+            out = self.uniform.push(x, w, tt, self.carry.sum, a=a, h=h, clamp=clamp)
         else:
+            if self.uniform is not None and not self.general:
+                self.carry = self.uniform.general_carry(w)
+            self.general = boxcar
             run = kernels.exponential if self.kernel == "exponential" else kernels.boxcar
             out = run(x, w, tt, self.tau, self.carry, a=a, h=h, clamp=clamp)
-        if n and not kernels.finite(self.carry):
+        if not kernels.finite(self.carry):
             check_signal(strain, t, min_ndim=1)  # raises with the index of the bad sample
             raise ArgumentError("strain", "increments beyond float64",
                                 "strain differences overflow; rescale the input")
-        if n:
-            self.t_last = float(tt[-1])
+        self.t_last = float(tt[-1])
         return out.reshape(*lead, n)
 

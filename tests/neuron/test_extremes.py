@@ -71,27 +71,32 @@ def test_quiet_window_after_loud_ones_keeps_relative_precision():
 
 
 @pytest.mark.slow
-def test_long_stream_does_not_drift():
+@pytest.mark.parametrize("sampling", ["uniform", "jittered"])
+def test_long_stream_does_not_drift(sampling):
     """10⁸ samples streamed in 10⁶-sample chunks: u against an exact recomputation of
-    the window sum (math.fsum) at quiet checkpoints after loud stretches."""
-    n_total = 100_000_000
-    chunk, dt, m = 1_000_000, 1e-3, 3
+    the window sum (math.fsum) at quiet checkpoints after loud stretches. Uniform
+    sampling runs the fast loops, jittered sampling the general (pointer) loop. Times are
+    multiples of 2⁻¹⁰ s, exact in float64, so the window's fractional edge is exact too."""
+    n_total, chunk, m = 100_000_000, 1_000_000, 3
+    dt = 2.0 ** -10
     tau = (m + 0.5) * dt
     rng = np.random.default_rng(11)
     stream = FA1Stream(a=1.0, tau=tau, h=0.0)
     worst, last_eps = 0.0, 0.0
     for start in range(0, n_total, chunk):
-        t = (start + np.arange(chunk)) * dt
+        k = start + np.arange(chunk, dtype=np.float64)
+        if sampling == "jittered":   # quarter-steps: still exact binary fractions
+            k = k + rng.integers(0, 2, size=chunk) * 0.25
+        t = k * dt
         inc = rng.normal(size=chunk)
         inc[-20:] *= 1e-6                      # a quiet stretch at the checkpoint
         eps = last_eps + np.cumsum(inc)
         u = stream.push_u1(t, eps)
         c = np.abs(np.diff(eps[-8:]))          # increments of the last 7 intervals
-        # the straddling interval's fraction from the same float times (t ~ 1e5 s carries
-        # ~1e-11 s of rounding: that is time resolution, not drift of the running sum)
-        tt = t[-8:]
-        frac = (tt[-m - 1] - (tt[-1] - tau)) / (tt[-m - 1] - tt[-m - 2])
-        exact = math.fsum(c[-m:]) + frac * c[-m - 1]
+        tt, T = t[-8:], t[-1] - tau            # window (T, t_k]
+        parts = [ci if left >= T else ci * (right - T) / (right - left) if right > T else 0.0
+                 for ci, left, right in zip(c, tt[:-1], tt[1:])]
+        exact = math.fsum(parts)
         worst = max(worst, abs(u[-1] - exact) / exact)
         last_eps = eps[-1]
     assert worst < 1e-9, worst
