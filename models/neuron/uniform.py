@@ -107,7 +107,7 @@ def _lanes(x, w0, m, frac, a, h, clamp, out, start):
     Returns the sum of the lanes' final window sums, NaN if a NaN/inf entered anywhere."""
     n = x.shape[0]
     seg = (n - start) // 4
-    period = max(_BLOCK, ((4 * m) // _BLOCK + 1) * _BLOCK)
+    period = max(16 * _BLOCK, ((4 * m) // _BLOCK + 1) * _BLOCK)
     ratio = max(2.0, _TOL / (period * _EPS))
     b0 = start
     b1, b2, b3 = b0 + seg, b0 + 2 * seg, b0 + 3 * seg
@@ -239,15 +239,18 @@ def window_shape(dt: float, tau: float, n: int) -> tuple[int, float]:
 
 
 def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, final: np.ndarray, *,
-                   a: float = 1.0, h: float = 0.0, clamp: bool = False, start: int = 0) -> np.ndarray:
+                   a: float = 1.0, h: float = 0.0, clamp: bool = False, start: int = 0,
+                   out: np.ndarray | None = None) -> np.ndarray:
     """Boxcar z or u₁ of ``x (rows, n_rec, n)`` sampled every ``dt``: a whole record
     (``x[..., 0]`` is its first sample), outputs from ``start`` on (earlier entries of the
     returned array are left unset).
 
-    ``final (rows,)`` receives the final window sums (NaN when a NaN/inf entered)."""
+    ``final (rows,)`` receives the final window sums (NaN when a NaN/inf entered);
+    ``out (rows, n)``, when given, receives the outputs (else a new array)."""
     rows, n = x.shape[0], x.shape[2]
     mm, frac = window_shape(dt, tau, n)
-    out = np.empty((rows, n))
+    if out is None:
+        out = np.empty((rows, n))
     run = kernels.pick(_uniform_rows_par, _uniform_rows_ser, rows, n)
     run(x, w, mm, frac, float(a), float(h), clamp, out, final, start)
     return out
@@ -283,8 +286,7 @@ class UniformStream:
         final[:] = f_head
         if n > head:
             f_rest = np.zeros(rows)
-            out[:, head:] = boxcar_uniform(x, w, self.dt, self.tau, f_rest, a=a, h=h, clamp=clamp,
-                                           start=head)[:, head:]
+            boxcar_uniform(x, w, self.dt, self.tau, f_rest, a=a, h=h, clamp=clamp, start=head, out=out)
             final += f_rest
         keep = self.m + 2
         if n >= keep:
