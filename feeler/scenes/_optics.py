@@ -26,9 +26,8 @@ class Optics:
     layout: str = param("", doc="camera layout TOML, relative to the scene file; empty: a 4x4 grid, 640x480 px")
     c_mm_per_n: tuple[tuple[float, ...], ...] = param(_NOMINAL_C, lo=-10.0, hi=10.0, min_len=3,
                                                       doc="3x3 force->displacement matrix of the element, mm/N")
-    # 300 px², not the optics' nominal 150: at blur 1.2 px the frame reader needs a disc
-    # above ~170 px² to measure the peak level (measured on rendered frames).
-    rest_area_px2: float = param(300.0, lo=0.0, lo_open=True, hi=1e4, doc="px², feeler area at zero force")
+    # the optics' nominal 150 px²: the frame reader measures discs down to ~95 px² at blur 1.2 px
+    rest_area_px2: float = param(150.0, lo=0.0, lo_open=True, hi=1e4, doc="px², feeler area at zero force")
     gain_y_px2_per_n: float = param(800.0, lo=0.0, lo_open=True, hi=1e6, doc="px²/N, summed area per N of F_y")
     gain_x_px2_per_n: float = param(400.0, lo=0.0, lo_open=True, hi=1e6, doc="px²/N, area difference per N of F_x")
     gain_z_px2_per_n: float = param(400.0, lo=0.0, lo_open=True, hi=1e6, doc="px²/N, area difference per N of F_z")

@@ -68,9 +68,8 @@ class Optics:
     layout: str = param("", doc="layout TOML of the camera, relative to the plan; empty: a 4x4 grid, 640x480 px")
     element: int = param(0, lo=0, hi=10000, doc="index of the scanning element in the layout")
     blur_sd_px: float = param(1.2, lo=0.0, hi=10.0, doc="px, blur of the optics (extraction reach)")
-    # 300 px² rather than the optics' nominal 150: at blur 1.2 px the extractor needs a disc
-    # above ~170 px² somewhere in the frame to measure the peak level (measured).
-    rest_area_px2: float = param(300.0, lo=0.0, lo_open=True, hi=1e4,
+    # the optics' nominal 150 px²: the extractor measures discs down to ~95 px² at blur 1.2 px
+    rest_area_px2: float = param(150.0, lo=0.0, lo_open=True, hi=1e4,
                                  doc="px², contact area of each conical feeler at zero force")
 
 

@@ -5,9 +5,11 @@ sees a bright disc of the contact area on a dark background. A frame is rendered
 
     I = background + (peak − background) · (coverage ⊛ Gaussian(blur_sd_px))
 
-where ``coverage`` is the anti-aliased disc of radius √(A/π) about the feeler centre,
-scaled so that it integrates to exactly A px² (the "rendered truth": Σ(I − background)
-/ (peak − background) = A before noise, because the blur conserves the integral). Shot
+where ``coverage`` is the exact pixel coverage of the disc of radius √(A/π) about the
+feeler centre: each pixel holds the area of its unit square inside the circle (analytic
+circle–square intersection), so the disc's interior is at the full peak level and its
+light integrates to exactly A px² (the "rendered truth": Σ(I − background) /
+(peak − background) = A before noise, because the blur conserves the integral). Shot
 noise is Poisson in photons (``photons_per_level`` photons per grey level), then the
 frame is rounded and clipped to 8 bits.
 """
@@ -22,7 +24,7 @@ from feeler.errors import ArgumentError
 
 from .layout import Layout
 
-__all__ = ["CameraParams", "render_frames", "blur_margin_px"]
+__all__ = ["CameraParams", "render_frames", "blur_margin_px", "disc_coverage"]
 
 
 @dataclass(frozen=True)
@@ -94,14 +96,19 @@ def render_frames(areas_px2: np.ndarray, layout: Layout, camera: CameraParams,
                             f"areas ≤ {np.pi * limit ** 2:.0f} px² (disc + blur inside the "
                             f"±{w} px feeler window)")
     n = areas.shape[0]
-    offsets = np.arange(-w, w + 1, dtype=float)
-    patches = []  # (rows slice, cols slice, light (n, P, P)) per feeler
+    patches = []  # (rows slice, cols slice, light (n, 2h+1, 2h+1)) per feeler
     for e, element in enumerate(layout.elements):
         for k, (cx, cy) in enumerate(element.feelers):
             ix, iy = int(round(cx)), int(round(cy))
-            dist = np.hypot(offsets[None, :] + ix - cx, offsets[:, None] + iy - cy)
-            light = _disc_patch(radius[:, e, k], areas[:, e, k], dist, camera.blur_sd_px)
-            patches.append((slice(iy - w, iy + w + 1), slice(ix - w, ix + w + 1), light))
+            # half-size h of the patch: the discs (≤ r_max + ½ px from the centre pixel) plus
+            # their blur (the Gaussian's reach ≤ blur_margin_px); zero light beyond it
+            h = min(w, int(np.ceil(radius[:, e, k].max(initial=0.0) + 0.5)) + blur_margin_px(camera))
+            edges = np.arange(-h - 0.5, h + 1.0)  # pixel borders about the centre pixel
+            light = disc_coverage(radius[:, e, k], edges + ix - cx, edges + iy - cy)
+            if camera.blur_sd_px > 0:
+                light = gaussian_filter(light, sigma=camera.blur_sd_px, axes=(1, 2), mode="constant",
+                                        truncate=4.0)
+            patches.append((slice(iy - h, iy + h + 1), slice(ix - h, ix + h + 1), light))
     noisy = rng is not None and np.isfinite(camera.photons_per_level)
     gain = camera.photons_per_level if noisy else 1.0
     contrast = (camera.peak_level - camera.background_level) * gain
@@ -116,12 +123,39 @@ def render_frames(areas_px2: np.ndarray, layout: Layout, camera: CameraParams,
     return out
 
 
-def _disc_patch(radius: np.ndarray, area: np.ndarray, dist: np.ndarray, blur_sd_px: float) -> np.ndarray:
-    """Blurred unit-intensity discs (n, P, P) integrating to ``area`` each."""
-    cover = np.clip(radius[:, None, None] - dist[None] + 0.5, 0.0, 1.0)
-    total = cover.sum(axis=(1, 2))
-    scale = np.divide(area, total, out=np.zeros_like(area), where=total > 0)
-    cover *= scale[:, None, None]
-    if blur_sd_px > 0:
-        cover = gaussian_filter(cover, sigma=blur_sd_px, axes=(1, 2), mode="constant", truncate=4.0)
-    return cover
+def disc_coverage(radius_px: np.ndarray, x_edges_px: np.ndarray, y_edges_px: np.ndarray) -> np.ndarray:
+    """Exact area of discs inside every pixel of a grid (analytic circle–rectangle areas).
+
+    Args:
+        radius_px (ndarray[n]): disc radii (px), ≥ 0; the discs are centred at the origin.
+        x_edges_px (ndarray[P+1]): increasing column borders (px) relative to the centre.
+        y_edges_px (ndarray[Q+1]): increasing row borders (px) relative to the centre.
+
+    Returns:
+        ndarray[n, Q, P]: area (px²) of each disc inside each cell; for unit pixels the
+        fraction covered, summing to π r² (to rounding) when the grid holds the disc.
+
+    With S(X, Y) the signed area of the disc inside [0, X] × [0, Y] (odd in X and in Y by
+    the disc's symmetry), a cell's area is S(x₁, y₁) − S(x₀, y₁) − S(x₁, y₀) + S(x₀, y₀).
+    For X, Y ≥ 0, clipped to the radius (X' = min(X, r), Y' = min(Y, r)), the chord
+    reaches Y' up to x_c = √(r² − Y'²), so S = min(X', x_c)·Y' + max(0, G(X') − G(x_c))
+    with G(x) = ∫₀ˣ √(r² − u²) du increasing. G is taken up to a constant as
+    (x·h − r²·atan2(h, x)) / 2, h = √((r − x)(r + x)) (h(x_c) = Y' exactly): no
+    cancellation near the rim. Only G and √ of the borders (1-D) are evaluated; the
+    2-D part is minima, products and sums.
+    """
+    r = np.asarray(radius_px, dtype=float)[:, None, None]
+    xb = np.asarray(x_edges_px, dtype=float)[None, None, :]
+    yb = np.asarray(y_edges_px, dtype=float)[None, :, None]
+    x_clip, y_clip = np.minimum(np.abs(xb), r), np.minimum(np.abs(yb), r)     # (n,1,P+1), (n,Q+1,1)
+    x_height = np.sqrt((r - x_clip) * (r + x_clip))                            # h(X')
+    x_chord = np.sqrt((r - y_clip) * (r + y_clip))                             # x_c per row border
+    g_x = 0.5 * (x_clip * x_height - r * r * np.arctan2(x_height, x_clip))
+    g_chord = 0.5 * (x_chord * y_clip - r * r * np.arctan2(y_clip, x_chord))
+    beyond = g_x - g_chord                                                     # (n, Q+1, P+1)
+    np.maximum(beyond, 0.0, out=beyond)
+    quadrant = np.minimum(x_clip, x_chord)
+    quadrant *= y_clip
+    quadrant += beyond
+    quadrant *= np.sign(yb) * np.sign(xb)
+    return quadrant[:, 1:, 1:] - quadrant[:, 1:, :-1] - quadrant[:, :-1, 1:] + quadrant[:, :-1, :-1]
