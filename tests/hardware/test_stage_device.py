@@ -83,6 +83,8 @@ def test_feed_hold_and_resume(emu):
         stage.move_to(x_mm=0.0, feed_mm_min=60000.0)
         stage.wait_idle(5.0)
         stage.traverse(30.0, 50.0)
+        # hold once the move is under way (a loaded machine may answer before it starts)
+        next(s for s in stage.track(5.0) if s.state == "Run" and s.mpos_mm[0] > 0.0)
         stage.hold()
         held = next(s for s in stage.track(5.0) if s.state == "Hold" and s.substate == 0)
         assert 0.0 < held.mpos_mm[0] < 30.0 and stage.status().mpos_mm == held.mpos_mm
