@@ -34,7 +34,7 @@ test: env browser  ## run the whole test suite (slow suites at a small size)
 
 bench: env  ## run the benchmarks (pytest-benchmark); ratios printed at the end and kept in runs/benchmarks/
 	@mkdir -p runs/benchmarks
-	$(BIN)/python -m pytest benchmarks --benchmark-enable -p no:cacheprovider --benchmark-json runs/benchmarks/benchmarks.json
+	$(BIN)/python -m pytest benchmarks -p no:cacheprovider --benchmark-json runs/benchmarks/benchmarks.json
 
 clean:  ## remove the environment, caches and generated runs
 	rm -rf $(VENV) .cache runs .pytest_cache .benchmarks
