@@ -72,7 +72,8 @@ def simulate_scans(scene, *, scene_path=None, out_dir=None) -> tuple[Scans, list
     params = probe.ProbeParams(pad_width_mm=p.pad_width_mm, uy0_mean_mm=p.uy0_mean_mm, uy0_sd_mm=p.uy0_sd_mm,
                                tilt_sd_deg=p.tilt_sd_deg, x0_sd_mm=m.x0_sd_mm,
                                drift_sd_mm_s=p.drift_sd_mm_s, shear_per_normal=p.shear_per_normal,
-                               breakaway_frac=p.breakaway_frac, breakaway_s=p.breakaway_s)
+                               breakaway_frac=p.breakaway_frac, breakaway_s=p.breakaway_s,
+                               snap_prob=p.snap_prob)
     noise = _sensor_params(scene, scene_path, out_dir)
     fidelity = scene.sensor.fidelity
     per_plate = scene.repeats.scans_per_plate

@@ -14,7 +14,14 @@ The chain for one scan (one *touch*):
   drops by ``breakaway_frac``·U_y0 with time constant ``breakaway_s`` (a transient at the
   start of every scan whose size follows U_y0 — the paper's remark that U̇_y "depends on
   the value of U_y0"; it is what the raw U̇_y peak sees on a fine step);
-- U_y(t) = U_y0 + smoothed height(x(t)) − breakaway + drift·t (a linear creep per touch);
+- stick–slip at a riser: on a fraction ``snap_prob`` of touches (drawn per touch) the
+  face's leading corner catches on each rising edge, the rubber shears while the stage
+  advances, and the tip snaps up onto the upper level when the face centre passes the
+  edge — a jump of the full step within one frame instead of the ride over the face.
+  A snapping touch's raw U̇_y peak is step/frame, several times the ride-over rate, so the
+  raw peak of a fine step can exceed that of one twice as high (paper §5.2, Fig. 8); the
+  total rise, hence a window sum over τ ≥ the ride time, is the same either way;
+- U_y(t) = U_y0 + height(x(t)) − breakaway + drift·t (a linear creep per touch);
 - U_x(t) = −``shear_per_normal``·U_y(t): kinetic friction drags the tip back in
   proportion to the normal load; U_z(t) = 0 (a straight step has no lateral cue).
 
@@ -73,8 +80,11 @@ class ProbeParams:
     shear_per_normal: float = 0.0
     breakaway_frac: float = 0.0
     breakaway_s: float = 0.2
+    snap_prob: float = 0.0
 
     def __post_init__(self):
+        if not (0.0 <= self.snap_prob <= 1.0):
+            raise ArgumentError("snap_prob", self.snap_prob, "a probability in [0, 1]")
         for name in ("pad_width_mm", "uy0_sd_mm", "tilt_sd_deg", "x0_sd_mm", "drift_sd_mm_s",
                      "shear_per_normal", "breakaway_frac"):
             value = getattr(self, name)
@@ -94,6 +104,7 @@ class Touch:
     tilt_deg: float
     x0_mm: float
     drift_mm_s: float
+    snaps: bool = False
 
 
 @dataclass(frozen=True)
@@ -120,27 +131,34 @@ class Footprint:
         length = self.width_mm if grad * self.width_mm <= self.press_mm else self.press_mm / grad
         s = np.clip(r + self.width_mm / 2, 0.0, length)
         area = self.press_mm * length - grad * length ** 2 / 2
-        return (self.press_mm * s - grad * s ** 2 / 2) / area
+        return np.where(s >= length, 1.0, (self.press_mm * s - grad * s ** 2 / 2) / area)  # exact 1 past the contact
 
 
-def smoothed_height_mm(profile: Profile, x_mm, footprint: Footprint) -> np.ndarray:
-    """Footprint-weighted mean height of ``profile`` under a face centred at ``x_mm`` (mm)."""
+def smoothed_height_mm(profile: Profile, x_mm, footprint: Footprint, *, snap: bool = False) -> np.ndarray:
+    """Footprint-weighted mean height of ``profile`` under a face centred at ``x_mm`` (mm).
+
+    ``snap``: rising edges are taken in one jump when the face centre passes them
+    (stick–slip at the riser); falling edges are still smoothed by the footprint.
+    """
     x = np.asarray(x_mm, dtype=float)
     h = np.full(x.shape, float(profile.base_mm))
     for edge, jump in zip(profile.edges_mm, profile.jumps_mm):
-        h += jump * (1.0 - footprint.cdf(edge - x))
+        h += jump * ((x >= edge) if snap and jump > 0 else (1.0 - footprint.cdf(edge - x)))
     return h
 
 
 def draw_touch(params: ProbeParams, motion: Motion, rng: np.random.Generator) -> Touch:
-    """Draw one touch: press U_y0 (normal, truncated to > 0), tilt, start offset, drift rate."""
+    """Draw one touch: press U_y0 (normal, truncated to > 0), tilt, start offset, drift rate,
+    and whether it snaps at a riser (probability ``snap_prob``; drawn last, so the other
+    draws do not depend on it)."""
     uy0 = rng.normal(params.uy0_mean_mm, params.uy0_sd_mm)
     while uy0 <= 0:
         uy0 = rng.normal(params.uy0_mean_mm, params.uy0_sd_mm)
     tilt = rng.normal(0.0, params.tilt_sd_deg)
     x0 = motion.x0_mm + rng.normal(0.0, params.x0_sd_mm)
     drift = rng.normal(0.0, params.drift_sd_mm_s)
-    return Touch(uy0_mm=float(uy0), tilt_deg=float(tilt), x0_mm=float(x0), drift_mm_s=float(drift))
+    snaps = bool(rng.random() < params.snap_prob)
+    return Touch(uy0_mm=float(uy0), tilt_deg=float(tilt), x0_mm=float(x0), drift_mm_s=float(drift), snaps=snaps)
 
 
 def tip_displacement(profile: Profile, motion: Motion, params: ProbeParams,
@@ -156,6 +174,6 @@ def tip_displacement(profile: Profile, motion: Motion, params: ProbeParams,
     x = touch.x0_mm + motion.speed_mm_s * t
     face = Footprint(params.pad_width_mm, touch.uy0_mm, touch.tilt_deg)
     release = params.breakaway_frac * touch.uy0_mm * -np.expm1(-t / params.breakaway_s)
-    uy = touch.uy0_mm + smoothed_height_mm(profile, x, face) - release + touch.drift_mm_s * t
+    uy = touch.uy0_mm + smoothed_height_mm(profile, x, face, snap=touch.snaps) - release + touch.drift_mm_s * t
     ux = -params.shear_per_normal * uy  # friction drags the tip back against the motion (+x)
     return t, x, np.stack([ux, uy, np.zeros_like(uy)], axis=-1)

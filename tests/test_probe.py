@@ -1,6 +1,7 @@
 """Robot probe: exact footprint CDFs, smoothing against an independent quadrature, the
 closed-form displacement of one touch, the touch draws, and the validation branches."""
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -79,6 +80,34 @@ def test_one_touch_in_closed_form():
     assert u.shape == (41, 3)
 
 
+def test_a_snapping_touch_takes_each_rising_edge_in_one_jump():
+    m = Motion(0.5, 10.0, 0.5)
+    params = ProbeParams(pad_width_mm=1.0)
+    touch = Touch(uy0_mm=0.04, tilt_deg=3.0, x0_mm=0.1, drift_mm_s=0.0, snaps=True)
+    t, x, u = tip_displacement(step(5.0, 0.1), m, params, touch)
+    np.testing.assert_allclose(u[:, 1], 0.04 + 0.1 * (x >= 5.0), atol=1e-15)
+    assert np.count_nonzero(np.diff(u[:, 1])) == 1             # the whole step within one frame
+    ride = tip_displacement(step(5.0, 0.1), m, params, replace(touch, snaps=False))[2][:, 1]
+    assert ride[-1] == pytest.approx(u[-1, 1]) and np.count_nonzero(np.diff(ride)) > 1
+    # a falling edge is still smoothed by the face (the snap is a catch on a riser)
+    grate = grating(3.0, 4.0, 0.1, 1)
+    down = smoothed_height_mm(grate, x, Footprint(1.0, 0.04), snap=True)
+    np.testing.assert_allclose(down, smoothed_height_mm(grate, x, Footprint(1.0, 0.04))
+                               + 0.1 * ((x >= grate.edges_mm[0]) - (1 - Footprint(1.0, 0.04).cdf(grate.edges_mm[0] - x))),
+                               atol=1e-15)
+
+
+def test_snap_draws_follow_snap_prob_and_leave_the_other_draws_alone():
+    m = Motion(0.5, 10.0, 0.5)
+    base = ProbeParams(uy0_mean_mm=0.05, uy0_sd_mm=0.01, tilt_sd_deg=2.0)
+    snapping = replace(base, snap_prob=0.3)
+    a = [draw_touch(base, m, np.random.default_rng(k)) for k in range(2000)]
+    b = [draw_touch(snapping, m, np.random.default_rng(k)) for k in range(2000)]
+    assert [replace(t, snaps=False) for t in b] == a and not any(t.snaps for t in a)
+    assert np.mean([t.snaps for t in b]) == pytest.approx(0.3, abs=0.03)
+    assert all(draw_touch(replace(base, snap_prob=1.0), m, np.random.default_rng(k)).snaps for k in range(20))
+
+
 def test_draws_are_seeded_and_have_the_stated_spread():
     params = ProbeParams(uy0_mean_mm=0.05, uy0_sd_mm=0.01, tilt_sd_deg=2.0, x0_sd_mm=0.3, drift_sd_mm_s=1e-3)
     m = Motion(0.5, 10.0, 0.5, x0_mm=1.0)
@@ -107,6 +136,8 @@ def test_press_draws_are_truncated_to_positive():
     (lambda: ProbeParams(breakaway_frac=float("nan")), "breakaway_frac"),
     (lambda: ProbeParams(uy0_mean_mm=0.0), "uy0_mean_mm"),
     (lambda: ProbeParams(breakaway_s=0.0), "breakaway_s"),
+    (lambda: ProbeParams(snap_prob=1.5), "snap_prob"),
+    (lambda: ProbeParams(snap_prob=float("nan")), "snap_prob"),
 ])
 def test_invalid_motion_and_params_name_the_argument(make, name):
     with pytest.raises(ArgumentError) as info:

@@ -43,8 +43,8 @@ def test_files_hold_the_columns_and_every_true_parameter(tmp_path):
     assert tuple(header) == CSV_COLUMNS
     truth = json.loads((out / "truth.json").read_text())
     assert len(truth["touches"]) == 12
-    assert set(truth["touches"][0]) == {"scan_id", "plate", "step_mm", "uy0_mm", "tilt_deg", "x0_mm", "drift_mm_s"}
-    assert truth["scene"]["noise"]["uy_sd_mm"] == 0.002
+    assert set(truth["touches"][0]) == {"scan_id", "plate", "step_mm", "uy0_mm", "tilt_deg", "x0_mm", "drift_mm_s", "snaps"}
+    assert truth["scene"]["noise"]["uy_sd_mm"] == 0.001
     scans = read_scans(out)
     assert scans.uy_mm.shape == (12, truth["n_time"])
     np.testing.assert_array_equal(scans.step_mm, np.repeat([0.0, 0.05, 0.1, 0.2], 3))

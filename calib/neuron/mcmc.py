@@ -1,12 +1,15 @@
 """MCMC backends of M2: PyMC NUTS with τ integrated out, and emcee.
 
-Why NUTS does not sample ln τ directly: along ln τ the posterior is a comb, not a bump.
-The flat (step 0) plates' peaks are made by the stage's breakaway in the first frame;
+Why NUTS does not sample ln τ directly: along ln τ the posterior can be a comb, not a
+bump. When a scan's largest change sits in one frame early in the record (a start
+transient: an earlier four-plates scene had the stage's breakaway in its first frame),
 a window at sample t_k takes in that frame only once τ reaches t_k − t_0, so every
-0.5 s (one frame) their P_k jumps up by ~7 % within ~0.08 s and the log posterior drops
-by 3–5 (four-plates: 14 teeth between τ = 3 and 10 s, see ``tests/calib/test_neuron_fit.py``).
+0.5 s (one frame) the peaks P_k jump up by several % within a fraction of a frame and
+the log posterior drops by 3–5 (the earlier scene: 14 teeth between τ = 3 and 10 s).
 A leapfrog step must resolve that sub-frame wall, and crossing it costs 3–5 units of
 energy: NUTS on (ln a, ln τ, h, ln σ) gave R-hat 1.5 and bulk ESS 8 for τ at 4 × 1000.
+``tests/calib/test_neuron_fit.py`` builds such a record and checks the wall and the
+collapsed quadrature below against the exact core.
 The wall is in the exact neuron core (not an interpolation artefact), so the remedy is
 not to smooth the model but to integrate τ out:
 

@@ -56,6 +56,8 @@ class Probe:
     shear_per_normal: float = param(0.0, lo=0.0, hi=5.0, doc="U_x / U_y from kinetic friction, dimensionless")
     breakaway_frac: float = param(0.0, lo=0.0, hi=1.0, doc="fraction of U_y0 released when sliding starts")
     breakaway_s: float = param(0.2, lo=0.0, lo_open=True, hi=60.0, doc="s, time constant of that release")
+    snap_prob: float = param(0.0, lo=0.0, hi=1.0, doc="probability per touch that the tip catches on a "
+                             "rising edge and snaps up within one frame (stick-slip), dimensionless")
 
 
 @dataclass(frozen=True, kw_only=True)
