@@ -16,7 +16,7 @@ from _ratios import best_seconds, record_ratio
 from feeler.calib.matrix import CalibrationData, MatrixPrior, fit_matrix
 from feeler.calib.matrix.exact import exact_posterior
 from feeler.scene import load_scene
-from feeler.simulate_calibration import draw_campaign
+from feeler.simulate.calibration import draw_campaign
 
 SCENE = load_scene("datasets-synthetic/sensor-calibration.toml")
 PRIOR = MatrixPrior(c0_mm_per_n=SCENE.prior.c0_mm_per_n, rel_sd=SCENE.prior.rel_sd,

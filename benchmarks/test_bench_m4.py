@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from _ratios import record_ratio
-from feeler.calib.finger_route import fit_finger_route
-from feeler.calib.psychometric_fit import fit_psychometric
+from feeler.calib.psychometric.finger_route import fit_finger_route
+from feeler.calib.psychometric.fit import fit_psychometric
 from feeler.psydata import read_trials
 from feeler.scene import load_scene
-from feeler.simulate_psychophysics import simulate_psychophysics
+from feeler.simulate.psychophysics import simulate_psychophysics
 
 RESULTS = {}
 

@@ -42,7 +42,7 @@ def reliability(conf, hit, n_bins: int = 10):
 
 def classify_section(inv, spec) -> Section:
     """Confusion matrix (counts and mean confidence), calibration curve and summary table."""
-    from feeler.calib.classify import expected_calibration_error
+    from feeler.calib.neuron.classify import expected_calibration_error
     from feeler.errors import DataFileError
 
     path = inv.run_dir / CSV

@@ -145,7 +145,7 @@ def _human_table(pooled, trials) -> Table:
 def fig6_section(inv, spec) -> Section:
     """Accepted height of the finger route at the fitted τ against presented height, with the
     human PSEs (pooled, 95 % intervals) as points."""
-    from feeler.calib.finger_route import accepted_heights
+    from feeler.calib.psychometric.finger_route import accepted_heights
     from feeler.errors import DataFileError
 
     rep = read_json(inv.run_dir / TAU, ("tau_median_s",))

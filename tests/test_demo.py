@@ -66,7 +66,7 @@ def test_demo_cli_runs_the_whole_campaign(tmp_path, small, capsys):
 
 
 def test_held_out_scene_moves_only_the_seed(tmp_path):
-    from feeler.demo_campaign import HELD_OUT_SEED_OFFSET, held_out_scene
+    from feeler.demo.campaign import HELD_OUT_SEED_OFFSET, held_out_scene
     from feeler.scene import load_scene
 
     a = load_scene(SHIPPED)
@@ -76,7 +76,7 @@ def test_held_out_scene_moves_only_the_seed(tmp_path):
 
 
 def test_a_failing_stage_is_named_and_earlier_results_stay(tmp_path, small):
-    from feeler.demo_campaign import StageFailed, _run
+    from feeler.demo.campaign import StageFailed, _run
 
     ctx = {"out": tmp_path, "print": lambda s: None}
     (tmp_path / "kept.txt").write_text("earlier result")
@@ -89,7 +89,7 @@ def test_a_failing_stage_is_named_and_earlier_results_stay(tmp_path, small):
 
 
 def test_speed_tables_of_the_last_bench_are_copied_with_their_source(tmp_path):
-    from feeler.demo_campaign import _speed_tables
+    from feeler.demo.campaign import _speed_tables
 
     printed = []
     out = tmp_path / "runs" / "demo"

@@ -10,7 +10,7 @@ from feeler.errors import ArgumentError
 from feeler.models.optics import (CameraParams, OpticsParams, areas_from_force, force_from_areas,
                                   force_from_displacement, load_layout, observe_areas)
 from feeler.models.sensor import FIDELITIES, DisplacementNoise, observe
-from feeler.sensor_images import (ImagesFidelity, frames_from_displacement, observe_images,
+from feeler.simulate.images import (ImagesFidelity, frames_from_displacement, observe_images,
                                   register_optical_fidelities)
 
 LAYOUT = load_layout(Path(__file__).resolve().parents[1] / "datasets-synthetic" / "layouts" / "sensor-16.toml")
@@ -106,7 +106,7 @@ def test_registration_into_the_sensor_interface(monkeypatch):
 
 
 def test_registering_stays_light():
-    code = ("import sys; from feeler.sensor_images import register_optical_fidelities; "
+    code = ("import sys; from feeler.simulate.images import register_optical_fidelities; "
             "register_optical_fidelities(); print('cv2' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

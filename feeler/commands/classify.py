@@ -30,7 +30,7 @@ def run(args) -> int:
     import numpy as np
     import pandas as pd
 
-    from feeler.calib.classify import classify
+    from feeler.calib.neuron.classify import classify
     from feeler.datasets import read_scans
     from feeler.rundir import prepare_out_dir
 

@@ -35,7 +35,7 @@ def register(parser) -> None:
 def run(args) -> int:
     from itertools import combinations
 
-    from feeler.calib.discriminate import Discriminator
+    from feeler.calib.neuron.discriminate import Discriminator
     from feeler.calib.neuron.synth import FOUR_PLATES
     from feeler.calib.progress import progress
     from feeler.rundir import prepare_out_dir, write_json

@@ -62,7 +62,7 @@ def _banner(note: str) -> None:
 def run_psychophysics(args) -> int:
     import numpy as np
 
-    from feeler.calib.psychometric_fit import fit_psychometric, save_psychometric, threshold_table
+    from feeler.calib.psychometric.fit import fit_psychometric, save_psychometric, threshold_table
     from feeler.psydata import read_trials, synthetic_note
 
     trials = read_trials(args.data)
@@ -85,7 +85,7 @@ def run_psychophysics(args) -> int:
 def run_finger_route(args) -> int:
     import numpy as np
 
-    from feeler.calib.finger_route import RouteGrid, fit_finger_route, predict_p_higher, tau_report
+    from feeler.calib.psychometric.finger_route import RouteGrid, fit_finger_route, predict_p_higher, tau_report
     from feeler.errors import ArgumentError
     from feeler.psydata import read_trials, synthetic_note
     from feeler.rundir import prepare_out_dir, write_json

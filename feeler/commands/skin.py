@@ -37,7 +37,7 @@ def register(parser) -> None:
 
 
 def run_ladder(args) -> int:
-    from feeler.skin_study import ladder_files, run_ladder_study
+    from feeler.skin.study import ladder_files, run_ladder_study
 
     from feeler.rundir import prepare_out_dir
     out = prepare_out_dir(args.out, ladder_files(), force=args.force)
@@ -50,7 +50,7 @@ def run_ladder(args) -> int:
 def run_figures(args) -> int:
     from feeler.errors import SceneError
     from feeler.scene import load_scene
-    from feeler.skin_study import figure_files, write_figures
+    from feeler.skin.study import figure_files, write_figures
 
     scene = load_scene(args.scene)
     if scene.scene.kind != "finger-steps":

@@ -22,7 +22,7 @@ HELP = "simulation-based calibration of the models (validate sbc --model matrix)
 # model name -> "module:factory"; factory() returns picklable (simulate, fit) for run_sbc.
 SBC_MODELS = {
     "matrix": "feeler.calib.matrix.sbc_model:matrix_sbc_problem",
-    "neuron": "feeler.calib.neuron_sbc:neuron_sbc_problem",
+    "neuron": "feeler.calib.neuron.sbc:neuron_sbc_problem",
 }
 
 

@@ -69,7 +69,7 @@ def fidelity_params(optics: Optics | None, fidelity: str, *, scene_path, out_dir
     """``params`` for :func:`feeler.models.sensor.observe` at an optical fidelity (and
     registers those fidelities). ``out_dir`` receives ``sensor.avi`` when ``video``."""
     from feeler.models.optics import CameraParams, grid_layout, load_layout
-    from feeler.sensor_images import ImagesFidelity, register_optical_fidelities
+    from feeler.simulate.images import ImagesFidelity, register_optical_fidelities
 
     register_optical_fidelities()
     o = optics or Optics()

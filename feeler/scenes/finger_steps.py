@@ -97,7 +97,7 @@ class Scene:
         if len(self.skin.thickness_mm) != 2:
             raise SceneError(path, "skin.thickness_mm", f"needs exactly 2 thicknesses, got {len(self.skin.thickness_mm)}")
         from feeler.errors import ArgumentError
-        from feeler.simulate_finger import mesh_spec_of, skin_params_of
+        from feeler.simulate.finger import mesh_spec_of, skin_params_of
         try:
             params = skin_params_of(self)
             mesh_spec_of(self).check(params)

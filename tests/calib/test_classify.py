@@ -4,7 +4,7 @@ import pandas as pd
 import pytest
 from scipy.stats import t as student_t
 
-from feeler.calib.classify import classify, expected_calibration_error
+from feeler.calib.neuron.classify import classify, expected_calibration_error
 from feeler.calib.fit import FitResult, Verdict, posterior_from_draws
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.synth import scene_scans

@@ -8,7 +8,7 @@ import pytest
 
 from feeler.cli import main
 from feeler.scene import load_scene
-from feeler.simulate_calibration import simulate_sensor_calibration
+from feeler.simulate.calibration import simulate_sensor_calibration
 
 SHIPPED = "datasets-synthetic/sensor-calibration.toml"
 

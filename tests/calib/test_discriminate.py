@@ -4,7 +4,7 @@ import warnings
 import numpy as np
 import pytest
 
-from feeler.calib.discriminate import Discriminator, _crossing
+from feeler.calib.neuron.discriminate import Discriminator, _crossing
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.synth import scene_scans
 from feeler.errors import ArgumentError

@@ -12,7 +12,7 @@ from feeler.calib.matrix import (CalibrationData, DesignWarning, MatrixPrior, fi
                                  predict_u)
 from feeler.calib.matrix.exact import sample_sigma, sigma_log_density
 from feeler.scene import load_scene
-from feeler.simulate_calibration import draw_campaign
+from feeler.simulate.calibration import draw_campaign
 
 SCENE = load_scene("datasets-synthetic/sensor-calibration.toml")
 C_TRUE = np.asarray(SCENE.sensor.c_mm_per_n)

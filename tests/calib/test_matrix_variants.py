@@ -11,7 +11,7 @@ from feeler.calib.fit import DiagnosticWarning
 from feeler.calib.matrix import CalibrationData, MatrixPrior, fit_matrix, predict_u
 from feeler.errors import ArgumentError
 from feeler.scene import load_scene
-from feeler.simulate_calibration import draw_campaign
+from feeler.simulate.calibration import draw_campaign
 
 SCENE = load_scene("datasets-synthetic/sensor-calibration.toml")
 C_TRUE = np.asarray(SCENE.sensor.c_mm_per_n)

@@ -198,7 +198,7 @@ def test_nuts_passes_and_agrees_with_grid_small():
 
 
 def test_sbc_ranks_uniform_small():
-    from feeler.calib.neuron_sbc import neuron_sbc_problem
+    from feeler.calib.neuron.sbc import neuron_sbc_problem
     from feeler.calib.sbc import run_sbc
     full = os.environ.get("FEELER_FULL") == "1"
     problem = neuron_sbc_problem(n_grid=128 if full else 64, tau_size=160 if full else 48)

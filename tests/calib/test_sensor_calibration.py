@@ -10,7 +10,7 @@ from feeler.calib.matrix import read_calibration_csv
 from feeler.errors import DataFileError, OverwriteError, SceneError
 from feeler.scene import load_scene
 from feeler.scenes.sensor_calibration import commanded_displacements
-from feeler.simulate_calibration import draw_campaign, simulate_sensor_calibration
+from feeler.simulate.calibration import draw_campaign, simulate_sensor_calibration
 
 SHIPPED = "datasets-synthetic/sensor-calibration.toml"
 

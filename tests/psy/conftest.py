@@ -8,7 +8,7 @@ import pytest
 
 from feeler.psydata import TRIAL_COLUMNS
 from feeler.scene import load_scene
-from feeler.simulate_psychophysics import draw_trials, draw_truth
+from feeler.simulate.psychophysics import draw_trials, draw_truth
 
 SCENE_PATH = Path(__file__).parents[2] / "datasets-synthetic" / "psychophysics-2afc.toml"
 

@@ -5,10 +5,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from feeler.calib.psychometric_fit import THRESHOLD_COLUMNS
+from feeler.calib.psychometric.fit import THRESHOLD_COLUMNS
 from feeler.cli import main
 from feeler.scene import load_scene
-from feeler.simulate_psychophysics import simulate_psychophysics
+from feeler.simulate.psychophysics import simulate_psychophysics
 
 SCENE_PATH = Path(__file__).parents[2] / "datasets-synthetic" / "psychophysics-2afc.toml"
 

@@ -8,8 +8,8 @@ import os
 import numpy as np
 import pytest
 
-from feeler.calib.finger_route import RouteGrid, fit_finger_route, predict_p_higher
-from feeler.calib.psychometric_fit import fit_psychometric, threshold_table
+from feeler.calib.psychometric.finger_route import RouteGrid, fit_finger_route, predict_p_higher
+from feeler.calib.psychometric.fit import fit_psychometric, threshold_table
 
 FULL = os.environ.get("FEELER_FULL") == "1"
 

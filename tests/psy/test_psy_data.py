@@ -8,7 +8,7 @@ import pytest
 from feeler.errors import DataFileError, OverwriteError, SceneError
 from feeler.psydata import TRIAL_COLUMNS, read_trials, write_trials
 from feeler.scene import load_scene
-from feeler.simulate_psychophysics import simulate_psychophysics
+from feeler.simulate.psychophysics import simulate_psychophysics
 
 SCENE = Path(__file__).parents[2] / "datasets-synthetic" / "psychophysics-2afc.toml"
 HEADER = ",".join(TRIAL_COLUMNS)

@@ -3,7 +3,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from feeler.calib.finger_route import (RouteGrid, _edge_problems, accepted_heights,
+from feeler.calib.psychometric.finger_route import (RouteGrid, _edge_problems, accepted_heights,
                                        fit_finger_route, predict_p_higher, tau_report)
 from feeler.calib.fit import DiagnosticWarning
 from feeler.errors import ArgumentError

@@ -7,7 +7,7 @@ from scipy.stats import betabinom, binom
 from feeler.calib.fit import load
 from feeler.calib.psychometric.cells import Priors, log_lik_cells, make_cells
 from feeler.calib.psychometric.laplace import hessian
-from feeler.calib.psychometric_fit import (THRESHOLD_COLUMNS, fit_psychometric,
+from feeler.calib.psychometric.fit import (THRESHOLD_COLUMNS, fit_psychometric,
                                            save_psychometric, threshold_table)
 from feeler.errors import ArgumentError, OverwriteError
 from feeler.models.psychometric import p_higher

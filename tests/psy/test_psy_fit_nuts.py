@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from feeler.calib.fit import DiagnosticWarning
-from feeler.calib.psychometric_fit import fit_psychometric, threshold_table
+from feeler.calib.psychometric.fit import fit_psychometric, threshold_table
 
 pytest.importorskip("pymc")
 

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from feeler.calib.classify import expected_calibration_error
+from feeler.calib.neuron.classify import expected_calibration_error
 from feeler.reports import build_report, discover
 from feeler.reports.discover import FIT_FILES
 from feeler.reports.sec_classify import classify_section, plate_columns, reliability

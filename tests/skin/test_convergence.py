@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-from feeler.skin_study import run_ladder_study
+from feeler.skin.study import run_ladder_study
 
 
 @pytest.mark.slow

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from feeler.scene import load_scene
-from feeler.simulate_finger import finger_runs
-from feeler.skin_figures import figure_data
+from feeler.simulate.finger import finger_runs
+from feeler.skin.figures import figure_data
 from tests.skin.conftest import SMALL
 from tests.skin.test_scene_sim import SHIPPED
 

@@ -9,7 +9,7 @@ import pytest
 from feeler.cli import main
 from feeler.errors import OverwriteError, SceneError
 from feeler.scene import load_scene
-from feeler.simulate_finger import mesh_spec_of, simulate_finger_steps, skin_params_of
+from feeler.simulate.finger import mesh_spec_of, simulate_finger_steps, skin_params_of
 
 SHIPPED = Path(__file__).resolve().parents[2] / "datasets-synthetic" / "finger-steps.toml"
 TINY = """
@@ -92,7 +92,7 @@ def test_cli_figures_rejects_other_scene_kinds(tmp_path, capsys):
 
 
 def test_simulators_registry_entry_point(tmp_path):
-    from feeler.simulate_finger import simulate_finger_scene
+    from feeler.simulate.finger import simulate_finger_scene
     scene_path = _scene(tmp_path)
     simulate_finger_scene(load_scene(scene_path), scene_path, tmp_path / "r", False)
     assert {p.name for p in (tmp_path / "r").iterdir()} == {"strain.csv", "truth.json", "scene.toml"}

@@ -1,6 +1,4 @@
-"""Pipeline composition: a scene file → its kind's simulator → a run directory.
-
-Robot-scan scenes: scene → plates → touches → sensor → files.
+"""Robot-scan scenes: scene → plates → touches → sensor → files.
 
 Only the stages the scene's ``outputs`` need are built: ``"scans"`` runs surface, probe
 and sensor; ``"features"`` also runs the neuron. A ``displacement``-fidelity scene imports
@@ -25,10 +23,9 @@ from feeler.datasets import Scans, scan_features
 from feeler.errors import SceneError
 from feeler.models import probe, sensor, surface
 from feeler.rundir import prepare_out_dir, write_json
-from feeler.scene import load_scene, scene_as_dict
+from feeler.scene import scene_as_dict
 
-__all__ = ["CSV_COLUMNS", "SIMULATORS", "plate_profile", "simulate_scans", "features_of", "run_simulation",
-           "simulate_robot_scan"]
+__all__ = ["CSV_COLUMNS", "plate_profile", "simulate_scans", "features_of", "simulate_robot_scan"]
 
 CSV_COLUMNS = ("scan_id", "plate", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
 _FORMATS = ("%d", "%d", "%.6g", "%.6g", "%.6g", "%.9g", "%.9g", "%.9g", "%.9g")
@@ -56,7 +53,7 @@ def simulate_scans(scene, *, scene_path=None, out_dir=None) -> tuple[Scans, list
     """All scans of a robot-scan scene, and the true state of every touch.
 
     At the ``images`` fidelity the scans are observed together (packed onto the camera's
-    elements, :mod:`feeler.sensor_images`) with one extra child of the seed; ``scene_path``
+    elements, :mod:`feeler.simulate.images`) with one extra child of the seed; ``scene_path``
     locates ``optics.layout``, ``out_dir`` receives ``sensor.avi`` when ``optics.video``.
 
     Raises:
@@ -130,24 +127,6 @@ def _write_features_csv(path: Path, scans: Scans, feats, per_plate: int) -> None
                header="scan_id,plate,step_mm,peak_z,jump_uy_mm,peak_rate_uy_mm_s", comments="")
 
 
-def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = False) -> Path:
-    """Simulate any shipped kind of scene into the run directory ``out``; returns ``out``.
-
-    The scene's kind picks the simulator (:data:`SIMULATORS`); each writes ``scene.toml``
-    (a byte copy), ``truth.json`` and its data files.
-
-    Raises:
-        SceneError: the scene does not validate. OverwriteError: data exist and not ``force``.
-        ArgumentError: the scene asks for a sensor fidelity not available here.
-    """
-    scene = load_scene(scene_path)
-    module, func = SIMULATORS[scene.scene.kind].split(":")
-    import importlib
-
-    getattr(importlib.import_module(module), func)(scene, scene_path, out, force)
-    return Path(out)
-
-
 def simulate_robot_scan(scene, scene_path: str | Path, out: str | Path, force: bool) -> None:
     """Robot-scan scenes: ``scans.csv`` (and ``features.csv`` when asked)."""
     outputs = set(scene.scene.outputs)
@@ -163,26 +142,3 @@ def simulate_robot_scan(scene, scene_path: str | Path, out: str | Path, force: b
     _write_scans_csv(out / "scans.csv", scans, per_plate)
     if "features" in outputs:
         _write_features_csv(out / "features.csv", scans, features_of(scene, scans), per_plate)
-
-
-def _simulate_calibration(scene, scene_path, out, force) -> None:
-    from feeler.simulate_calibration import simulate_sensor_calibration
-
-    simulate_sensor_calibration(scene, out, force=force, scene_path=scene_path)
-
-
-def _simulate_psychophysics(scene, scene_path, out, force) -> None:
-    from feeler.simulate_psychophysics import simulate_psychophysics
-
-    prepare_out_dir(out, ["scene.toml"], force=force)
-    simulate_psychophysics(scene, out, force=force)
-    shutil.copyfile(scene_path, Path(out) / "scene.toml")
-
-
-# scene kind → "module:function(scene, scene_path, out, force)"; imported only when used
-SIMULATORS = {
-    "robot-scan": "feeler.simulate:simulate_robot_scan",
-    "sensor-calibration": "feeler.simulate:_simulate_calibration",
-    "psychophysics-2afc": "feeler.simulate:_simulate_psychophysics",
-    "finger-steps": "feeler.simulate_finger:simulate_finger_scene",
-}

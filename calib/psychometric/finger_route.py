@@ -29,7 +29,7 @@ from scipy.stats import beta as beta_dist
 
 from feeler.calib.fit import FitResult, make_result, posterior_from_draws
 from feeler.calib.psychometric.cells import make_cells
-from feeler.calib.psychometric_fit import with_problems
+from feeler.calib.psychometric.fit import with_problems
 from feeler.errors import ArgumentError
 from feeler.models.neuron import peak_pulse_density, peak_window_sum
 from feeler.models.observer import conversion_factor, log_choice_prob

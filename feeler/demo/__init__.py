@@ -107,7 +107,7 @@ def _figures(ctx: dict) -> None:
 
 
 def _campaign_stages():
-    from feeler.demo_campaign import CAMPAIGN_STAGES
+    from feeler.demo.campaign import CAMPAIGN_STAGES
     return CAMPAIGN_STAGES
 
 

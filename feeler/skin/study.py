@@ -104,8 +104,8 @@ def _plot_trade(trade, path: Path) -> None:
 
 def write_figures(scene, out: Path, *, level: str | None = None) -> list[str]:
     """Figs 3–6 for a finger-steps scene into ``out``; returns printable summary lines."""
-    from feeler.simulate_finger import finger_runs
-    from feeler.skin_figures import figure_data, plot_figures
+    from feeler.simulate.finger import finger_runs
+    from feeler.skin.figures import figure_data, plot_figures
 
     level = scene.model.level if level is None else level
     runs = finger_runs(scene, level=level)

@@ -52,7 +52,7 @@ def _hold_on(run, press_s):
 
 
 def figure_data(runs, neuron, press_s: float) -> FigureData:
-    """Compute Figs 4–6 from :func:`feeler.simulate_finger.finger_runs` output."""
+    """Compute Figs 4–6 from :func:`feeler.simulate.finger.finger_runs` output."""
     heights = np.array(sorted({r.step_um for r in runs}))
     speeds = np.array(sorted({r.speed_mm_s for r in runs}))
     index = {(r.step_um, r.speed_mm_s): r for r in runs}

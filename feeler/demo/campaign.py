@@ -30,7 +30,7 @@ from feeler.errors import FeelerError
 
 __all__ = ["CAMPAIGN_STAGES", "StageFailed", "held_out_scene"]
 
-DATA = Path(__file__).resolve().parents[1] / "datasets-synthetic"
+DATA = Path(__file__).resolve().parents[2] / "datasets-synthetic"
 HELD_OUT_SEED_OFFSET = 100_000_000
 
 

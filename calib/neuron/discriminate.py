@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feeler.calib.classify import fit_tables
+from feeler.calib.neuron.classify import fit_tables
 from feeler.calib.neuron.model import peak_table
 from feeler.calib.neuron.synth import FOUR_PLATES, scene_scans
 from feeler.errors import ArgumentError
