@@ -59,6 +59,18 @@ def _emit(out, k, u, a, h, clamp):
         out[k] = u
 
 
+@nb.njit(inline="always")
+def _fast_step(x, k, m, frac, ratio, w0, a, h, clamp, out, s, big, flag):
+    """One plain-add slide of a lane to sample k: emits u, tracks the largest window
+    sum ``big`` and flags a fall below ``big/ratio`` (see :func:`_lanes`)."""
+    c = _c(x, k)
+    cj = _cj(x, k, m, c)
+    s += c - cj
+    big = max(big, s)
+    _emit(out, k, w0 * (s + frac * cj), a, h, clamp)
+    return s, big, flag | (s * ratio < big)
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _window_before(x, start, m):
     """Compensated sum of c_{start−m} … c_{start−1}: the exact state before ``start``."""
@@ -120,30 +132,10 @@ def _lanes(x, w0, m, frac, a, h, clamp, out, start):
         hi = min(lo + _BLOCK, seg)
         f0 = f1 = f2 = f3 = False
         for j in range(lo, hi):
-            c = _c(x, b0 + j)
-            cj = _cj(x, b0 + j, m, c)
-            s0 += c - cj
-            g0 = max(g0, s0)
-            f0 |= s0 * ratio < g0
-            _emit(out, b0 + j, w0 * (s0 + frac * cj), a, h, clamp)
-            c = _c(x, b1 + j)
-            cj = _cj(x, b1 + j, m, c)
-            s1 += c - cj
-            g1 = max(g1, s1)
-            f1 |= s1 * ratio < g1
-            _emit(out, b1 + j, w0 * (s1 + frac * cj), a, h, clamp)
-            c = _c(x, b2 + j)
-            cj = _cj(x, b2 + j, m, c)
-            s2 += c - cj
-            g2 = max(g2, s2)
-            f2 |= s2 * ratio < g2
-            _emit(out, b2 + j, w0 * (s2 + frac * cj), a, h, clamp)
-            c = _c(x, b3 + j)
-            cj = _cj(x, b3 + j, m, c)
-            s3 += c - cj
-            g3 = max(g3, s3)
-            f3 |= s3 * ratio < g3
-            _emit(out, b3 + j, w0 * (s3 + frac * cj), a, h, clamp)
+            s0, g0, f0 = _fast_step(x, b0 + j, m, frac, ratio, w0, a, h, clamp, out, s0, g0, f0)
+            s1, g1, f1 = _fast_step(x, b1 + j, m, frac, ratio, w0, a, h, clamp, out, s1, g1, f1)
+            s2, g2, f2 = _fast_step(x, b2 + j, m, frac, ratio, w0, a, h, clamp, out, s2, g2, f2)
+            s3, g3, f3 = _fast_step(x, b3 + j, m, frac, ratio, w0, a, h, clamp, out, s3, g3, f3)
         done += hi - lo
         # NaN/inf persist inside a block; remember them before a resync re-derives the sums
         poisoned |= not (math.isfinite(s0) and math.isfinite(s1) and math.isfinite(s2) and math.isfinite(s3))
