@@ -106,7 +106,7 @@ _EPS = 2.0 ** -52
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _lanes(x, w0, m, frac, a, h, clamp, out, start):
+def _lanes(x, w0, m, frac, a, h, clamp, out, start, stop):
     """u₁ or z of ``w0·x`` (one receptor, ``x (n,)``) with τ = (m + frac)·Δt.
 
     Four lanes slide with plain adds. Rounding of a plain slide is at most
@@ -114,10 +114,11 @@ def _lanes(x, w0, m, frac, a, h, clamp, out, start):
     so the sum is re-derived exactly every ``period`` samples, and a block in which the
     window sum fell below ``big/ratio`` (a quiet window after loud ones) is recomputed
     with the compensated slide: every output keeps a relative error ≤ ``_TOL``.
-    Outputs ``start`` … n − 1 are written (earlier ones are the caller's: a stream's
-    first samples, whose window reaches into the previous chunk).
+    Outputs ``start`` … ``stop`` − 1 are written (earlier ones are the caller's: a
+    stream's first samples, whose window reaches into the previous chunk, or another
+    thread's part of the record).
     Returns the sum of the lanes' final window sums, NaN if a NaN/inf entered anywhere."""
-    n = x.shape[0]
+    n = stop
     seg = (n - start) // 4
     period = max(16 * _BLOCK, ((4 * m) // _BLOCK + 1) * _BLOCK)
     ratio = max(2.0, _TOL / (period * _EPS))
@@ -213,9 +214,27 @@ def _uniform_rows_py(x, w, m, frac, a, h, clamp, out, final, start):
     lanes = x.shape[1] == 1 and n - start >= 64 and m < (n - start) // 8
     for r in nb.prange(x.shape[0]):
         if lanes:
-            final[r] = _lanes(x[r, 0], w[0], m, frac, a, h, clamp, out[r], start)
+            final[r] = _lanes(x[r, 0], w[0], m, frac, a, h, clamp, out[r], start, n)
         else:
             final[r] = _uniform_row(x[r], w, m, frac, a, h, clamp, out[r], start)
+
+
+@nb.njit(cache=True, parallel=True)
+def _split_row(x, w0, m, frac, a, h, clamp, out, start, parts):
+    """One long single-receptor record cut into ``parts`` pieces, one per thread (each
+    piece's lanes start from the exact window before it). Returns the summed finals."""
+    n = x.shape[0]
+    finals = np.zeros(parts)
+    size = (n - start) // parts
+    for p in nb.prange(parts):
+        lo = start + p * size
+        hi = n if p == parts - 1 else lo + size
+        finals[p] = _lanes(x, w0, m, frac, a, h, clamp, out, lo, hi)
+    return finals.sum()
+
+
+# a single record this long is cut across the cores (shorter ones: start-up costs more)
+_SPLIT_MIN_SAMPLES = 1 << 18
 
 
 _uniform_rows_par = nb.njit(cache=True, parallel=True)(_uniform_rows_py)
@@ -243,6 +262,11 @@ def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, final: n
     mm, frac = window_shape(dt, tau, n)
     if out is None:
         out = np.empty((rows, n))
+    threads = nb.get_num_threads()
+    if rows == 1 and x.shape[1] == 1 and threads > 1 and n - start >= _SPLIT_MIN_SAMPLES \
+            and mm < (n - start) // (8 * threads):
+        final[0] = _split_row(x[0, 0], float(w[0]), mm, frac, float(a), float(h), clamp, out[0], start, threads)
+        return out
     run = kernels.pick(_uniform_rows_par, _uniform_rows_ser, rows, n)
     run(x, w, mm, frac, float(a), float(h), clamp, out, final, start)
     return out

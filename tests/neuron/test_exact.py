@@ -101,13 +101,15 @@ def test_empty_and_single_sample_records(kernel):
 
 
 @pytest.mark.parametrize("tau", [0.004, 0.1, 0.1234, 3.0, 25.0, 1e4])
-@pytest.mark.parametrize("n", [5, 63, 64, 1001, 20000])
+@pytest.mark.parametrize("n", [5, 63, 64, 1001, 20000, 300_001])
 def test_uniform_lanes_and_general_loop_agree(tau, n):
-    """Uniform records take the pointer-free (four-lane) loop; a stream takes the general
-    one. They compute the same u₁."""
+    """Uniform records take the pointer-free (four-lane) loop, long ones cut across the
+    threads; a stream of jittered times takes the general one. They compute the same u₁."""
     from feeler.models.neuron import FA1Stream
     rng = np.random.default_rng(n)
     t = np.arange(n) * 0.01
     eps = rng.normal(size=n).cumsum()
-    general = FA1Stream(a=1.0, tau=tau, h=0.0).push_u1(t, eps)
+    stream = FA1Stream(a=1.0, tau=tau, h=0.0)
+    stream.push_u1(np.array([-1.0, -0.5]), np.array([eps[0], eps[0]]))   # non-uniform start:
+    general = stream.push_u1(t, eps)                  # the general loop from here on (flat start)
     np.testing.assert_allclose(window_sum(eps, t, tau=tau), general, rtol=1e-10, atol=1e-12)
