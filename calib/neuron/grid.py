@@ -73,8 +73,9 @@ def sample_grid(table: PeakTable, delta_mm, pri: Priors, *, chains: int, draws: 
 
     Args:
         size (int): points per axis of (a, h); σ gets 1.5× as many.
-        tau_size (int): points on the τ axis. The likelihood has fine structure in τ (the
-            window's edge crosses samples), so τ needs a finer axis: at 40 points the τ mean
+        tau_size (int): points on the τ axis. The likelihood can have fine structure in τ:
+            a peak jumps each time the window takes in one more whole frame of a transient
+            (see calib/neuron/mcmc.py), so τ needs a finer axis: at 40 points the τ mean
             moved by 0.3 posterior sd against a 64-point grid; at 160 it is stable.
         passes (int): maximum refinements (stops earlier once the box is stable).
     """
