@@ -10,7 +10,7 @@ from feeler.errors import ArgumentError
 from feeler.models.skin import SkinParams, StepProfile, loading_history
 from feeler.models.skin.contact import solve_contact
 from feeler.models.skin.fem import finger_fem
-from feeler.models.skin.l2 import l2_strain_history, plate_need_mm
+from feeler.models.skin.l2 import l2_strain_history, plate_need_mm, prony_factors
 from feeler.models.skin.mesh import MeshSpec, finger_mesh
 from tests.skin.conftest import COARSE_DT, HERTZ, SMALL
 
@@ -129,9 +129,34 @@ def test_contact_patch_wider_than_strip_is_an_error():
 
 
 def test_condensed_l2_equals_full_field_with_per_triangle_internal_variables():
-    from tests.skin.reference_l2 import full_field_l2
     prof = StepProfile(15.0, position_mm=3.0)
     params = dataclasses.replace(P, slide_mm=4.0, hold_s=0.05)
     t, fast = l2_strain_history(prof, 40.0, params=params, mesh=SMALL, dt_s=2e-3)
     _, ref = full_field_l2(prof, 40.0, params=params, mesh=SMALL, dt_s=2e-3)
     np.testing.assert_allclose(fast, ref, rtol=1e-8, atol=1e-12)
+
+
+# Uncondensed reference for L2: per-triangle Prony internal variables, two full sparse
+# solves per step -- checks that the condensation onto the contact nodes is exact.
+def full_field_l2(profile, speed_mm_s, *, params, mesh, dt_s):
+    fem = finger_fem(params, mesh)
+    load = loading_history(params, speed_mm_s, dt_s)
+    n_tri = fem.mesh.triangles.shape[1]
+    weighted_d = fem.elastic * fem.area_mm2[:, None, None]
+    s, eps_prev = np.zeros((n_tri, 3)), np.zeros((n_tri, 3))
+    out, active, g1 = np.zeros(len(load.t_s)), None, params.prony_ratio
+    for n in range(1, len(load.t_s)):
+        decay, gamma, c = prony_factors(load.t_s[n] - load.t_s[n - 1], params)
+        hist = g1 * (decay * s - gamma * eps_prev)
+        f_hist = -(fem.strain.T @ np.einsum("eij,ej->ei", weighted_d, hist).ravel())
+        u_free = fem.solve(f_hist) / c
+        need = plate_need_mm(fem, profile, load.press_mm[n], load.travel_mm[n]) - u_free[fem.contact_dof]
+        p, active = solve_contact(fem.compliance / c, need, active)
+        rhs = np.zeros(len(u_free))
+        rhs[fem.contact_dof] = p
+        u = u_free + fem.solve(rhs) / c
+        eps = (fem.strain @ u).reshape(n_tri, 3)
+        s = decay * s + gamma * (eps - eps_prev)
+        eps_prev = eps
+        out[n] = fem.corpuscle @ u
+    return load.t_s, out
