@@ -98,6 +98,19 @@ def _exact_span(x, start, stop, w0, m, frac, a, h, clamp, out):
     return s + comp
 
 
+@nb.njit(inline="always")
+def _block_end(x, base, lo, hi, flagged, resync, s, big, w0, m, frac, a, h, clamp, out):
+    """After a lane's block: recompute a flagged block with the compensated slide, or
+    re-derive the sum exactly when the period is up. Returns (s, big)."""
+    if flagged:
+        s = _exact_span(x, base + lo, base + hi, w0, m, frac, a, h, clamp, out)
+        return s, s
+    if resync:
+        s = _window_before(x, base + hi, m)
+        return s, s
+    return s, big
+
+
 # block length of the fast slide; the sum is re-derived exactly at block ends
 _BLOCK = 4096
 # relative error allowed to the fast slide's rounding (the issue's drift bound is 1e-9)
@@ -141,22 +154,10 @@ def _lanes(x, w0, m, frac, a, h, clamp, out, start, stop):
         # NaN/inf persist inside a block; remember them before a resync re-derives the sums
         poisoned |= not (math.isfinite(s0) and math.isfinite(s1) and math.isfinite(s2) and math.isfinite(s3))
         resync = done >= period
-        if f0 or resync:
-            s0 = _exact_span(x, b0 + lo, b0 + hi, w0, m, frac, a, h, clamp, out) if f0 \
-                else _window_before(x, b0 + hi, m)
-            g0 = s0
-        if f1 or resync:
-            s1 = _exact_span(x, b1 + lo, b1 + hi, w0, m, frac, a, h, clamp, out) if f1 \
-                else _window_before(x, b1 + hi, m)
-            g1 = s1
-        if f2 or resync:
-            s2 = _exact_span(x, b2 + lo, b2 + hi, w0, m, frac, a, h, clamp, out) if f2 \
-                else _window_before(x, b2 + hi, m)
-            g2 = s2
-        if f3 or resync:
-            s3 = _exact_span(x, b3 + lo, b3 + hi, w0, m, frac, a, h, clamp, out) if f3 \
-                else _window_before(x, b3 + hi, m)
-            g3 = s3
+        s0, g0 = _block_end(x, b0, lo, hi, f0, resync, s0, g0, w0, m, frac, a, h, clamp, out)
+        s1, g1 = _block_end(x, b1, lo, hi, f1, resync, s1, g1, w0, m, frac, a, h, clamp, out)
+        s2, g2 = _block_end(x, b2, lo, hi, f2, resync, s2, g2, w0, m, frac, a, h, clamp, out)
+        s3, g3 = _block_end(x, b3, lo, hi, f3, resync, s3, g3, w0, m, frac, a, h, clamp, out)
         if resync:
             done = 0
     s3 = _exact_span(x, b0 + 4 * seg, n, w0, m, frac, a, h, clamp, out) if n > b0 + 4 * seg else s3
