@@ -227,3 +227,26 @@ def test_cli_calibrate_classify_discriminate(tmp_path, capsys):
     assert main(["classify", str(fit), str(run), "--n-draws", "1", "--accept-failed"]) == 2
     assert main(["calibrate", "neuron", str(run), "--out", str(fit)]) == 2      # refuses to overwrite
     assert main(["calibrate", "neuron", str(tmp_path / "nothing.txt")]) == 2
+
+
+def test_grid_finds_a_crest_narrower_than_its_cells():
+    """A large gain pins (a, h) on a ridge narrower than the default cells; the default grid
+    used to sit beside it and put σ at 0.056 mm where the posterior is at 0.030 (found by
+    full-size SBC). The crest box must give the posterior of a grid twice as fine."""
+    import numpy as np
+
+    from feeler.calib.neuron.grid import sample_grid
+    from feeler.calib.neuron.sbc import neuron_sbc_problem
+    from feeler.calib.neuron.synth import Truth, simulate_labels
+
+    _, fit = neuron_sbc_problem()
+    table, pri = fit.keywords["table"], fit.keywords["priors"]
+    truth = Truth(a=53.19, tau_s=3.058, h=0.0835, sigma_mm=0.0302)
+    labels = simulate_labels(table, truth, np.random.default_rng(38))
+    default = sample_grid(table, labels, pri, chains=1, draws=4000, rng=np.random.default_rng(0))
+    fine = sample_grid(table, labels, pri, chains=1, draws=4000, rng=np.random.default_rng(1), size=80)
+    for name in ("a", "h", "sigma_mm"):
+        d, f = np.ravel(default[name]), np.ravel(fine[name])
+        assert abs(np.median(d) - np.median(f)) < 0.25 * np.std(f), name
+        assert 0.85 < np.std(d) / np.std(f) < 1.15, name
+    assert abs(np.median(default["sigma_mm"]) - truth.sigma_mm) < 4 * np.std(fine["sigma_mm"])
