@@ -1,8 +1,8 @@
-"""``feeler demo`` (what ``make demo`` runs): the paper's robot result on ``four-plates``.
+"""``feeler demo`` (what ``make demo`` runs): the robot stages, then the campaign.
 
 The demo is a list of stages (:data:`STAGES`), each ``func(ctx) -> None`` reading and
-adding entries of one shared context dict; later issues append stages (calibration,
-reports). Stages of this issue:
+adding entries of one shared context dict. The robot stages below come first; the
+calibration campaign and the report follow (:mod:`feeler.demo.campaign`).
 
 1. ``simulate``: ``four-plates`` into ``OUT/four-plates/`` (via :mod:`feeler.simulate`);
 2. ``features``: read ``scans.csv`` back, run the neuron (z(t) and peak z per scan), the

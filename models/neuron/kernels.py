@@ -15,8 +15,9 @@ that left the window never accumulates — 10⁸-sample streams do not drift, an
 window after loud ones keeps its relative precision.
 
 Every compiled function and its callees live in one file: numba's cache is keyed on
-the file of the cached function only. Uniformly sampled whole records take the faster
-loops of :mod:`feeler.models.neuron.uniform`.
+the file of the cached function only. Uniformly sampled records (and streams of
+uniform single-receptor chunks) take the faster loops of :mod:`feeler.models.neuron.uniform`;
+this general loop serves any sampling and the exponential kernel.
 
 Streaming: a :class:`Carry` holds what the next chunk needs — the last strain sample,
 the samples still in (or straddling) the window as (t, c) history, the running sum and

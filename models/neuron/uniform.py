@@ -1,16 +1,19 @@
-"""Boxcar loops for uniformly sampled whole records (private; see kernels).
+"""Boxcar loops for uniformly sampled records and streams (private; see kernels).
 
 With Δt fixed, τ = (m + frac)·Δt fixes the window's shape:
 
     u1_k = Σ_{j=k−m+1..k} c_j + frac·c_{k−m}    (c_j = 0 for j ≤ 0),
 
-so the slide adds the exact difference c_k − c_{k−m} (TwoSum) to the compensated sum
-with no pointer walk and no division. The increments are recomputed from the strain (no
-array of them is stored). A single receptor runs in four interleaved lanes: the sliding
-sum is a chain of dependent additions, so one record runs at that chain's latency;
-four segments, each started from an exact compensated sum of the window before it,
-give four independent chains that the processor overlaps. Results equal the one-lane
-loop up to rounding.
+so the slide adds c_k − c_{k−m} with no pointer walk and no division. The increments
+are recomputed from the strain (no array of them is stored). Several receptors slide
+one compensated (TwoSum) sum (:func:`_uniform_row`). A single receptor runs in four
+interleaved lanes of plain adds (:func:`_lanes`): the sliding sum is a chain of
+dependent additions, so one record runs at that chain's latency; four segments, each
+started from an exact sum of the window before it, give four independent chains, and
+the sum is re-derived exactly often enough to keep every output within 1e-10. A long
+record is also cut across the threads (:func:`_split_row`). :class:`UniformStream`
+runs streams of uniform chunks on the same loops. Results equal the general loop of
+:mod:`~feeler.models.neuron.kernels` up to rounding.
 
 Kept in one file with everything it calls, because numba's cache is keyed on the file
 of the cached function only.
@@ -167,14 +170,9 @@ def _lanes(x, w0, m, frac, a, h, clamp, out, start, stop):
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _uniform_row(x, w, m, frac, a, h, clamp, out, start):
-    """A whole record sampled every Δt with τ = (m + frac)·Δt, m ≥ 0, 0 ≤ frac < 1:
-
-        u1_k = Σ_{j=k−m+1..k} c_j + frac·c_{k−m}    (c_j = 0 for j ≤ 0)
-
-    Same quantity as :func:`_window` without the pointer walk or the division; the
-    increments are recomputed from the strain (no array of them is stored) and the
-    slide adds the exact difference c_k − c_{k−m} (TwoSum) to the compensated sum.
-    Outputs from ``start`` on (the state before it is summed exactly first)."""
+    """Any number of receptors ``x (n_rec, n)`` in one lane: the slide adds the exact
+    difference c_k − c_{k−m} (TwoSum) to a compensated sum. Outputs from ``start`` on
+    (the state before it is summed exactly first). Returns the final sum."""
     n = x.shape[1]
     nr = x.shape[0]
     s = 0.0
