@@ -102,16 +102,26 @@ def _window(cv, tv, H, s, comp, lo, tau, a, h, clamp, out):
     return s, comp, lo
 
 
-def _boxcar_rows_py(x, w, tv, prev, have_prev, cv, H, s, comp, lo, tau, a, h, clamp, out, lo_out):
-    for r in nb.prange(x.shape[0]):
-        _increments(x[r], w, prev[r], have_prev, cv[r], H)
-        s[r], comp[r], lo_out[r] = _window(cv[r], tv, H, s[r], comp[r], lo, tau, a, h, clamp, out[r])
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _boxcar_row(r, x, w, tv, prev, have_prev, cv, H, s, comp, lo, tau, a, h, clamp, out, lo_out):
+    _increments(x[r], w, prev[r], have_prev, cv[r], H)
+    s[r], comp[r], lo_out[r] = _window(cv[r], tv, H, s[r], comp[r], lo, tau, a, h, clamp, out[r])
 
 
-# rows in parallel on all cores; one row (or little work) runs serially, where the
-# parallel region's start-up would cost more than it saves
-_boxcar_rows_par = nb.njit(cache=True, parallel=True)(_boxcar_rows_py)
-_boxcar_rows_ser = nb.njit(cache=True)(_boxcar_rows_py)
+# Rows in parallel on all cores; one row (or little work) runs serially, where the
+# parallel region's start-up would cost more than it saves. The two loops are separate
+# functions: numba's cache is keyed on the Python function, so one function compiled
+# twice (parallel and serial) would load one build for both.
+@nb.njit(cache=True, parallel=True)
+def _boxcar_rows_par(*args):
+    for r in nb.prange(args[0].shape[0]):
+        _boxcar_row(r, *args)
+
+
+@nb.njit(cache=True)
+def _boxcar_rows_ser(*args):
+    for r in range(args[0].shape[0]):
+        _boxcar_row(r, *args)
 _PARALLEL_MIN_SAMPLES = 1 << 16
 
 
@@ -177,14 +187,22 @@ def _exponential_row(c, t, have_prev, t_last, u, tau, a, h, clamp, out):
     return u
 
 
-def _exponential_rows_py(x, w, t, prev, have_prev, t_last, u, tau, a, h, clamp, out, c):
-    for r in nb.prange(x.shape[0]):
-        _increments(x[r], w, prev[r], have_prev, c[r], 0)
-        u[r] = _exponential_row(c[r], t, have_prev, t_last, u[r], tau, a, h, clamp, out[r])
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _exponential_one(r, x, w, t, prev, have_prev, t_last, u, tau, a, h, clamp, out, c):
+    _increments(x[r], w, prev[r], have_prev, c[r], 0)
+    u[r] = _exponential_row(c[r], t, have_prev, t_last, u[r], tau, a, h, clamp, out[r])
 
 
-_exponential_rows_par = nb.njit(cache=True, parallel=True)(_exponential_rows_py)
-_exponential_rows_ser = nb.njit(cache=True)(_exponential_rows_py)
+@nb.njit(cache=True, parallel=True)
+def _exponential_rows_par(*args):
+    for r in nb.prange(args[0].shape[0]):
+        _exponential_one(r, *args)
+
+
+@nb.njit(cache=True)
+def _exponential_rows_ser(*args):
+    for r in range(args[0].shape[0]):
+        _exponential_one(r, *args)
 
 
 def exponential(x: np.ndarray, w: np.ndarray, t: np.ndarray, tau: float, carry: Carry, *,
