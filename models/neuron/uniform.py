@@ -11,7 +11,7 @@ interleaved lanes of plain adds (:func:`_lanes`): the sliding sum is a chain of
 dependent additions, so one record runs at that chain's latency; four segments, each
 started from an exact sum of the window before it, give four independent chains, and
 the sum is re-derived exactly often enough to keep every output within 1e-10. A long
-record is also cut across the threads (:func:`_split_row`). :class:`UniformStream`
+record is also cut across the threads (:func:`split_row`). :class:`UniformStream`
 runs streams of uniform chunks on the same loops. Results equal the general loop of
 :mod:`~feeler.models.neuron.kernels` up to rounding.
 
@@ -27,7 +27,7 @@ import numpy as np
 
 from feeler.models.neuron import kernels
 
-__all__ = ["boxcar_uniform", "window_shape", "UniformStream"]
+__all__ = ["boxcar_uniform", "count_steps", "split_parts", "split_row", "window_shape", "UniformStream"]
 
 
 @nb.njit(inline="always")
@@ -62,18 +62,6 @@ def _emit(out, k, u, a, h, clamp):
         out[k] = u
 
 
-@nb.njit(inline="always")
-def _fast_step(x, k, m, frac, ratio, w0, a, h, clamp, out, s, big, flag):
-    """One plain-add slide of a lane to sample k: emits u, tracks the largest window
-    sum ``big`` and flags a fall below ``big/ratio`` (see :func:`_lanes`)."""
-    c = _c(x, k)
-    cj = _cj(x, k, m, c)
-    s += c - cj
-    big = max(big, s)
-    _emit(out, k, w0 * (s + frac * cj), a, h, clamp)
-    return s, big, flag | (s * ratio < big)
-
-
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _window_before(x, start, m):
     """Compensated sum of c_{start−m} … c_{start−1}: the exact state before ``start``."""
@@ -101,71 +89,164 @@ def _exact_span(x, start, stop, w0, m, frac, a, h, clamp, out):
     return s + comp
 
 
-@nb.njit(inline="always")
-def _block_end(x, base, lo, hi, flagged, resync, s, big, w0, m, frac, a, h, clamp, out):
-    """After a lane's block: recompute a flagged block with the compensated slide, or
-    re-derive the sum exactly when the period is up. Returns (s, big)."""
-    if flagged:
-        s = _exact_span(x, base + lo, base + hi, w0, m, frac, a, h, clamp, out)
-        return s, s
-    if resync:
-        s = _window_before(x, base + hi, m)
-        return s, s
-    return s, big
-
-
-# block length of the fast slide; the sum is re-derived exactly at block ends
-_BLOCK = 4096
-# relative error allowed to the fast slide's rounding (the issue's drift bound is 1e-9)
+# samples per block of the vector loops (their buffers stay in the L1 cache)
+_BLOCK = 1024
+# lanes of the strided slide: residues of the sample index modulo _L
+_L = 8
+# relative error allowed to the plain-add slide's rounding (the issue's drift bound is 1e-9)
 _TOL = 1e-10
 _EPS = 2.0 ** -52
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _lanes(x, w0, m, frac, a, h, clamp, out, start, stop):
-    """u₁ or z of ``w0·x`` (one receptor, ``x (n,)``) with τ = (m + frac)·Δt.
+def _exact_state(x, k, m, s, g):
+    """s[q] = g[q] = the window sum s_{k−8+q} for q = 0 … 7, compensated (exact to
+    rounding): the strided slide's state before sample k."""
+    acc = _window_before(x, k - _L + 1, m)
+    comp = 0.0
+    s[0] = acc
+    for q in range(1, _L):
+        j = k - _L + q
+        ck = _c(x, j) if j >= 1 else 0.0
+        cj = _c(x, j - m) if j - m >= 1 else 0.0
+        d, e1 = _two_sum(ck, -cj)
+        acc, e2 = _two_sum(acc, d)
+        comp += e1 + e2
+        s[q] = acc + comp
+    for q in range(_L):
+        g[q] = s[q]
 
-    Four lanes slide with plain adds. Rounding of a plain slide is at most
-    ``ops·ε·big`` (big the largest window sum since the sum was last derived exactly),
-    so the sum is re-derived exactly every ``period`` samples, and a block in which the
-    window sum fell below ``big/ratio`` (a quiet window after loud ones) is recomputed
-    with the compensated slide: every output keeps a relative error ≤ ``_TOL``.
-    Outputs ``start`` … ``stop`` − 1 are written (earlier ones are the caller's: a
-    stream's first samples, whose window reaches into the previous chunk, or another
-    thread's part of the record).
-    Returns the sum of the lanes' final window sums, NaN if a NaN/inf entered anywhere."""
-    n = stop
-    seg = (n - start) // 4
-    period = max(16 * _BLOCK, ((4 * m) // _BLOCK + 1) * _BLOCK)
-    ratio = max(2.0, _TOL / (period * _EPS))
-    b0 = start
-    b1, b2, b3 = b0 + seg, b0 + 2 * seg, b0 + 3 * seg
-    s0, s1 = _window_before(x, b0, m), _window_before(x, b1, m)
-    s2, s3 = _window_before(x, b2, m), _window_before(x, b3, m)
-    g0, g1, g2, g3 = s0, s1, s2, s3
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _increments(x, k0, nn, m, d, cm):
+    """For i = 0 … nn − 1: d[i] = c_{k0+i} − c_{k0+i−m} and cm[i] = c_{k0+i−m}
+    (c_j = 0 for j ≤ 0). Vectorised away from the record's start."""
+    if k0 - m - 1 >= 0:
+        xa, xb = x[k0:], x[k0 - 1:]
+        xc, xd = x[k0 - m:], x[k0 - m - 1:]
+        for i in range(nn):
+            cj = abs(xc[i] - xd[i])
+            cm[i] = cj
+            d[i] = abs(xa[i] - xb[i]) - cj
+    else:
+        for i in range(nn):
+            k = k0 + i
+            ck = _c(x, k) if k >= 1 else 0.0
+            cj = _c(x, k - m) if k - m >= 1 else 0.0
+            cm[i] = cj
+            d[i] = ck - cj
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, out, s, g, d, cm, ratio):
+    """Outputs k0 … k0 + nn − 1 by the strided slide; returns how many fell below
+    ``g/ratio`` (their block must be recomputed, see :func:`_strided`).
+
+    With s_k the window sum of whole intervals, s_k − s_{k−8} = Σ_{j=k−7..k} d_j
+    (d_j = c_j − c_{j−m}), so each residue of k mod 8 is a lane of plain adds, and the
+    eight lanes are one vector. ``s[0:8]``/``g[0:8]`` carry the lanes' sums and running
+    maxima in and out."""
+    _increments(x, k0 - _L + 1, nn + _L - 1, m, d, cm)
+    low = 0
+    o = out[k0:]
+    for i in range(nn):
+        # s_{k} = s_{k−8} + (eight-sample sum of d, a pairwise tree); the dependence
+        # distance is 8: one vector register carries the eight lanes
+        s[i + _L] = s[i] + ((((d[i] + d[i + 1]) + (d[i + 2] + d[i + 3]))
+                             + ((d[i + 4] + d[i + 5]) + (d[i + 6] + d[i + 7]))))
+        v = s[i + _L]
+        gi = v if v > g[i] else g[i]
+        g[i + _L] = gi
+        low += v * ratio < gi
+        u = w0 * (v + frac * cm[i + _L - 1])
+        if clamp:
+            z = a * u - h
+            o[i] = z if z > 0.0 else 0.0
+        else:
+            o[i] = u
+    for q in range(_L):
+        s[q] = s[nn + q]
+        g[q] = g[nn + q]
+    return low
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _strided(x, w0, m, frac, a, h, clamp, out, start, stop):
+    """u₁ or z of ``w0·x`` (one receptor, ``x (n,)``), τ = (m + frac)·Δt with m ≥ 8,
+    outputs ``start`` … ``stop`` − 1 (earlier ones are the caller's: a stream's first
+    samples, whose window reaches into the previous chunk, or another thread's part).
+
+    Eight lanes of plain adds in one vector (:func:`_strided_block`). A lane's terms
+    are bounded by its window sums (m ≥ 8), so each step rounds by at most ``9ε·g``, g
+    the lane's largest sum since it was last derived exactly. The state is re-derived
+    exactly every ``period`` samples, and a block where some sum fell below
+    ``g/ratio`` (a quiet window after loud ones) is recomputed with the compensated
+    slide: every output keeps a relative error ≤ ``_TOL``.
+    Returns the last window sum, NaN if a NaN/inf entered anywhere."""
+    s = np.empty(_BLOCK + _L)
+    g = np.empty(_BLOCK + _L)
+    d = np.empty(_BLOCK + _L)
+    cm = np.empty(_BLOCK + _L)
+    period = max(64 * _BLOCK, ((4 * m) // _BLOCK + 1) * _BLOCK)
+    ratio = max(2.0, _TOL / (9.0 * (period // _L + _BLOCK) * _EPS))
+    _exact_state(x, start, m, s, g)
     done = 0
     poisoned = False
-    for lo in range(0, seg, _BLOCK):
-        hi = min(lo + _BLOCK, seg)
-        f0 = f1 = f2 = f3 = False
-        for j in range(lo, hi):
-            s0, g0, f0 = _fast_step(x, b0 + j, m, frac, ratio, w0, a, h, clamp, out, s0, g0, f0)
-            s1, g1, f1 = _fast_step(x, b1 + j, m, frac, ratio, w0, a, h, clamp, out, s1, g1, f1)
-            s2, g2, f2 = _fast_step(x, b2 + j, m, frac, ratio, w0, a, h, clamp, out, s2, g2, f2)
-            s3, g3, f3 = _fast_step(x, b3 + j, m, frac, ratio, w0, a, h, clamp, out, s3, g3, f3)
-        done += hi - lo
-        # NaN/inf persist inside a block; remember them before a resync re-derives the sums
-        poisoned |= not (math.isfinite(s0) and math.isfinite(s1) and math.isfinite(s2) and math.isfinite(s3))
-        resync = done >= period
-        s0, g0 = _block_end(x, b0, lo, hi, f0, resync, s0, g0, w0, m, frac, a, h, clamp, out)
-        s1, g1 = _block_end(x, b1, lo, hi, f1, resync, s1, g1, w0, m, frac, a, h, clamp, out)
-        s2, g2 = _block_end(x, b2, lo, hi, f2, resync, s2, g2, w0, m, frac, a, h, clamp, out)
-        s3, g3 = _block_end(x, b3, lo, hi, f3, resync, s3, g3, w0, m, frac, a, h, clamp, out)
-        if resync:
+    for k0 in range(start, stop, _BLOCK):
+        nn = min(_BLOCK, stop - k0)
+        low = _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, out, s, g, d, cm, ratio)
+        # NaN/inf persist in the lanes until the state is re-derived: look before that
+        for q in range(_L):
+            poisoned |= not math.isfinite(s[q])
+        done += nn
+        if low:
+            poisoned |= not math.isfinite(_exact_span(x, k0, k0 + nn, w0, m, frac, a, h, clamp, out))
+        if low or done >= period:
+            _exact_state(x, k0 + nn, m, s, g)
             done = 0
-    s3 = _exact_span(x, b0 + 4 * seg, n, w0, m, frac, a, h, clamp, out) if n > b0 + 4 * seg else s3
-    total = w0 * (s0 + s1 + s2 + s3)
-    return np.nan if poisoned else total
+    return np.nan if poisoned else w0 * s[_L - 1]
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _direct(x, w0, m, frac, a, h, clamp, out, start, stop):
+    """Like :func:`_strided` for windows shorter than eight samples (m < 8): each
+    output sums its m + 1 increments directly (vectorised over the block), so nothing
+    is carried and nothing drifts."""
+    d = np.empty(_BLOCK + _L)
+    cb = np.empty(_BLOCK + _L)
+    acc = np.empty(_BLOCK)
+    bad = 0
+    last = 0.0
+    for k0 in range(start, stop, _BLOCK):
+        nn = min(_BLOCK, stop - k0)
+        _increments(x, k0, nn + m, m, d, cb)   # only cb, the c_{k−m}, is used
+        for i in range(nn):
+            acc[i] = 0.0
+        for q in range(m):                     # c_{k0+i−q} = cb[i + m − q]
+            for i in range(nn):
+                acc[i] += cb[i + m - q]
+        o = out[k0:]
+        for i in range(nn):
+            v = acc[i] + frac * cb[i]
+            bad += not (abs(v) < math.inf)
+            u = w0 * v
+            if clamp:
+                z = a * u - h
+                o[i] = z if z > 0.0 else 0.0
+            else:
+                o[i] = u
+        last = acc[nn - 1]
+    return np.nan if bad else w0 * last
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _single(x, w0, m, frac, a, h, clamp, out, start, stop):
+    """One receptor, outputs ``start`` … ``stop`` − 1 (see :func:`_strided`)."""
+    if stop <= start:
+        return 0.0
+    if m < _L:
+        return _direct(x, w0, m, frac, a, h, clamp, out, start, stop)
+    return _strided(x, w0, m, frac, a, h, clamp, out, start, stop)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -208,36 +289,68 @@ def _uniform_row(x, w, m, frac, a, h, clamp, out, start):
     return s + comp
 
 
-def _uniform_rows_py(x, w, m, frac, a, h, clamp, out, final, start):
-    n = x.shape[2]
-    lanes = x.shape[1] == 1 and n - start >= 64 and m < (n - start) // 8
-    for r in nb.prange(x.shape[0]):
-        if lanes:
-            final[r] = _lanes(x[r, 0], w[0], m, frac, a, h, clamp, out[r], start, n)
-        else:
-            final[r] = _uniform_row(x[r], w, m, frac, a, h, clamp, out[r], start)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _any_row(r, x, w, m, frac, a, h, clamp, out, final, start):
+    if x.shape[1] == 1:
+        final[r] = _single(x[r, 0], w[0], m, frac, a, h, clamp, out[r], start, x.shape[2])
+    else:
+        final[r] = _uniform_row(x[r], w, m, frac, a, h, clamp, out[r], start)
+
+
+# separate functions, not one compiled twice: see kernels._boxcar_rows_par
+@nb.njit(cache=True, parallel=True)
+def _uniform_rows_par(*args):
+    for r in nb.prange(args[0].shape[0]):
+        _any_row(r, *args)
+
+
+@nb.njit(cache=True)
+def _uniform_rows_ser(*args):
+    for r in range(args[0].shape[0]):
+        _any_row(r, *args)
+
+
+@nb.njit(cache=True, nogil=True)
+def count_steps(t, dt, tol):
+    """One branch-free (vectorised) pass over t: (steps that are not > 0, NaN included;
+    steps farther than ``tol`` from ``dt``)."""
+    bad = 0
+    far = 0
+    ta, tb = t[1:], t[:-1]
+    for i in range(t.shape[0] - 1):
+        d = ta[i] - tb[i]
+        bad += not (d > 0.0)
+        far += not (abs(d - dt) <= tol)
+    return bad, far
 
 
 @nb.njit(cache=True, parallel=True)
-def _split_row(x, w0, m, frac, a, h, clamp, out, start, parts):
+def split_row(x, t, dt, tol, w0, m, frac, a, h, clamp, out, start, parts):
     """One long single-receptor record cut into ``parts`` pieces, one per thread (each
-    piece's lanes start from the exact window before it). Returns the summed finals."""
+    piece starts from the exact window sums before it).
+
+    When ``t`` is given (a whole record), each thread first checks its piece of t
+    against the grid (Δt = ``dt`` ± ``tol``) and computes its outputs only if the piece
+    is on it: t is read once, in parallel, next to the strain.
+    Returns (summed finals, bad steps, steps off the grid) — see :func:`count_steps`."""
     n = x.shape[0]
     finals = np.zeros(parts)
+    bad = np.zeros(parts, dtype=np.int64)
+    far = np.zeros(parts, dtype=np.int64)
     size = (n - start) // parts
     for p in nb.prange(parts):
         lo = start + p * size
         hi = n if p == parts - 1 else lo + size
-        finals[p] = _lanes(x, w0, m, frac, a, h, clamp, out, lo, hi)
-    return finals.sum()
+        if t.shape[0]:
+            bad[p], far[p] = count_steps(t[max(lo - 1, 0):hi], dt, tol)
+        if bad[p] == 0 and far[p] == 0:
+            finals[p] = _single(x, w0, m, frac, a, h, clamp, out, lo, hi)
+    return finals.sum(), bad.sum(), far.sum()
 
 
 # a single record this long is cut across the cores (shorter ones: start-up costs more)
 _SPLIT_MIN_SAMPLES = 1 << 18
 
-
-_uniform_rows_par = nb.njit(cache=True, parallel=True)(_uniform_rows_py)
-_uniform_rows_ser = nb.njit(cache=True)(_uniform_rows_py)
 
 
 def window_shape(dt: float, tau: float, n: int) -> tuple[int, float]:
@@ -246,6 +359,15 @@ def window_shape(dt: float, tau: float, n: int) -> tuple[int, float]:
     ratio = tau / dt
     m = int(min(math.floor(ratio), n + 1))
     return m, (ratio - math.floor(ratio) if m <= n else 0.0)
+
+
+def split_parts(x: np.ndarray, n_out: int, mm: int) -> int:
+    """Threads to cut a single-receptor record across (0: do not cut)."""
+    threads = nb.get_num_threads()
+    if x.shape[0] == 1 and x.shape[1] == 1 and threads > 1 and n_out >= _SPLIT_MIN_SAMPLES \
+            and mm < n_out // (8 * threads):
+        return threads
+    return 0
 
 
 def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, final: np.ndarray, *,
@@ -261,14 +383,17 @@ def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, final: n
     mm, frac = window_shape(dt, tau, n)
     if out is None:
         out = np.empty((rows, n))
-    threads = nb.get_num_threads()
-    if rows == 1 and x.shape[1] == 1 and threads > 1 and n - start >= _SPLIT_MIN_SAMPLES \
-            and mm < (n - start) // (8 * threads):
-        final[0] = _split_row(x[0, 0], float(w[0]), mm, frac, float(a), float(h), clamp, out[0], start, threads)
+    parts = split_parts(x, n - start, mm)
+    if parts:
+        final[0], _, _ = split_row(x[0, 0], _NO_T, 0.0, 0.0, float(w[0]), mm, frac, float(a), float(h),
+                                    clamp, out[0], start, parts)
         return out
     run = kernels.pick(_uniform_rows_par, _uniform_rows_ser, rows, n)
     run(x, w, mm, frac, float(a), float(h), clamp, out, final, start)
     return out
+
+
+_NO_T = np.empty(0)
 
 
 class UniformStream:
@@ -294,15 +419,15 @@ class UniformStream:
         head = min(n, self.m + 1)
         H = self.hist_t.shape[0]
         out = np.empty((rows, n))
+        final[:] = 0.0
+        if n > head:
+            # first, so that the threads of the row loop take the new pages' first touch
+            boxcar_uniform(x, w, self.dt, self.tau, final, a=a, h=h, clamp=clamp, start=head, out=out)
         f_head = np.zeros(rows)
         xx = np.ascontiguousarray(np.concatenate([self.hist_x, x[:, :, :head]], axis=2))
         out[:, :head] = boxcar_uniform(xx, w, self.dt, self.tau, f_head, a=a, h=h, clamp=clamp,
                                        start=H)[:, H:]
-        final[:] = f_head
-        if n > head:
-            f_rest = np.zeros(rows)
-            boxcar_uniform(x, w, self.dt, self.tau, f_rest, a=a, h=h, clamp=clamp, start=head, out=out)
-            final += f_rest
+        final += f_head
         keep = self.m + 2
         if n >= keep:
             self.hist_x, self.hist_t = x[:, :, n - keep:].copy(), t[n - keep:].copy()

@@ -5,8 +5,10 @@ import numpy as np
 
 from feeler.errors import ArgumentError
 from feeler.models.neuron import kernels
-from feeler.models.neuron.uniform import UniformStream, boxcar_uniform
-from feeler.models.neuron.validate import check_signal, check_times_uniform, check_weights
+from feeler.models.neuron.uniform import (UniformStream, boxcar_uniform, split_parts, split_row,
+                                          window_shape)
+from feeler.models.neuron.validate import (check_signal, check_times_uniform, check_weights,
+                                           raise_bad_time, uniform_grid)
 
 __all__ = ["Engine"]
 
@@ -40,8 +42,6 @@ class Engine:
         with_w = self.weights is not None
         s, tt = check_signal(strain, t, min_ndim=2 if with_w else 1, t_prev=self.t_last,
                              check_finite=False, check_times=False)
-        # one pass: validity of t and, if uniform (continuing the previous chunk), its step
-        dt = check_times_uniform(tt if self.t_last is None else np.concatenate([[self.t_last], tt]))
         n = tt.shape[0]
         if self.shape is None:
             if with_w:
@@ -56,22 +56,28 @@ class Engine:
         w = self.weights if with_w else _ONE
         if self.carry is None:
             self.carry = kernels.Carry(x.shape[0])
+        boxcar = self.kernel == "boxcar"
+        out = dt = None
+        if boxcar and whole and n:
+            # validates t; computed here unless t is off a uniform grid
+            out = boxcar_record(x, w, tt, self.tau, self.carry.sum, a=a, h=h, clamp=clamp)
+        else:
+            # one pass: validity of t and, if uniform (continuing the previous chunk), its step
+            dt = check_times_uniform(tt if self.t_last is None else np.concatenate([[self.t_last], tt]))
         if n == 0:
             return np.empty((*lead, 0))
-        boxcar = self.kernel == "boxcar"
-        if boxcar and whole and dt is not None:
-            out = boxcar_uniform(x, w, dt, self.tau, self.carry.sum, a=a, h=h, clamp=clamp)
-        elif (boxcar and not self.general and n_rec == 1 and dt is not None
-              and (self.uniform is None or self.uniform.accepts(dt))):
-            if self.uniform is None:
-                self.uniform = UniformStream(x.shape[0], dt, self.tau)
-            out = self.uniform.push(x, w, tt, self.carry.sum, a=a, h=h, clamp=clamp)
-        else:
-            if self.uniform is not None and not self.general:
-                self.carry = self.uniform.general_carry(w)
-            self.general = boxcar
-            run = kernels.exponential if self.kernel == "exponential" else kernels.boxcar
-            out = run(x, w, tt, self.tau, self.carry, a=a, h=h, clamp=clamp)
+        if out is None:
+            if (boxcar and not self.general and n_rec == 1 and dt is not None
+                    and (self.uniform is None or self.uniform.accepts(dt))):
+                if self.uniform is None:
+                    self.uniform = UniformStream(x.shape[0], dt, self.tau)
+                out = self.uniform.push(x, w, tt, self.carry.sum, a=a, h=h, clamp=clamp)
+            else:
+                if self.uniform is not None and not self.general:
+                    self.carry = self.uniform.general_carry(w)
+                self.general = boxcar
+                run = kernels.exponential if self.kernel == "exponential" else kernels.boxcar
+                out = run(x, w, tt, self.tau, self.carry, a=a, h=h, clamp=clamp)
         if not kernels.finite(self.carry):
             check_signal(strain, t, min_ndim=1)  # raises with the index of the bad sample
             raise ArgumentError("strain", "increments beyond float64",
@@ -79,3 +85,30 @@ class Engine:
         self.t_last = float(tt[-1])
         return out.reshape(*lead, n)
 
+
+
+def boxcar_record(x: np.ndarray, w: np.ndarray, t: np.ndarray, tau: float, final: np.ndarray, *,
+                  a: float = 1.0, h: float = 0.0, clamp: bool = False) -> np.ndarray | None:
+    """Check the times ``t`` of a whole record and, when they are uniform, compute its
+    boxcar on the fast loops (:func:`~.uniform.boxcar_uniform`); None when they are not
+    (the caller takes the general loop). Raises the one-line error of a bad ``t``.
+
+    A long single-receptor record checks t inside the threads that compute it: t is read
+    once, in parallel, next to the strain."""
+    n = t.shape[0]
+    grid = uniform_grid(t) if n >= 2 else None
+    if grid is not None:
+        mm, frac = window_shape(grid[0], tau, n)
+        parts = split_parts(x, n, mm)
+        if parts:
+            out = np.empty((1, n))
+            fin, bad, far = split_row(x[0, 0], t, grid[0], grid[1], float(w[0]), mm, frac,
+                                      float(a), float(h), clamp, out[0], 0, parts)
+            if bad:
+                raise_bad_time(t)
+            if far:
+                return None
+            final[0] = fin
+            return out
+    dt = check_times_uniform(t)
+    return None if dt is None else boxcar_uniform(x, w, dt, tau, final, a=a, h=h, clamp=clamp)

@@ -7,8 +7,10 @@ import numba as nb
 import numpy as np
 
 from feeler.errors import ArgumentError
+from feeler.models.neuron.uniform import count_steps
 
-__all__ = ["check_params", "check_kernel", "check_signal", "check_weights", "check_times_uniform"]
+__all__ = ["check_params", "check_kernel", "check_signal", "check_weights", "check_times_uniform",
+           "uniform_grid", "raise_bad_time"]
 
 KERNELS = ("boxcar", "exponential")
 
@@ -76,7 +78,7 @@ def check_signal(strain: object, t: object, *, min_ndim: int = 1, t_prev: float 
         raise ArgumentError("t", f"length {tt.shape[0]}",
                             f"must match the last axis of strain (n_time = {s.shape[-1]})")
     if check_times:
-        i, _ = _scan_times(tt, 0.0)
+        i = _first_bad_time(tt)
         if i >= 0:
             _raise_bad_time(tt, i)
     if t_prev is not None and tt.shape[0] and tt[0] <= t_prev:
@@ -106,36 +108,50 @@ def check_weights(weights: object, n_receptors: int) -> np.ndarray:
 
 
 @nb.njit(cache=True, nogil=True)
-def _scan_times(t, dt):
-    """One pass over t: (index of the first non-finite or non-increasing time or −1,
-    the largest |t_i − t_{i−1} − dt|)."""
-    worst = 0.0
+def _first_bad_time(t):
+    """Index of the first non-finite or non-increasing time, or −1."""
     if t.shape[0] and not math.isfinite(t[0]):
-        return 0, worst
+        return 0
     for i in range(1, t.shape[0]):
-        d = t[i] - t[i - 1]
-        if not (d > 0.0) or not math.isfinite(t[i]):
-            return i, worst
-        worst = max(worst, abs(d - dt))
-    return -1, worst
+        if not (t[i] - t[i - 1] > 0.0) or not math.isfinite(t[i]):
+            return i
+    return -1
 
 
 # relative spread of the sampling interval below which a record counts as uniform
 UNIFORM_RTOL = 1e-9
 
 
+def uniform_grid(t: np.ndarray) -> tuple[float, float] | None:
+    """(Δt, tolerance) of the uniform grid implied by the ends of ``t`` (float64, 1-D,
+    not empty; Δt = 0 for one sample), or None when an end is not finite. A record is uniform when every step
+    is within the tolerance of Δt: 1e-9·Δt, or the rounding of the time stamps themselves
+    (a few ulp of the largest |t|: 10⁷ samples at 1 ms carry ~2e-12 s)."""
+    if not (math.isfinite(t[0]) and math.isfinite(t[-1])):
+        return None
+    dt = (t[-1] - t[0]) / (t.shape[0] - 1) if t.shape[0] >= 2 else 0.0
+    return float(dt), float(UNIFORM_RTOL * abs(dt) + 4 * np.spacing(max(abs(t[0]), abs(t[-1]))))
+
+
+def raise_bad_time(t: np.ndarray) -> None:
+    """Raise the one-line error for the first non-finite or non-increasing time."""
+    _raise_bad_time(t, max(_first_bad_time(t), 0))
+
+
 def check_times_uniform(t: np.ndarray) -> float | None:
     """Check ``t`` (float64, 1-D) like :func:`check_signal` does and, in the same pass,
-    return its sampling interval when it is uniform (else None).
-
-    Uniform: every step within 1e-9·Δt of Δt, or within the rounding of the time stamps
-    themselves (a few ulp of the largest |t|: 10⁷ samples at 1 ms carry ~2e-12 s)."""
+    return its sampling interval when it is uniform (see :func:`uniform_grid`), else None."""
     n = t.shape[0]
-    dt = (t[-1] - t[0]) / (n - 1) if n >= 2 else 0.0
-    i, worst = _scan_times(t, dt if math.isfinite(dt) else 0.0)
-    if i >= 0:
-        _raise_bad_time(t, i)
+    if n == 0:
+        return None
+    grid = uniform_grid(t)
+    if grid is None:
+        raise_bad_time(t)
+    dt, tol = grid
+    # strictly increasing between finite ends means finite throughout
+    bad, far = count_steps(t, dt, tol)
+    if bad:
+        raise_bad_time(t)
     if n < 2:
         return None
-    tol = UNIFORM_RTOL * dt + 4 * np.spacing(max(abs(t[0]), abs(t[-1])))
-    return float(dt) if n == 2 or worst <= tol else None
+    return dt if n == 2 or far == 0 else None

@@ -113,3 +113,34 @@ def test_uniform_lanes_and_general_loop_agree(tau, n):
     stream.push_u1(np.array([-1.0, -0.5]), np.array([eps[0], eps[0]]))   # non-uniform start:
     general = stream.push_u1(t, eps)                  # the general loop from here on (flat start)
     np.testing.assert_allclose(window_sum(eps, t, tau=tau), general, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("where", [7, 150_000, 150_001, 299_999])
+def test_long_record_off_the_grid_takes_the_general_loop(where):
+    """One jittered step in a long record: the threads that checked t find it off the
+    uniform grid and the record goes to the general loop — same u₁ as a stream of it."""
+    from feeler.models.neuron import FA1Stream
+    n = 300_001
+    rng = np.random.default_rng(where)
+    t = np.arange(n) * 0.01
+    t[where] += 0.004
+    eps = rng.normal(size=n).cumsum()
+    stream = FA1Stream(a=1.0, tau=3.0, h=0.0)
+    general = np.concatenate([stream.push_u1(t[:where], eps[:where]), stream.push_u1(t[where:], eps[where:])])
+    np.testing.assert_allclose(window_sum(eps, t, tau=3.0), general, rtol=1e-10, atol=1e-12)
+
+
+def test_each_cached_kernel_is_its_own_python_function():
+    """numba's cache is keyed on the Python function: one function compiled twice (the
+    parallel and the serial row loop) would load one build for both — the parallel loop
+    silently ran serially once the cache was warm."""
+    import numba
+    from feeler.models.neuron import kernels, uniform
+    seen = {}
+    for mod in (kernels, uniform):
+        for name, obj in vars(mod).items():
+            if isinstance(obj, numba.core.registry.CPUDispatcher) and obj._cache.__class__.__name__ != "NullCache":
+                key = (obj.py_func.__module__, obj.py_func.__qualname__)
+                assert key not in seen, f"{name} and {seen[key]} share the cache of {key}"
+                seen[key] = name
+    assert {"_uniform_rows_par", "_uniform_rows_ser", "_boxcar_rows_par"} <= set(seen.values())

@@ -71,13 +71,14 @@ def test_quiet_window_after_loud_ones_keeps_relative_precision():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("sampling", ["uniform", "jittered"])
-def test_long_stream_does_not_drift(sampling):
+@pytest.mark.parametrize("sampling, m", [("uniform", 3), ("uniform", 300), ("jittered", 3)])
+def test_long_stream_does_not_drift(sampling, m):
     """10⁸ samples streamed in 10⁶-sample chunks: u against an exact recomputation of
     the window sum (math.fsum) at quiet checkpoints after loud stretches. Uniform
-    sampling runs the fast loops, jittered sampling the general (pointer) loop. Times are
-    multiples of 2⁻¹⁰ s, exact in float64, so the window's fractional edge is exact too."""
-    n_total, chunk, m = 100_000_000, 1_000_000, 3
+    sampling runs the fast loops (direct sums for m = 3, the strided slide for m = 300),
+    jittered sampling the general (pointer) loop. Times are multiples of 2⁻¹⁰ s, exact
+    in float64, so the window's fractional edge is exact too."""
+    n_total, chunk = 100_000_000, 1_000_000
     dt = 2.0 ** -10
     tau = (m + 0.5) * dt
     rng = np.random.default_rng(11)
@@ -89,11 +90,11 @@ def test_long_stream_does_not_drift(sampling):
             k = k + rng.integers(0, 2, size=chunk) * 0.25
         t = k * dt
         inc = rng.normal(size=chunk)
-        inc[-20:] *= 1e-6                      # a quiet stretch at the checkpoint
+        inc[-(m + 20):] *= 1e-6                # a quiet stretch at the checkpoint
         eps = last_eps + np.cumsum(inc)
         u = stream.push_u1(t, eps)
-        c = np.abs(np.diff(eps[-8:]))          # increments of the last 7 intervals
-        tt, T = t[-8:], t[-1] - tau            # window (T, t_k]
+        c = np.abs(np.diff(eps[-(m + 5):]))    # increments of the last m + 4 intervals
+        tt, T = t[-(m + 5):], t[-1] - tau      # window (T, t_k]
         parts = [ci if left >= T else ci * (right - T) / (right - left) if right > T else 0.0
                  for ci, left, right in zip(c, tt[:-1], tt[1:])]
         exact = math.fsum(parts)

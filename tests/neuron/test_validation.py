@@ -88,3 +88,24 @@ def test_fast_path_checks_the_domain(a, h, name):
     with pytest.raises(ArgumentError) as info:
         peak_pulse_density(np.ones(3), a, h)
     assert info.value.name == name
+
+
+# a record this long is cut across the threads, each checking its own piece of t
+LONG = 300_001
+
+
+@pytest.mark.parametrize("where", [1, LONG // 2, LONG // 2 + 1, LONG - 1])
+@pytest.mark.parametrize("bad", ["nan", "inf", "repeat", "back"])
+def test_long_record_names_the_bad_time_checked_inside_the_threads(where, bad):
+    t = np.arange(LONG) * 1e-3
+    t[where] = {"nan": np.nan, "inf": np.inf, "repeat": t[where - 1], "back": t[where - 1] - 1e-3}[bad]
+    with pytest.raises(ArgumentError, match=rf"argument t=.* at index {where}\b"):
+        pulse_density(np.arange(LONG) * 0.1, t, a=1.0, tau=0.3, h=0.0)
+
+
+@pytest.mark.parametrize("where", [0, 5, LONG // 2, LONG - 1])
+def test_long_record_names_the_bad_strain_sample(where):
+    eps = np.random.default_rng(where).normal(size=LONG).cumsum()
+    eps[where] = np.nan
+    with pytest.raises(ArgumentError, match=rf"argument strain='nan at index \({where},\)'"):
+        pulse_density(eps, np.arange(LONG) * 1e-3, a=1.0, tau=0.3, h=0.0)
