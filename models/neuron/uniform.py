@@ -5,15 +5,17 @@ With Δt fixed, τ = (m + frac)·Δt fixes the window's shape:
     u1_k = Σ_{j=k−m+1..k} c_j + frac·c_{k−m}    (c_j = 0 for j ≤ 0),
 
 so the slide adds c_k − c_{k−m} with no pointer walk and no division. The increments
-are recomputed from the strain (no array of them is stored). Several receptors slide
-one compensated (TwoSum) sum (:func:`_uniform_row`). A single receptor runs in four
-interleaved lanes of plain adds (:func:`_lanes`): the sliding sum is a chain of
-dependent additions, so one record runs at that chain's latency; four segments, each
-started from an exact sum of the window before it, give four independent chains, and
-the sum is re-derived exactly often enough to keep every output within 1e-10. A long
-record is also cut across the threads (:func:`split_row`). :class:`UniformStream`
-runs streams of uniform chunks on the same loops. Results equal the general loop of
-:mod:`~feeler.models.neuron.kernels` up to rounding.
+are recomputed from the strain, a block of 1024 samples at a time. Several receptors
+slide one compensated (TwoSum) sum (:func:`_uniform_row`). A single receptor runs the
+strided slide (:func:`_strided`): one sliding sum is a chain of dependent additions,
+but s_k − s_{k−8} is the sum of eight consecutive c_j − c_{j−m}, so the residues of k
+mod 8 are eight independent lanes of plain adds that fill one vector register. The
+lanes' sums are re-derived exactly often enough, and a block where a sum fell far
+below its lane's largest is recomputed compensated, to keep every output within 1e-10
+(windows under eight samples are summed directly, :func:`_direct`). A long record is
+also cut across the threads (:func:`split_row`), which check its times as they go.
+:class:`UniformStream` runs streams of uniform chunks on the same loops. Results equal
+the general loop of :mod:`~feeler.models.neuron.kernels` up to rounding.
 
 Kept in one file with everything it calls, because numba's cache is keyed on the file
 of the cached function only.

@@ -100,10 +100,10 @@ def test_empty_and_single_sample_records(kernel):
     assert peak_window_sum(np.empty((3, 0)), np.empty(0), tau=1.0).shape == (3,)
 
 
-@pytest.mark.parametrize("tau", [0.004, 0.1, 0.1234, 3.0, 25.0, 1e4])
+@pytest.mark.parametrize("tau", [0.004, 0.053, 0.1, 0.1234, 3.0, 25.0, 1e4])
 @pytest.mark.parametrize("n", [5, 63, 64, 1001, 20000, 300_001])
 def test_uniform_lanes_and_general_loop_agree(tau, n):
-    """Uniform records take the pointer-free (four-lane) loop, long ones cut across the
+    """Uniform records take the pointer-free (strided or direct) loop, long ones cut across the
     threads; a stream of jittered times takes the general one. They compute the same u₁."""
     from feeler.models.neuron import FA1Stream
     rng = np.random.default_rng(n)
