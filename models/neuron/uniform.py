@@ -29,7 +29,7 @@ import numpy as np
 
 from feeler.models.neuron import kernels
 
-__all__ = ["boxcar_uniform", "count_steps", "split_parts", "split_row", "window_shape", "UniformStream"]
+__all__ = ["boxcar_uniform", "steps_off_grid", "split_parts", "split_row", "window_shape", "UniformStream"]
 
 
 @nb.njit(inline="always")
@@ -140,9 +140,9 @@ def _increments(x, k0, nn, m, d, cm):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, out, s, g, d, cm, ratio):
-    """Outputs k0 … k0 + nn − 1 by the strided slide; returns how many fell below
-    ``g/ratio`` (their block must be recomputed, see :func:`_strided`).
+def _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, o, s, g, d, cm, ratio):
+    """Outputs k0 … k0 + nn − 1 by the strided slide, into o[0 : nn]; returns how many
+    fell below ``g/ratio`` (their block must be recomputed, see :func:`_strided`).
 
     With s_k the window sum of whole intervals, s_k − s_{k−8} = Σ_{j=k−7..k} d_j
     (d_j = c_j − c_{j−m}), so each residue of k mod 8 is a lane of plain adds, and the
@@ -150,7 +150,6 @@ def _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, out, s, g, d, cm, ratio)
     maxima in and out."""
     _increments(x, k0 - _L + 1, nn + _L - 1, m, d, cm)
     low = 0
-    o = out[k0:]
     for i in range(nn):
         # s_{k} = s_{k−8} + (eight-sample sum of d, a pairwise tree); the dependence
         # distance is 8: one vector register carries the eight lanes
@@ -196,7 +195,7 @@ def _strided(x, w0, m, frac, a, h, clamp, out, start, stop):
     poisoned = False
     for k0 in range(start, stop, _BLOCK):
         nn = min(_BLOCK, stop - k0)
-        low = _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, out, s, g, d, cm, ratio)
+        low = _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, out[k0:], s, g, d, cm, ratio)
         # NaN/inf persist in the lanes until the state is re-derived: look before that
         for q in range(_L):
             poisoned |= not math.isfinite(s[q])
@@ -313,17 +312,15 @@ def _uniform_rows_ser(*args):
 
 
 @nb.njit(cache=True, nogil=True)
-def count_steps(t, dt, tol):
-    """One branch-free (vectorised) pass over t: (steps that are not > 0, NaN included;
-    steps farther than ``tol`` from ``dt``)."""
-    bad = 0
+def steps_off_grid(t, dt, tol):
+    """Steps of t farther than ``tol`` from ``dt`` (NaN counts), in one branch-free
+    (vectorised) pass. With 0 ≤ tol < dt, none off the grid also means t is finite and
+    strictly increasing."""
     far = 0
     ta, tb = t[1:], t[:-1]
     for i in range(t.shape[0] - 1):
-        d = ta[i] - tb[i]
-        bad += not (d > 0.0)
-        far += not (abs(d - dt) <= tol)
-    return bad, far
+        far += not (abs(ta[i] - tb[i] - dt) <= tol)
+    return far
 
 
 @nb.njit(cache=True, parallel=True)
@@ -332,27 +329,25 @@ def split_row(x, t, dt, tol, w0, m, frac, a, h, clamp, out, start, parts):
     piece starts from the exact window sums before it).
 
     When ``t`` is given (a whole record), each thread first checks its piece of t
-    against the grid (Δt = ``dt`` ± ``tol``) and computes its outputs only if the piece
-    is on it: t is read once, in parallel, next to the strain.
-    Returns (summed finals, bad steps, steps off the grid) — see :func:`count_steps`."""
+    against the grid (Δt = ``dt`` ± ``tol``, tol < dt) and computes its outputs only if
+    the piece is on it: t is read once, in parallel, next to the strain.
+    Returns (summed finals, steps off the grid)."""
     n = x.shape[0]
     finals = np.zeros(parts)
-    bad = np.zeros(parts, dtype=np.int64)
     far = np.zeros(parts, dtype=np.int64)
     size = (n - start) // parts
     for p in nb.prange(parts):
         lo = start + p * size
         hi = n if p == parts - 1 else lo + size
         if t.shape[0]:
-            bad[p], far[p] = count_steps(t[max(lo - 1, 0):hi], dt, tol)
-        if bad[p] == 0 and far[p] == 0:
+            far[p] = steps_off_grid(t[max(lo - 1, 0):hi], dt, tol)
+        if far[p] == 0:
             finals[p] = _single(x, w0, m, frac, a, h, clamp, out, lo, hi)
-    return finals.sum(), bad.sum(), far.sum()
+    return finals.sum(), far.sum()
 
 
 # a single record this long is cut across the cores (shorter ones: start-up costs more)
 _SPLIT_MIN_SAMPLES = 1 << 18
-
 
 
 def window_shape(dt: float, tau: float, n: int) -> tuple[int, float]:
@@ -387,8 +382,8 @@ def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, final: n
         out = np.empty((rows, n))
     parts = split_parts(x, n - start, mm)
     if parts:
-        final[0], _, _ = split_row(x[0, 0], _NO_T, 0.0, 0.0, float(w[0]), mm, frac, float(a), float(h),
-                                    clamp, out[0], start, parts)
+        final[0], _ = split_row(x[0, 0], _NO_T, 0.0, 0.0, float(w[0]), mm, frac, float(a), float(h),
+                                clamp, out[0], start, parts)
         return out
     run = kernels.pick(_uniform_rows_par, _uniform_rows_ser, rows, n)
     run(x, w, mm, frac, float(a), float(h), clamp, out, final, start)

@@ -8,7 +8,7 @@ from feeler.models.neuron import kernels
 from feeler.models.neuron.uniform import (UniformStream, boxcar_uniform, split_parts, split_row,
                                           window_shape)
 from feeler.models.neuron.validate import (check_signal, check_times_uniform, check_weights,
-                                           raise_bad_time, uniform_grid)
+                                           uniform_grid)
 
 __all__ = ["Engine"]
 
@@ -97,18 +97,17 @@ def boxcar_record(x: np.ndarray, w: np.ndarray, t: np.ndarray, tau: float, final
     once, in parallel, next to the strain."""
     n = t.shape[0]
     grid = uniform_grid(t) if n >= 2 else None
-    if grid is not None:
+    if grid is not None and grid[1] < grid[0]:
         mm, frac = window_shape(grid[0], tau, n)
         parts = split_parts(x, n, mm)
         if parts:
             out = np.empty((1, n))
-            fin, bad, far = split_row(x[0, 0], t, grid[0], grid[1], float(w[0]), mm, frac,
-                                      float(a), float(h), clamp, out[0], 0, parts)
-            if bad:
-                raise_bad_time(t)
-            if far:
-                return None
-            final[0] = fin
-            return out
+            fin, far = split_row(x[0, 0], t, grid[0], grid[1], float(w[0]), mm, frac,
+                                 float(a), float(h), clamp, out[0], 0, parts)
+            if not far:
+                final[0] = fin
+                return out
+            check_times_uniform(t)  # raises for a bad time, else t is off the grid
+            return None
     dt = check_times_uniform(t)
     return None if dt is None else boxcar_uniform(x, w, dt, tau, final, a=a, h=h, clamp=clamp)

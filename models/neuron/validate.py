@@ -7,10 +7,10 @@ import numba as nb
 import numpy as np
 
 from feeler.errors import ArgumentError
-from feeler.models.neuron.uniform import count_steps
+from feeler.models.neuron.uniform import steps_off_grid
 
 __all__ = ["check_params", "check_kernel", "check_signal", "check_weights", "check_times_uniform",
-           "uniform_grid", "raise_bad_time"]
+           "uniform_grid"]
 
 KERNELS = ("boxcar", "exponential")
 
@@ -124,34 +124,25 @@ UNIFORM_RTOL = 1e-9
 
 def uniform_grid(t: np.ndarray) -> tuple[float, float] | None:
     """(Δt, tolerance) of the uniform grid implied by the ends of ``t`` (float64, 1-D,
-    not empty; Δt = 0 for one sample), or None when an end is not finite. A record is uniform when every step
-    is within the tolerance of Δt: 1e-9·Δt, or the rounding of the time stamps themselves
-    (a few ulp of the largest |t|: 10⁷ samples at 1 ms carry ~2e-12 s)."""
+    not empty; Δt = 0 for one sample), or None when an end is not finite. A record is
+    uniform when every step is within the tolerance of Δt: 1e-9·Δt, or the rounding of
+    the time stamps themselves (a few ulp of the largest |t|: 10⁷ samples at 1 ms carry
+    ~2e-12 s)."""
     if not (math.isfinite(t[0]) and math.isfinite(t[-1])):
         return None
     dt = (t[-1] - t[0]) / (t.shape[0] - 1) if t.shape[0] >= 2 else 0.0
     return float(dt), float(UNIFORM_RTOL * abs(dt) + 4 * np.spacing(max(abs(t[0]), abs(t[-1]))))
 
 
-def raise_bad_time(t: np.ndarray) -> None:
-    """Raise the one-line error for the first non-finite or non-increasing time."""
-    _raise_bad_time(t, max(_first_bad_time(t), 0))
-
-
 def check_times_uniform(t: np.ndarray) -> float | None:
-    """Check ``t`` (float64, 1-D) like :func:`check_signal` does and, in the same pass,
-    return its sampling interval when it is uniform (see :func:`uniform_grid`), else None."""
+    """Check ``t`` (float64, 1-D) like :func:`check_signal` does and return its sampling
+    interval when it is uniform (see :func:`uniform_grid`), else None. One vectorised
+    pass when t is on its grid; a second one finds the first bad time otherwise."""
     n = t.shape[0]
-    if n == 0:
-        return None
-    grid = uniform_grid(t)
-    if grid is None:
-        raise_bad_time(t)
-    dt, tol = grid
-    # strictly increasing between finite ends means finite throughout
-    bad, far = count_steps(t, dt, tol)
-    if bad:
-        raise_bad_time(t)
-    if n < 2:
-        return None
-    return dt if n == 2 or far == 0 else None
+    grid = uniform_grid(t) if n else None
+    if grid is not None and grid[1] < grid[0] and steps_off_grid(t, *grid) == 0:
+        return grid[0]
+    i = _first_bad_time(t)
+    if i >= 0:
+        _raise_bad_time(t, i)
+    return grid[0] if n == 2 else None

@@ -144,3 +144,21 @@ def test_each_cached_kernel_is_its_own_python_function():
                 assert key not in seen, f"{name} and {seen[key]} share the cache of {key}"
                 seen[key] = name
     assert {"_uniform_rows_par", "_uniform_rows_ser", "_boxcar_rows_par"} <= set(seen.values())
+
+
+@pytest.mark.parametrize("shape", [(600_001,), (4, 150_001)])
+@pytest.mark.parametrize("tau", [0.053, 3.0])
+def test_long_loud_and_quiet_records_match_the_general_loop(shape, tau):
+    """Alternating loud and quiet stretches (×10⁶) in a long record split across the
+    threads and in parallel rows: blocks after each loud-to-quiet drop are recomputed
+    compensated; every output matches the general (TwoSum) loop."""
+    from feeler.models.neuron import FA1Stream
+    n = shape[-1]
+    rng = np.random.default_rng(n)
+    t = np.arange(n) * 0.01
+    loud = np.where((np.arange(n) // 20_000) % 2 == 0, 1.0, 1e-6)   # loud and quiet stretches
+    eps = np.cumsum(rng.normal(size=shape) * loud, axis=-1)
+    stream = FA1Stream(a=1.0, tau=tau, h=0.0)
+    stream.push_u1(np.array([-1.0, -0.5]), np.repeat(eps[..., :1], 2, axis=-1))
+    general = stream.push_u1(t, eps)                  # the general loop from here on
+    np.testing.assert_allclose(window_sum(eps, t, tau=tau), general, rtol=1e-9, atol=1e-15)
