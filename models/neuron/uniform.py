@@ -347,7 +347,7 @@ def split_row(x, t, dt, tol, w0, m, frac, a, h, clamp, out, start, parts):
 
 
 # a single record this long is cut across the cores (shorter ones: start-up costs more)
-_SPLIT_MIN_SAMPLES = 1 << 18
+_SPLIT_MIN_SAMPLES = 1 << 16
 
 
 def window_shape(dt: float, tau: float, n: int) -> tuple[int, float]:

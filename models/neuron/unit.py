@@ -86,7 +86,6 @@ class Engine:
         return out.reshape(*lead, n)
 
 
-
 def boxcar_record(x: np.ndarray, w: np.ndarray, t: np.ndarray, tau: float, final: np.ndarray, *,
                   a: float = 1.0, h: float = 0.0, clamp: bool = False) -> np.ndarray | None:
     """Check the times ``t`` of a whole record and, when they are uniform, compute its
