@@ -53,8 +53,12 @@ def test_256_channels_streamed_vs_copy(benchmark):
     record_ratio(benchmark, "throughput / copy (256 ch)", copy / benchmark.stats["min"], ">= 0.5")
 
 
-def test_vs_direct_convolution_at_300_samples(benchmark):
-    n, m = 1_000_000, 300
+@pytest.mark.parametrize("n", [1_000_000, 10_000, 100_000, 10_000_000])
+def test_vs_direct_convolution_at_300_samples(benchmark, n):
+    """The goal is read at 10⁶ samples; the other lengths show where the ratio goes:
+    short records pay the ~15 µs of argument checks per call, 10⁷ samples (240 MB of
+    strain, times and output) run at the speed of memory."""
+    m = 300
     rng = np.random.default_rng(2)
     t = np.arange(n) * DT
     eps = rng.normal(size=n).cumsum()
@@ -72,5 +76,7 @@ def test_vs_direct_convolution_at_300_samples(benchmark):
     # its steady speed (seen after np.convolve, a busy wait or a sleep alike), so the
     # best of 30 rounds after 10 warm-up rounds is the steady throughput
     benchmark.pedantic(pulse_density, args=(eps, t), kwargs=dict(a=1.0, tau=tau, h=0.0),
-                       rounds=30, warmup_rounds=10, iterations=1)
-    record_ratio(benchmark, "speed-up over np.convolve", conv / benchmark.stats["min"], ">= 50")
+                       rounds=30 if n <= 1_000_000 else 5, warmup_rounds=10 if n <= 1_000_000 else 2,
+                       iterations=1)
+    record_ratio(benchmark, "speed-up over np.convolve", conv / benchmark.stats["min"],
+                 ">= 50" if n == 1_000_000 else "informational")

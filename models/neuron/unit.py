@@ -95,8 +95,8 @@ def boxcar_record(x: np.ndarray, w: np.ndarray, t: np.ndarray, tau: float, final
     A long single-receptor record checks t inside the threads that compute it: t is read
     once, in parallel, next to the strain."""
     n = t.shape[0]
-    grid = uniform_grid(t) if n >= 2 else None
-    if grid is not None and grid[1] < grid[0]:
+    grid = uniform_grid(t)
+    if grid is not None and n >= 2 and grid[1] < grid[0]:
         mm, frac = window_shape(grid[0], tau, n)
         parts = split_parts(x, n, mm)
         if parts:
@@ -106,7 +106,7 @@ def boxcar_record(x: np.ndarray, w: np.ndarray, t: np.ndarray, tau: float, final
             if not far:
                 final[0] = fin
                 return out
-            check_times_uniform(t)  # raises for a bad time, else t is off the grid
+            check_times_uniform(t, grid)  # raises for a bad time, else t is off the grid
             return None
-    dt = check_times_uniform(t)
+    dt = check_times_uniform(t, grid)
     return None if dt is None else boxcar_uniform(x, w, dt, tau, final, a=a, h=h, clamp=clamp)

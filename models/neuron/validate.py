@@ -130,16 +130,19 @@ def uniform_grid(t: np.ndarray) -> tuple[float, float] | None:
     ~2e-12 s)."""
     if not (math.isfinite(t[0]) and math.isfinite(t[-1])):
         return None
-    dt = (t[-1] - t[0]) / (t.shape[0] - 1) if t.shape[0] >= 2 else 0.0
-    return float(dt), float(UNIFORM_RTOL * abs(dt) + 4 * np.spacing(max(abs(t[0]), abs(t[-1]))))
+    t0, t1 = float(t[0]), float(t[-1])
+    dt = (t1 - t0) / (t.shape[0] - 1) if t.shape[0] >= 2 else 0.0
+    return dt, UNIFORM_RTOL * abs(dt) + 4 * math.ulp(max(abs(t0), abs(t1)))
 
 
-def check_times_uniform(t: np.ndarray) -> float | None:
+def check_times_uniform(t: np.ndarray, grid: tuple[float, float] | None = None) -> float | None:
     """Check ``t`` (float64, 1-D) like :func:`check_signal` does and return its sampling
-    interval when it is uniform (see :func:`uniform_grid`), else None. One vectorised
-    pass when t is on its grid; a second one finds the first bad time otherwise."""
+    interval when it is uniform (see :func:`uniform_grid`; ``grid`` if already known),
+    else None. One vectorised pass when t is on its grid; a second one finds the first
+    bad time otherwise."""
     n = t.shape[0]
-    grid = uniform_grid(t) if n else None
+    if grid is None and n:
+        grid = uniform_grid(t)
     if grid is not None and grid[1] < grid[0] and steps_off_grid(t, *grid) == 0:
         return grid[0]
     i = _first_bad_time(t)
