@@ -360,11 +360,10 @@ def window_shape(dt: float, tau: float, n: int) -> tuple[int, float]:
 
 def split_parts(x: np.ndarray, n_out: int, mm: int) -> int:
     """Threads to cut a single-receptor record across (0: do not cut)."""
+    if x.shape[0] != 1 or x.shape[1] != 1 or n_out < _SPLIT_MIN_SAMPLES:
+        return 0
     threads = nb.get_num_threads()
-    if x.shape[0] == 1 and x.shape[1] == 1 and threads > 1 and n_out >= _SPLIT_MIN_SAMPLES \
-            and mm < n_out // (8 * threads):
-        return threads
-    return 0
+    return threads if threads > 1 and mm < n_out // (8 * threads) else 0
 
 
 def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, final: np.ndarray, *,

@@ -1,6 +1,8 @@
 """The shared engine of batch and streaming: validate a chunk, run the fused kernel."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from feeler.errors import ArgumentError
@@ -52,7 +54,7 @@ class Engine:
                                 f"leading shape must stay {self.shape} across chunks")
         lead = self.shape[:-1] if with_w else self.shape
         n_rec = s.shape[-2] if with_w else 1
-        x = np.ascontiguousarray(s.reshape(int(np.prod(lead, dtype=np.int64)), n_rec, n))
+        x = np.ascontiguousarray(s.reshape(math.prod(lead), n_rec, n))
         w = self.weights if with_w else _ONE
         if self.carry is None:
             self.carry = kernels.Carry(x.shape[0])

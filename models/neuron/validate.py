@@ -52,6 +52,10 @@ def check_kernel(kernel: object) -> str:
     return kernel  # type: ignore[return-value]
 
 
+# dtype kinds of real numbers: float, signed and unsigned integer
+_REAL_KINDS = "fiu"
+
+
 def check_signal(strain: object, t: object, *, min_ndim: int = 1, t_prev: float | None = None,
                  check_finite: bool = True, check_times: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """``strain (..., n)`` finite, ``t (n,)`` finite and strictly increasing (after
@@ -61,7 +65,7 @@ def check_signal(strain: object, t: object, *, min_ndim: int = 1, t_prev: float 
     them in one pass instead (they persist in the running sums) and call back here.
     ``check_times=False`` leaves the scan of t to :func:`check_times_uniform`."""
     s = np.asarray(strain)
-    if not (np.issubdtype(s.dtype, np.floating) or np.issubdtype(s.dtype, np.integer)):
+    if s.dtype.kind not in _REAL_KINDS:
         raise ArgumentError("strain", f"dtype {s.dtype}", "must be a real numeric array")
     s = s.astype(np.float64, copy=False)
     if s.ndim < min_ndim:
@@ -71,7 +75,7 @@ def check_signal(strain: object, t: object, *, min_ndim: int = 1, t_prev: float 
     tt = np.asarray(t)
     if tt.ndim != 1:
         raise ArgumentError("t", f"shape {tt.shape}", "must be one-dimensional (n_time,) in seconds")
-    if not (np.issubdtype(tt.dtype, np.floating) or np.issubdtype(tt.dtype, np.integer)):
+    if tt.dtype.kind not in _REAL_KINDS:
         raise ArgumentError("t", f"dtype {tt.dtype}", "must be a real numeric array")
     tt = tt.astype(np.float64, copy=False)
     if tt.shape[0] != s.shape[-1]:
