@@ -366,6 +366,10 @@ def split_parts(x: np.ndarray, n_out: int, mm: int) -> int:
     return threads if threads > 1 and mm < n_out // (8 * threads) else 0
 
 
+# split_row's t when the times are already checked
+_NO_T = np.empty(0)
+
+
 def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, final: np.ndarray, *,
                    a: float = 1.0, h: float = 0.0, clamp: bool = False, start: int = 0,
                    out: np.ndarray | None = None) -> np.ndarray:
@@ -387,9 +391,6 @@ def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, final: n
     run = kernels.pick(_uniform_rows_par, _uniform_rows_ser, rows, n)
     run(x, w, mm, frac, float(a), float(h), clamp, out, final, start)
     return out
-
-
-_NO_T = np.empty(0)
 
 
 class UniformStream:
