@@ -66,21 +66,22 @@ def _emit(out, k, u, a, h, clamp):
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _window_before(x, start, m):
-    """Compensated sum of c_{start−m} … c_{start−1}: the exact state before ``start``."""
+    """Compensated sum of c_{start−m} … c_{start−1}, the exact state before ``start``,
+    as (sum, compensation): collapsing them into one float would leave an offset of
+    ε·sum in every later window, large against a quiet window after loud ones."""
     s = 0.0
     comp = 0.0
     if m > 0:
         for j in range(max(start - m, 1), start):
             s, e = _two_sum(s, _c(x, j))
             comp += e
-    return s + comp
+    return s, comp
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _exact_span(x, start, stop, w0, m, frac, a, h, clamp, out):
     """Outputs start … stop − 1 with a compensated (TwoSum) slide, from an exact start."""
-    s = _window_before(x, start, m)
-    comp = 0.0
+    s, comp = _window_before(x, start, m)
     for k in range(start, stop):
         ck = _c(x, k)
         cj = _cj(x, k, m, ck)
@@ -104,9 +105,8 @@ _EPS = 2.0 ** -52
 def _exact_state(x, k, m, s, g):
     """s[q] = g[q] = the window sum s_{k−8+q} for q = 0 … 7, compensated (exact to
     rounding): the strided slide's state before sample k."""
-    acc = _window_before(x, k - _L + 1, m)
-    comp = 0.0
-    s[0] = acc
+    acc, comp = _window_before(x, k - _L + 1, m)
+    s[0] = acc + comp
     for q in range(1, _L):
         j = k - _L + q
         ck = _c(x, j) if j >= 1 else 0.0
