@@ -141,15 +141,15 @@ def _increments(x, k0, nn, m, d, cm):
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, o, s, g, d, cm, ratio):
-    """Outputs k0 … k0 + nn − 1 by the strided slide, into o[0 : nn]; returns how many
-    fell below ``g/ratio`` (their block must be recomputed, see :func:`_strided`).
+    """Outputs k0 … k0 + nn − 1 by the strided slide, into o[0 : nn]; returns whether
+    any fell below ``g/ratio`` (then the block is recomputed, see :func:`_strided`).
 
     With s_k the window sum of whole intervals, s_k − s_{k−8} = Σ_{j=k−7..k} d_j
     (d_j = c_j − c_{j−m}), so each residue of k mod 8 is a lane of plain adds, and the
     eight lanes are one vector. ``s[0:8]``/``g[0:8]`` carry the lanes' sums and running
     maxima in and out."""
     _increments(x, k0 - _L + 1, nn + _L - 1, m, d, cm)
-    low = 0
+    low = False
     for i in range(nn):
         # s_{k} = s_{k−8} + (eight-sample sum of d, a pairwise tree); the dependence
         # distance is 8: one vector register carries the eight lanes
@@ -158,7 +158,7 @@ def _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, o, s, g, d, cm, ratio):
         v = s[i + _L]
         gi = v if v > g[i] else g[i]
         g[i + _L] = gi
-        low += v * ratio < gi
+        low |= v * ratio < gi
         u = w0 * (v + frac * cm[i + _L - 1])
         if clamp:
             z = a * u - h
