@@ -13,7 +13,7 @@ mod 8 are eight independent lanes of plain adds that fill one vector register. T
 lanes' sums are re-derived exactly often enough, and a block where a sum fell far
 below its lane's largest is recomputed compensated, to keep every output within 1e-10
 (windows under eight samples are summed directly, :func:`_direct`). A long record is
-also cut across the threads (:func:`split_row`), which check its times as they go.
+also cut across the threads (:func:`split_row`), each checking its piece's times first.
 :class:`UniformStream` runs streams of uniform chunks on the same loops. Results equal
 the general loop of :mod:`~feeler.models.neuron.kernels` up to rounding.
 
