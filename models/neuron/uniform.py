@@ -140,7 +140,35 @@ def _increments(x, k0, nn, m, d, cm):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, o, s, g, d, cm, ratio):
+def _pairs(x, k0, nn, m, p, cm):
+    """cm[i] = c_{k0+i−m} for i = 0 … nn − 1, and the pair sums
+    p[i] = d_{k0+i} + d_{k0+i+1} (d_j = c_j − c_{j−m}) for i = 0 … nn − 2 (c_j = 0 for
+    j ≤ 0): the first level of the strided slide's tree, so that its loop loads four
+    pair sums per sample instead of eight increments. Reads x up to k0 + nn − 1;
+    vectorised away from the record's start."""
+    if k0 - m - 1 >= 0:
+        xa, xb, xn = x[k0:], x[k0 - 1:], x[k0 + 1:]
+        xc, xd, xe = x[k0 - m:], x[k0 - m - 1:], x[k0 - m + 1:]
+        for i in range(nn - 1):
+            cj = abs(xc[i] - xd[i])
+            cm[i] = cj
+            p[i] = (abs(xa[i] - xb[i]) - cj) + (abs(xn[i] - xa[i]) - abs(xe[i] - xc[i]))
+        cm[nn - 1] = abs(xc[nn - 1] - xd[nn - 1])
+    else:
+        for i in range(nn):
+            k = k0 + i
+            ck = _c(x, k) if k >= 1 else 0.0
+            cj = _c(x, k - m) if k - m >= 1 else 0.0
+            cm[i] = cj
+            if i == nn - 1:
+                break
+            ck1 = _c(x, k + 1) if k + 1 >= 1 else 0.0
+            cj1 = _c(x, k + 1 - m) if k + 1 - m >= 1 else 0.0
+            p[i] = (ck - cj) + (ck1 - cj1)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, o, s, g, p, cm, ratio):
     """Outputs k0 … k0 + nn − 1 by the strided slide, into o[0 : nn]; returns whether
     any fell below ``g/ratio`` (then the block is recomputed, see :func:`_strided`).
 
@@ -148,13 +176,13 @@ def _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, o, s, g, d, cm, ratio):
     (d_j = c_j − c_{j−m}), so each residue of k mod 8 is a lane of plain adds, and the
     eight lanes are one vector. ``s[0:8]``/``g[0:8]`` carry the lanes' sums and running
     maxima in and out."""
-    _increments(x, k0 - _L + 1, nn + _L - 1, m, d, cm)
+    _pairs(x, k0 - _L + 1, nn + _L - 1, m, p, cm)
     low = False
     for i in range(nn):
-        # s_{k} = s_{k−8} + (eight-sample sum of d, a pairwise tree); the dependence
-        # distance is 8: one vector register carries the eight lanes
-        s[i + _L] = s[i] + ((((d[i] + d[i + 1]) + (d[i + 2] + d[i + 3]))
-                             + ((d[i + 4] + d[i + 5]) + (d[i + 6] + d[i + 7]))))
+        # s_{k} = s_{k−8} + (eight-sample sum of d, a pairwise tree whose first level is
+        # the pair sums p); the dependence distance is 8: one vector register carries
+        # the eight lanes
+        s[i + _L] = s[i] + ((p[i] + p[i + 2]) + (p[i + 4] + p[i + 6]))
         v = s[i + _L]
         gi = v if v > g[i] else g[i]
         g[i + _L] = gi
@@ -186,7 +214,7 @@ def _strided(x, w0, m, frac, a, h, clamp, out, start, stop):
     Returns the last window sum, NaN if a NaN/inf entered anywhere."""
     s = np.empty(_BLOCK + _L)
     g = np.empty(_BLOCK + _L)
-    d = np.empty(_BLOCK + _L)
+    pp = np.empty(_BLOCK + _L)
     cm = np.empty(_BLOCK + _L)
     period = max(64 * _BLOCK, ((4 * m) // _BLOCK + 1) * _BLOCK)
     ratio = max(2.0, _TOL / (9.0 * (period // _L + _BLOCK) * _EPS))
@@ -195,7 +223,7 @@ def _strided(x, w0, m, frac, a, h, clamp, out, start, stop):
     poisoned = False
     for k0 in range(start, stop, _BLOCK):
         nn = min(_BLOCK, stop - k0)
-        low = _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, out[k0:], s, g, d, cm, ratio)
+        low = _strided_block(x, k0, nn, m, frac, w0, a, h, clamp, out[k0:], s, g, pp, cm, ratio)
         # NaN/inf persist in the lanes until the state is re-derived: look before that
         for q in range(_L):
             poisoned |= not math.isfinite(s[q])
