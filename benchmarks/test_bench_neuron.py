@@ -28,11 +28,11 @@ def one_channel():
 
 def test_one_channel_vs_copy(benchmark, one_channel):
     t, eps = one_channel
-    copy = best_seconds(lambda: eps.copy())
+    copy = BaselineBetweenRounds(lambda: eps.copy(), every=1)
     # the first calls of a process map fresh pages for the 80 MB output: warm up first
-    benchmark.pedantic(pulse_density, args=(eps, t), kwargs=dict(a=1.0, tau=0.3, h=0.0),
+    benchmark.pedantic(pulse_density, args=(eps, t), kwargs=dict(a=1.0, tau=0.3, h=0.0), setup=copy,
                        rounds=10, warmup_rounds=2, iterations=1)
-    record_ratio(benchmark, "throughput / copy", copy / benchmark.stats["min"], ">= 0.25")
+    record_ratio(benchmark, "throughput / copy", copy.best / benchmark.stats["min"], ">= 0.25")
 
 
 def test_256_channels_streamed_vs_copy(benchmark):
@@ -51,9 +51,11 @@ def test_256_channels_streamed_vs_copy(benchmark):
             block.copy()
 
     FA1Stream(a=1.0, tau=0.3, h=0.0).push(np.arange(chunk) * DT, block)  # compile
-    copy = best_seconds(copies, repeat=2)
-    benchmark.pedantic(run, rounds=1, iterations=1)
-    record_ratio(benchmark, "throughput / copy (256 ch)", copy / benchmark.stats["min"], ">= 0.5")
+    # three ~3 s rounds, each after a copy of the same chunks: one round alone moved
+    # between 0.475 and 0.765 of the copy in one session, with this VM's other tenants
+    copy = BaselineBetweenRounds(copies, every=1)
+    benchmark.pedantic(run, setup=copy, rounds=3, iterations=1)
+    record_ratio(benchmark, "throughput / copy (256 ch)", copy.best / benchmark.stats["min"], ">= 0.5")
 
 
 @nb.njit(parallel=True)
