@@ -120,23 +120,16 @@ def _exact_state(x, k, m, s, g):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _increments(x, k0, nn, m, d, cm):
-    """For i = 0 … nn − 1: d[i] = c_{k0+i} − c_{k0+i−m} and cm[i] = c_{k0+i−m}
-    (c_j = 0 for j ≤ 0). Vectorised away from the record's start."""
-    if k0 - m - 1 >= 0:
-        xa, xb = x[k0:], x[k0 - 1:]
-        xc, xd = x[k0 - m:], x[k0 - m - 1:]
-        for i in range(nn):
-            cj = abs(xc[i] - xd[i])
-            cm[i] = cj
-            d[i] = abs(xa[i] - xb[i]) - cj
-    else:
-        for i in range(nn):
-            k = k0 + i
-            ck = _c(x, k) if k >= 1 else 0.0
-            cj = _c(x, k - m) if k - m >= 1 else 0.0
-            cm[i] = cj
-            d[i] = ck - cj
+def _leaving(x, k0, nn, m, cm):
+    """cm[i] = c_{k0+i−m} for i = 0 … nn − 1 (c_j = 0 for j ≤ 0); reads x only up to
+    k0 + nn − 1 − m. Vectorised away from the record's start."""
+    lo = min(max(m + 1 - k0, 0), nn)     # the first i with k0 + i − m ≥ 1
+    for i in range(lo):
+        cm[i] = 0.0
+    if lo < nn:
+        xc, xd, cv = x[k0 - m + lo:], x[k0 - m + lo - 1:], cm[lo:]
+        for i in range(nn - lo):
+            cv[i] = abs(xc[i] - xd[i])
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -241,14 +234,13 @@ def _direct(x, w0, m, frac, a, h, clamp, out, start, stop):
     """Like :func:`_strided` for windows shorter than eight samples (m < 8): each
     output sums its m + 1 increments directly (vectorised over the block), so nothing
     is carried and nothing drifts."""
-    d = np.empty(_BLOCK + _L)
     cb = np.empty(_BLOCK + _L)
     acc = np.empty(_BLOCK)
     bad = 0
     last = 0.0
     for k0 in range(start, stop, _BLOCK):
         nn = min(_BLOCK, stop - k0)
-        _increments(x, k0, nn + m, m, d, cb)   # only cb, the c_{k−m}, is used
+        _leaving(x, k0, nn + m, m, cb)          # cb[i] = c_{k0+i−m}
         for i in range(nn):
             acc[i] = 0.0
         for q in range(m):                     # c_{k0+i−q} = cb[i + m − q]
