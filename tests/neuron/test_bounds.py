@@ -8,7 +8,7 @@ import textwrap
 CHILD = textwrap.dedent("""
     import ctypes, mmap
     import numpy as np
-    from feeler.models.neuron import FA1Stream, pulse_density, window_sum
+    from feeler.models.neuron import FA1Stream, peak_window_sum, pulse_density, window_sum
 
     libc = ctypes.CDLL(None, use_errno=True)
     libc.mprotect.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
@@ -23,9 +23,9 @@ CHILD = textwrap.dedent("""
         base = ctypes.addressof(ctypes.c_char.from_buffer(buf))
         assert libc.mprotect(base + data, page, 0) == 0, ctypes.get_errno()  # PROT_NONE
         out = np.frombuffer(buf, dtype=np.float64, count=values.size, offset=data - values.nbytes)
-        out[:] = values
+        out[:] = values.ravel()
         KEEP.append(buf)
-        return out
+        return out.reshape(values.shape)
 
     rng = np.random.default_rng(0)
     for n in (700, 1 << 17):
@@ -38,6 +38,12 @@ CHILD = textwrap.dedent("""
                     want = window_sum(eps, tt, tau=tau, kernel=kernel)
                     got = window_sum(fenced(eps), fenced(tt), tau=tau, kernel=kernel)
                     assert np.array_equal(got, want), (n, tau, kernel)
+                    peak = peak_window_sum(fenced(eps), fenced(tt), tau=tau, kernel=kernel)
+                    assert np.array_equal(peak, peak_window_sum(eps, tt, tau=tau, kernel=kernel))
+            rec = np.stack([eps, -eps, 0.5 * eps])   # three receptors, weighted
+            w = np.array([0.2, 0.3, 0.5])
+            assert np.array_equal(window_sum(fenced(rec), fenced(t), tau=tau, weights=w),
+                                  window_sum(rec, t, tau=tau, weights=w))
             z = pulse_density(fenced(eps), fenced(t), a=2.0, tau=tau, h=0.1)
             assert np.array_equal(z, pulse_density(eps, t, a=2.0, tau=tau, h=0.1))
             stream = FA1Stream(a=1.0, tau=tau, h=0.0)
