@@ -23,8 +23,8 @@ class BaselineBetweenRounds:
     every ``every`` rounds, the first included: the baseline and the benchmarked call
     are sampled over the same stretch of the run, and ``best`` is the baseline's best.
 
-    On this shared VM the speed of a memory-heavy call drifts over seconds (another
-    tenant's load on the shared L3 and memory); a baseline timed only before the rounds
+    On this VM the speed of a memory-heavy call drifts over seconds (most likely other
+    work on the host sharing its L3 and memory); a baseline timed only before the rounds
     can land in a different state than the rounds themselves."""
 
     def __init__(self, baseline, every: int):

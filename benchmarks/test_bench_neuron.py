@@ -52,7 +52,7 @@ def test_256_channels_streamed_vs_copy(benchmark):
 
     FA1Stream(a=1.0, tau=0.3, h=0.0).push(np.arange(chunk) * DT, block)  # compile
     # three ~3 s rounds, each after a copy of the same chunks: one round alone moved
-    # between 0.475 and 0.765 of the copy in one session, with this VM's other tenants
+    # between 0.475 and 0.765 of the copy in one session with the same code
     copy = BaselineBetweenRounds(copies, every=1)
     benchmark.pedantic(run, setup=copy, rounds=3, iterations=1)
     record_ratio(benchmark, "throughput / copy (256 ch)", copy.best / benchmark.stats["min"], ">= 0.5")
@@ -76,12 +76,13 @@ def test_vs_direct_convolution_at_300_samples(benchmark, n):
     length; pulse_density does a few operations per sample, so once its arrays (strain,
     times and output: 24 bytes per sample, plus the previous output pytest-benchmark
     keeps alive) leave the cache it runs at the speed of memory instead. On this VM
-    (32 MB of L3 shared with other tenants):
+    (32 MB of L3 by lscpu, most likely shared with the host's other work: the swings at
+    10⁶ look like it, though the VM gives no direct view):
 
     - ≤ 5·10⁵ samples: the arrays stay cached and the ratio is the algorithm's; the goal
       is read at 5·10⁵ (16 MB with the kept output);
-    - 10⁶ samples (32 MB): at the edge, the ratio moves with the other tenants' use of
-      the L3;
+    - 10⁶ samples (32 MB): at the edge, the ratio moves from run to run (31–73× over
+      28 runs of the same code);
     - 10⁷ samples (240 MB): bound by memory bandwidth; "np.convolve / (out = strain + t)"
       is the ratio a kernel doing no arithmetic at all would reach, measured here;
     - 10⁴ samples: the ~9 µs of argument checks per call dominate.
