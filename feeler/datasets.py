@@ -28,7 +28,9 @@ class Scans:
 
     Attributes:
         scan_id (ndarray[n_scans] int), step_mm, speed_mm_s (ndarray[n_scans]): per-scan labels.
-        t_s, x_mm, ux_mm, uy_mm, uz_mm (ndarray[n_scans, n_time]): samples (s, mm).
+        t_s, x_mm, ux_mm, uy_mm, uz_mm (ndarray[n_scans, n_time]): samples (s, mm); each
+            scan's own sample times (simulated scans share one row, acquired scans record
+            when each sample was taken).
     """
 
     scan_id: np.ndarray
@@ -112,7 +114,9 @@ def jump_uy_mm(uy_mm, t_s, *, gap_s: float, span_s: float) -> np.ndarray:
     ``gap_s`` apart (the gap spans the rise over the step), with its sign.
 
     Args:
-        uy_mm (ndarray[..., n_time]), t_s (ndarray[n_time]) with uniform sampling.
+        uy_mm (ndarray[..., n_time]), t_s (ndarray[n_time] or one row per scan): the
+            windows are counted in samples of the median interval, so sampling should be
+            close to uniform.
     Returns:
         ndarray[...] in mm.
     """
@@ -139,10 +143,9 @@ def scan_features(scans: Scans, *, a: float, tau_s: float, h: float, length_mm: 
     """Peak z (via :mod:`feeler.models.neuron`), ΔU_y jump and raw U̇_y peak per scan."""
     from feeler.models import neuron
 
-    t = scans.t_s[0]
-    if not np.all(scans.t_s == t):
-        raise ValueError("scans must share one time base (t_s) to be featurised together")
-    peak_u1 = neuron.peak_window_sum(strain(scans.uy_mm, length_mm), t, tau=tau_s, kernel=kernel)
+    t = scans.t_s
+    peak_u1 = neuron.per_time_base(lambda s, tt: neuron.peak_window_sum(s, tt, tau=tau_s, kernel=kernel),
+                                   strain(scans.uy_mm, length_mm), t)
     return Features(peak_z=np.asarray(neuron.peak_pulse_density(peak_u1, a, h)),
                     jump_uy_mm=jump_uy_mm(scans.uy_mm, t, gap_s=gap_s, span_s=span_s),
                     peak_rate_uy_mm_s=peak_rate_uy_mm_s(scans.uy_mm, t))

@@ -27,21 +27,22 @@ def robot_section(inv, spec) -> Section:
     scans = read_scans(inv.run_dir / SCANS)
     nrn = scene.neuron
     eps = strain(scans.uy_mm, nrn.length_mm)
-    z = neuron.pulse_density(eps, scans.t_s[0], a=nrn.a, tau=nrn.tau_s, h=nrn.h, kernel=nrn.kernel)
+    z = neuron.per_time_base(lambda s, t: neuron.pulse_density(s, t, a=nrn.a, tau=nrn.tau_s, h=nrn.h,
+                                                                kernel=nrn.kernel), eps, scans.t_s)
     peak_z = features_of(scene, scans).peak_z
     steps = list(dict.fromkeys(scans.step_mm.tolist()))
     first = [int(np.flatnonzero(scans.step_mm == s)[0]) for s in steps]
-    t = scans.t_s[0]
+    t = scans.t_s                      # each scan's own sample times (n_scans, n_time)
     src = (SCANS, SCENE)
     neuron_words = (f"a = {fmt(nrn.a)} V s, τ = {fmt(nrn.tau_s)} s, h = {fmt(nrn.h)} V, "
                     f"length {fmt(nrn.length_mm)} mm ({nrn.kernel} window)")
     curves = [
-        ("Strain history ε_y = U_y / length", "t (s)", "ε_y", lambda i: (t, eps[i])),
+        ("Strain history ε_y = U_y / length", "t (s)", "ε_y", lambda i: (t[i], eps[i])),
         ("Fig. 7: ΔU_y = U_y − U_y0", "x (mm)", "ΔU_y (mm)",
          lambda i: (scans.x_mm[i], scans.uy_mm[i] - scans.uy_mm[i, 0])),
         ("Fig. 8: rate of vertical displacement U̇_y", "t (s)", "U̇_y (mm/s)",
-         lambda i: (t[1:], np.diff(scans.uy_mm[i]) / np.diff(t))),
-        ("Fig. 9: pulse density z", "t (s)", "z (V)", lambda i: (t, z[i])),
+         lambda i: (t[i, 1:], np.diff(scans.uy_mm[i]) / np.diff(t[i]))),
+        ("Fig. 9: pulse density z", "t (s)", "z (V)", lambda i: (t[i], z[i])),
     ]
     blocks = [Note(f"Scene {scene.scene.name}: {scene.scene.description}", sources=(SCENE,)),
               Note(f"{len(scans.scan_id)} scans, {len(steps)} plates; neuron {neuron_words}.",

@@ -67,7 +67,8 @@ def classify(result, strain, t_s, *, rng: np.random.Generator, n_draws: int = 40
 
     Args:
         result (FitResult): an M2 fit (its observed_data holds the training peak table).
-        t_s (ndarray[n_time]): sample times, s.
+        t_s (ndarray[n_time] | ndarray[n_scans, n_time]): sample times, s (shared, or
+            each scan's own).
         n_draws (int): posterior draws used (a seeded subsample); n_pred label samples per draw.
     """
     from scipy.special import logsumexp

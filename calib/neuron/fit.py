@@ -18,7 +18,7 @@ from feeler.calib.neuron.grid import sample_grid
 from feeler.calib.neuron.model import PeakTable, Priors, make_priors, mean_mm, peak_table
 from feeler.errors import ArgumentError
 
-__all__ = ["NeuronData", "data_from_scans", "fit_neuron", "posterior_predictive_check",
+__all__ = ["NeuronData", "data_from_scans", "shared_times", "fit_neuron", "posterior_predictive_check",
            "BACKENDS", "DecoderMisfitWarning"]
 
 BACKENDS = ("grid", "nuts", "emcee")
@@ -34,7 +34,9 @@ class NeuronData:
 
     Attributes:
         strain (ndarray[n_scans, n_time]): U_y / length, dimensionless.
-        t_s (ndarray[n_time]): common sample times, s.
+        t_s (ndarray[n_time] | ndarray[n_scans, n_time]): sample times, s: one time
+            base shared by every scan, or each scan's own (acquired scans record when
+            each sample was actually taken).
         step_mm (ndarray[n_scans]): label of each scan (its plate's step), mm.
         length_mm (float): representative length used for the strain, mm.
         kernel (str): temporal window of the neuron.
@@ -47,21 +49,28 @@ class NeuronData:
 
     def table(self, n_grid: int = 256) -> PeakTable:
         """Peak u₁ on a log-τ grid from half a sample interval to half the scan duration."""
-        dt = float(np.median(np.diff(self.t_s)))
-        span = float(self.t_s[-1] - self.t_s[0])
+        t = np.atleast_2d(self.t_s)
+        dt = float(np.median(np.diff(t, axis=-1)))
+        span = float(np.min(t[:, -1] - t[:, 0]))
         return peak_table(self.strain, self.t_s, tau_lo_s=dt / 2, tau_hi_s=span / 2,
                           n_grid=n_grid, kernel=self.kernel)
 
 
 def data_from_scans(scans, *, length_mm: float, kernel: str = "boxcar") -> NeuronData:
-    """:class:`NeuronData` from a :class:`feeler.datasets.Scans` (one shared time base)."""
+    """:class:`NeuronData` from a :class:`feeler.datasets.Scans` (each scan's own times;
+    one shared row when they all agree)."""
     from feeler.datasets import strain
 
-    t = np.asarray(scans.t_s[0], float)
-    if not np.allclose(scans.t_s, t):
-        raise ArgumentError("scans.t_s", "differing time bases", "all scans sampled at the same times")
+    t = shared_times(scans.t_s)
     return NeuronData(strain=strain(scans.uy_mm, length_mm), t_s=t,
                       step_mm=np.asarray(scans.step_mm, float), length_mm=float(length_mm), kernel=kernel)
+
+
+def shared_times(t_s) -> np.ndarray:
+    """``t_s (ndarray[n_scans, n_time])`` as one row when every scan has the same times,
+    else unchanged (each scan keeps its own)."""
+    t = np.asarray(t_s, float)
+    return t[0] if t.ndim == 2 and np.all(t == t[:1]) else t
 
 
 def fit_neuron(data: NeuronData, *, backend: str = "grid", seed: int = 0, chains: int = 4,

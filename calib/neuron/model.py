@@ -47,14 +47,24 @@ class PeakTable:
 
 def peak_table(strain, t_s, *, tau_lo_s: float, tau_hi_s: float, n_grid: int = 256,
                kernel: str = "boxcar") -> PeakTable:
-    """Tabulate peak u₁ of ``strain (ndarray[n_scans, n_time])`` on ``n_grid`` log-spaced τ."""
+    """Tabulate peak u₁ of ``strain (ndarray[n_scans, n_time])`` on ``n_grid`` log-spaced τ.
+
+    ``t_s`` is ndarray[n_time] (one time base) or ndarray[n_scans, n_time] (each scan's
+    own sample times, as an acquisition records them)."""
     from feeler.models import neuron
 
     if not (0 < tau_lo_s < tau_hi_s):
         raise ArgumentError("tau range", (tau_lo_s, tau_hi_s), "0 < tau_lo_s < tau_hi_s")
     log_tau = np.linspace(np.log(tau_lo_s), np.log(tau_hi_s), int(n_grid))
-    peak = np.stack([neuron.peak_window_sum(strain, t_s, tau=float(np.exp(x)), kernel=kernel)
-                     for x in log_tau], axis=-1)
+
+    def peaks(s, t):
+        return np.stack([neuron.peak_window_sum(s, t, tau=float(np.exp(x)), kernel=kernel)
+                         for x in log_tau], axis=-1)
+
+    strain = np.asarray(strain, dtype=float)
+    t_s = np.asarray(t_s, dtype=float)
+    peak = peaks(strain, t_s) if t_s.ndim == 1 else \
+        neuron.per_time_base(peaks, np.atleast_2d(strain), t_s)
     return PeakTable(log_tau=log_tau, peak=np.atleast_2d(peak))
 
 

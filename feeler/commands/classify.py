@@ -39,7 +39,8 @@ def run(args) -> int:
     scans = read_scans(path / "scans.csv" if path.is_dir() else path)
     length = float(result.posterior["posterior"].attrs["length_mm"])
     from feeler.datasets import strain
-    c = classify(result, strain(scans.uy_mm, length), scans.t_s[0], rng=np.random.default_rng(args.seed),
+    from feeler.calib.neuron.fit import shared_times
+    c = classify(result, strain(scans.uy_mm, length), shared_times(scans.t_s), rng=np.random.default_rng(args.seed),
                  n_draws=args.n_draws)
     table = pd.DataFrame({"scan_id": scans.scan_id, "step_mm": scans.step_mm, "plate_mm": c.plate_mm,
                           **{f"p_{v:g}mm": c.prob[:, i] for i, v in enumerate(c.plates_mm)},

@@ -46,8 +46,9 @@ def _features(ctx: dict) -> None:
     scene, scans = ctx["scene"], read_scans(ctx["run_dir"])
     nrn = scene.neuron
     ctx["scans"], ctx["features"] = scans, features_of(scene, scans)
-    ctx["z"] = neuron.pulse_density(strain(scans.uy_mm, nrn.length_mm), scans.t_s[0], a=nrn.a,
-                                    tau=nrn.tau_s, h=nrn.h, kernel=nrn.kernel)
+    ctx["z"] = neuron.per_time_base(
+        lambda s, t: neuron.pulse_density(s, t, a=nrn.a, tau=nrn.tau_s, h=nrn.h, kernel=nrn.kernel),
+        strain(scans.uy_mm, nrn.length_mm), scans.t_s)
 
 
 def _table(ctx: dict) -> None:
@@ -87,14 +88,14 @@ def _figures(ctx: dict) -> None:
     scans, z, out = ctx["scans"], ctx["z"], ctx["out"]
     steps = list(dict.fromkeys(scans.step_mm.tolist()))
     first = [int(np.flatnonzero(scans.step_mm == s)[0]) for s in steps]
-    t = scans.t_s[0]
+    t = scans.t_s                      # each scan's own sample times (n_scans, n_time)
     z_norm = z / max(z[first[-1]].max(), np.finfo(float).tiny)
     panels = [("fig7_delta_uy.png", "x (mm)", "ΔU_y = U_y − U_y0 (mm)", "Fig. 7: vertical displacement",
                lambda i: (scans.x_mm[i], scans.uy_mm[i] - scans.uy_mm[i, 0])),
               ("fig8_uy_rate.png", "t (s)", "U̇_y (mm/s)", "Fig. 8: rate of vertical displacement",
-               lambda i: (t[1:], np.diff(scans.uy_mm[i]) / np.diff(t))),
+               lambda i: (t[i, 1:], np.diff(scans.uy_mm[i]) / np.diff(t[i]))),
               ("fig9_pulse_density.png", "t (s)", "normalised pulse density Z", "Fig. 9: pulse density",
-               lambda i: (t, z_norm[i]))]
+               lambda i: (t[i], z_norm[i]))]
     for name, xlabel, ylabel, title, series in panels:
         fig, ax = plt.subplots(figsize=(6, 4))
         for step, i in zip(steps, first):

@@ -14,9 +14,15 @@ next frame or query (up to :data:`MAX_TRIES` times, then the campaign stops with
 error naming the camera or port). Damaged or lost replies that the stage driver itself
 recovered from (``stage.recovered``: status queried again, move re-sent) are journalled
 as bad lines too, each once, after the sample or scan in which they happened; so the
-summary's ``bad_lines`` counts every damaged line. ``t_s`` is the scheduled time, the same for every scan
-(so the scans share one time base as the calibrations need); ``t_frame_s`` is when the
-frame actually arrived.
+summary's ``bad_lines`` counts every damaged line.
+
+Time base: ``t_s`` is when the sample's position was actually read — the midpoint of the
+status query, whose round trip is ``status_rtt_s`` — from the moment the traverse was
+commanded; so (t_s, x_mm) lie on the stage's motion whatever the scheduler did, and the
+neuron core (exact on non-uniform times) uses them. ``t_sched_s`` is when the sample was
+scheduled; a sample taken more than :data:`LATE_FRACTION` of a period after it is flagged
+``late`` = 1, journalled as ``late_sample`` and counted in the summary, never relabelled.
+``t_frame_s`` is when the frame arrived.
 """
 from __future__ import annotations
 
@@ -34,10 +40,12 @@ from feeler.models.optics import Layout, OpticsParams, displacement_from_force, 
 from .plan import ScanSpec, moves_of, sample_times_s, scans_of
 from .store import RunStore
 
-__all__ = ["MAX_TRIES", "Setup", "run_campaign", "run_scan"]
+__all__ = ["MAX_TRIES", "LATE_FRACTION", "Setup", "run_campaign", "run_scan"]
 
 log = logging.getLogger("feeler.acquire")
 MAX_TRIES = 5
+#: a sample read later than this fraction of the sample period after its schedule is late
+LATE_FRACTION = 0.25
 
 
 @dataclass(frozen=True)
@@ -95,11 +103,19 @@ def run_scan(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSp
     try:
         _move(stage, moves[4], wait=False)
         t0 = time.monotonic()
+        late_s = LATE_FRACTION * float(setup.plan.scan.sample_period_s)
         for k, t_k in enumerate(sample_times_s(setup.plan)):
             time.sleep(max(0.0, t0 + t_k - time.monotonic()))
             row = _sample(setup, stage, camera, extract, store, scan, k, seen)
-            row.update(t_s=float(t_k), t_frame_s=row["t_frame_s"] - t0, attempt=attempt)
+            t_read = row["t_s"] - t0
+            late = t_read - float(t_k) > late_s
+            row.update(t_s=t_read, t_sched_s=float(t_k), late=int(late), t_frame_s=row["t_frame_s"] - t0,
+                       attempt=attempt)
             store.append_sample(row)
+            if late:
+                log.warning("scan %d sample %d: taken %.3f s after its scheduled time %.3f s",
+                            scan.scan_id, k, t_read - t_k, t_k)
+                store.event("late_sample", scan_id=scan.scan_id, sample=k, t_s=t_read, t_sched_s=float(t_k))
             rows.append(row)
         stage.wait_idle()
     finally:
@@ -120,7 +136,9 @@ def _sample(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpe
             seen: Counter) -> dict:
     problem = "no attempt"
     for _ in range(MAX_TRIES):
+        before = time.monotonic()
         pos = _status(stage, store, scan.scan_id, k, seen).mpos_mm
+        after = time.monotonic()
         grab = camera.grab(pos)
         problem = grab.problem
         if problem is None:
@@ -139,6 +157,7 @@ def _sample(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpe
     return {"scan_id": scan.scan_id, "plate": scan.plate, "step_mm": scan.step_mm,
             "speed_mm_s": float(plan.scan.speed_mm_s), "x_mm": float(pos[0] - scan.origin_x_mm),
             "ux_mm": float(u[0]), "uy_mm": float(u[1]), "uz_mm": float(u[2]), "repeat": scan.repeat,
+            "t_s": 0.5 * (before + after), "status_rtt_s": after - before,
             "t_frame_s": grab.t_s, "stage_x_mm": float(pos[0]), "stage_y_mm": float(pos[1]),
             "stage_z_mm": float(pos[2]), **{f"area{i}_px2": float(v) for i, v in enumerate(a)},
             "fx_n": float(f[0]), "fy_n": float(f[1]), "fz_n": float(f[2])}

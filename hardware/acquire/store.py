@@ -7,7 +7,7 @@ sample is taken):
 - ``scans.csv``: the complete scans only, in ``feeler simulate``'s format plus extra
   columns (:data:`SCAN_COLUMNS`) — what ``feeler calibrate neuron`` reads at any time;
 - ``journal.jsonl``: one JSON event per line (run start, scan start, bad frame, bad line,
-  scan done): which scans are done, and the counts of ``summary.json``;
+  late sample, scan done): which scans are done, and the counts of ``summary.json``;
 - ``scene.toml``: a byte copy of the plan (its ``[neuron]`` table serves ``calibrate``);
 - ``summary.json``: the counts, rewritten atomically after every scan.
 
@@ -29,7 +29,7 @@ from feeler.simulate import CSV_COLUMNS
 
 __all__ = ["SCAN_COLUMNS", "SAMPLE_COLUMNS", "RunStore"]
 
-EXTRA = ("repeat", "t_frame_s", "stage_x_mm", "stage_y_mm", "stage_z_mm", "area0_px2", "area1_px2",
+EXTRA = ("repeat", "t_sched_s", "status_rtt_s", "late", "t_frame_s", "stage_x_mm", "stage_y_mm", "stage_z_mm", "area0_px2", "area1_px2",
          "area2_px2", "area3_px2", "fx_n", "fy_n", "fz_n")
 SCAN_COLUMNS = CSV_COLUMNS + EXTRA
 SAMPLE_COLUMNS = SCAN_COLUMNS + ("attempt",)
@@ -112,7 +112,7 @@ class RunStore:
         elif kind == "scan_done":
             self.done.add(ev["scan_id"])
             self.counts["samples_written"] += ev["n_samples"]
-        elif kind in ("bad_frame", "bad_line"):
+        elif kind in ("bad_frame", "bad_line", "late_sample"):
             self.counts[kind + "s"] += 1
         elif kind == "run":
             self.counts["runs"] += 1
@@ -157,6 +157,7 @@ class RunStore:
         """Write ``summary.json`` atomically; returns what was written."""
         summary = {"scans_done": len(self.done), "samples_written": self.counts["samples_written"],
                    "bad_frames": self.counts["bad_frames"], "bad_lines": self.counts["bad_lines"],
+                   "late_samples": self.counts["late_samples"],
                    "partial_lines_dropped": self.counts["partial_lines_dropped"],
                    "aborted_attempts": sum(self.attempts.values()) - len(self.done),
                    "runs": self.counts["runs"], **extra}

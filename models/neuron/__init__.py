@@ -22,7 +22,8 @@ from feeler.models.neuron.stream import FA1Stream
 from feeler.models.neuron.unit import Engine
 from feeler.models.neuron.validate import check_kernel, check_params
 
-__all__ = ["pulse_density", "window_sum", "peak_window_sum", "peak_pulse_density", "FA1Stream"]
+__all__ = ["pulse_density", "window_sum", "peak_window_sum", "peak_pulse_density", "FA1Stream",
+           "per_time_base"]
 
 
 def window_sum(strain, t, *, tau: float, weights=None, kernel: str = "boxcar") -> np.ndarray:
@@ -90,3 +91,39 @@ def peak_pulse_density(peak_u1, a, h) -> np.ndarray:
         if bad.any():
             check_params(**{name: float(v[bad].flat[0])})
     return np.maximum(a * np.asarray(peak_u1, dtype=np.float64) - h, 0.0)
+
+
+def per_time_base(fn, strain, t) -> np.ndarray:
+    """Apply a batch function to records that each carry their own sample times.
+
+    The neuron core takes one time axis per call. Acquired scans are sampled when the
+    stage and camera actually answered, so each scan has its own times; this groups the
+    records by identical time rows and calls ``fn(strain_group, t_row)`` once per group.
+
+    Args:
+        fn: e.g. ``lambda s, tt: peak_window_sum(s, tt, tau=0.5)``; returns an array whose
+            leading axis is the group's records.
+        strain (ndarray[n_records, n_time]): one record per row.
+        t (ndarray[n_time] | ndarray[n_records, n_time]): shared or per-record times, s.
+    Returns:
+        ndarray: ``fn``'s results stacked in record order (leading axis n_records).
+    """
+    s = np.asarray(strain, dtype=np.float64)
+    tt = np.asarray(t, dtype=np.float64)
+    if tt.ndim == 1:
+        return np.asarray(fn(s, tt))
+    if s.ndim != 2 or tt.shape != s.shape:
+        from feeler.errors import ArgumentError
+        raise ArgumentError("t", f"shape {tt.shape}", f"(n_time,) or one row per record {s.shape}")
+    if s.shape[0] == 0:
+        return np.asarray(fn(s, tt[0] if len(tt) else np.empty(s.shape[1])))
+    rows, inverse = np.unique(tt, axis=0, return_inverse=True)
+    inverse = np.ravel(inverse)
+    out = None
+    for g in range(rows.shape[0]):
+        members = np.flatnonzero(inverse == g)
+        part = np.asarray(fn(s[members], rows[g]))
+        if out is None:
+            out = np.empty((s.shape[0],) + part.shape[1:], dtype=part.dtype)
+        out[members] = part
+    return out
