@@ -93,7 +93,10 @@ def check_time_base(run: Path, summary: dict) -> None:
         np.testing.assert_allclose(r.t_sched_s, np.arange(len(r)) * period, rtol=0, atol=1e-12)
         assert np.all(np.diff(t) > 0) and np.all(np.diff(x) >= 0) and np.all(rtt > 0)
         moving = (x > 0.01) & (x < length - 0.01)
-        assert moving.any(), f"no sample while the stage moved: {x}"
+        at_rest = ~moving
+        np.testing.assert_allclose(np.minimum(x[at_rest], length - x[at_rest]), 0.0, atol=0.0105)
+        if not moving.any():            # a loaded machine may sample only before or after the move
+            continue
         offset = t - x / v                                    # = t_start for moving samples
         slack = rtt / 2 + ramp_s
         lo, hi = np.max((offset - slack)[moving]), np.min((offset + slack)[moving])
