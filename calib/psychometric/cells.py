@@ -1,75 +1,34 @@
-"""Trial tables → flat cell arrays, the M4 priors, and the numpy log-likelihood.
+"""Trial tables → flat cell arrays, and the numpy log-likelihood every backend shares.
 
 A *condition* is one (standard_um, standard_speed_mm_s, comparison_speed_mm_s) triple; a
-*cell* is one CSV row (subject, condition, comparison height, n trials, k "comparison
-higher"). Every backend works on the same :class:`Cells`.
+*cell* is one row of the aggregated table (subject, condition, comparison height, n
+trials, k responses counted: "comparison higher" or, in nAFC, "correct"). The fits use
+:meth:`Cells.canonical`: zero-trial rows, and subjects and conditions without any trial,
+are dropped, and the rows sorted, so that a fit cannot depend on row order or on
+zero-trial rows.
 """
 from __future__ import annotations
 
 import json
-import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 from scipy.special import betaln, gammaln
 
+from feeler.calib.psychometric.priors import Priors
+from feeler.calib.psychometric.task import COMPARISON, Task
 from feeler.errors import ArgumentError
-from feeler.models.psychometric import LAPSE_MAX, log_lapse_ndtr
 
-__all__ = ["Cells", "Priors", "make_cells", "log_lik_cells", "POOLED"]
+__all__ = ["Cells", "Priors", "make_cells", "log_lik_cells", "POOLED", "COUNT_COLUMNS"]
 
 POOLED = "all"  # the subject label of pooled estimates in outputs
-
-
-@dataclass(frozen=True)
-class Priors:
-    """Priors of M4 (heights in µm). λ = 0.5·B with B ~ Beta(lapse_a, lapse_b).
-
-    Attributes:
-        pse_sd_um: sd of the PSE prior (population PSE in the hierarchical model)
-            around the condition's standard height.
-        log_sigma_mean, log_sigma_sd: normal prior on log σ (σ in µm).
-        pse_spread_um, log_sigma_spread: half-normal scales of the between-subject sds.
-        lapse_a, lapse_b: Beta prior of B = λ / 0.5.
-        log_phi_mean, log_phi_sd: normal prior on log φ, the beta-binomial concentration.
-    """
-    pse_sd_um: float = 3.0
-    log_sigma_mean: float = math.log(1.5)
-    log_sigma_sd: float = 1.0
-    pse_spread_um: float = 1.0
-    log_sigma_spread: float = 0.5
-    lapse_a: float = 2.0
-    lapse_b: float = 18.0
-    log_phi_mean: float = math.log(30.0)
-    log_phi_sd: float = 1.5
-
-    def __post_init__(self):
-        for name, value in asdict(self).items():
-            if not math.isfinite(value) or (value <= 0 and name not in ("log_sigma_mean", "log_phi_mean")):
-                raise ArgumentError(name, value, "prior constants must be finite (scales > 0)")
-
-    def described(self, *, hierarchical: bool, overdispersion: bool) -> dict[str, str]:
-        """Each parameter's prior in words with units (for FitResult.priors)."""
-        out = {"lapse": f"lapse = {LAPSE_MAX}·B, B ~ Beta({self.lapse_a}, {self.lapse_b}) per subject"}
-        if hierarchical:
-            out |= {"mu_pse": f"Normal(standard_um, {self.pse_sd_um} µm) per condition",
-                    "sd_pse": f"HalfNormal({self.pse_spread_um} µm) per condition",
-                    "mu_log_sigma": f"Normal({self.log_sigma_mean:.4g}, {self.log_sigma_sd}) (σ in µm)",
-                    "sd_log_sigma": f"HalfNormal({self.log_sigma_spread})",
-                    "pse": "mu_pse + sd_pse·Normal(0, 1) per subject × condition",
-                    "sigma": "exp(mu_log_sigma + sd_log_sigma·Normal(0, 1)) µm"}
-        else:
-            out |= {"pse": f"Normal(standard_um, {self.pse_sd_um} µm) per subject × condition",
-                    "sigma": f"LogNormal({self.log_sigma_mean:.4g}, {self.log_sigma_sd}) µm"}
-        if overdispersion:
-            out["phi"] = f"LogNormal({self.log_phi_mean:.4g}, {self.log_phi_sd}) beta-binomial concentration"
-        return out
+COUNT_COLUMNS = {"comparison": "n_comparison_higher", "nafc": "n_correct"}
 
 
 @dataclass(frozen=True)
 class Cells:
-    """Flat arrays, one entry per CSV row.
+    """Flat arrays, one entry per row.
 
     Attributes:
         subjects (tuple[str, ...]): subject labels (index order).
@@ -77,7 +36,8 @@ class Cells:
             standard_speed_mm_s, comparison_speed_mm_s) per condition index.
         subject, condition (ndarray[n_cells] int): indices.
         x_um (ndarray[n_cells]): comparison heights, µm.
-        n, k (ndarray[n_cells] float): trials and "comparison higher" counts.
+        n, k (ndarray[n_cells] float): trials and responses counted.
+        task (Task): comparison design or nAFC.
     """
     subjects: tuple
     conditions: tuple
@@ -86,34 +46,96 @@ class Cells:
     x_um: np.ndarray
     n: np.ndarray
     k: np.ndarray
+    task: Task = field(default=COMPARISON)
 
     @property
     def standard_um(self) -> np.ndarray:
         """Standard height per condition, µm (ndarray[n_conditions])."""
         return np.array([c[0] for c in self.conditions])
 
+    def condition_label(self, c: int) -> str:
+        """``10 um, 20/20 mm/s``: standard and the two speeds of condition ``c``."""
+        std, vs, vc = self.conditions[c]
+        return f"{std:g} um, {vs:g}/{vc:g} mm/s"
+
     def attrs(self) -> dict[str, str]:
         """Labels stored with the posterior so outputs can be rebuilt after loading."""
         return {"subjects": json.dumps(list(self.subjects)),
-                "conditions": json.dumps([list(c) for c in self.conditions])}
+                "conditions": json.dumps([list(c) for c in self.conditions]),
+                "n_alternatives": json.dumps(self.task.n_alternatives)}
+
+    def _replace(self, keep: np.ndarray, subjects: tuple, sub: np.ndarray, conditions=None,
+                 cond=None) -> "Cells":
+        return Cells(subjects, self.conditions if conditions is None else conditions, sub,
+                     self.condition[keep] if cond is None else cond, self.x_um[keep], self.n[keep],
+                     self.k[keep], self.task)
 
     def select(self, mask: np.ndarray, subjects: tuple) -> "Cells":
         """The cells of ``mask`` with subjects relabelled to ``subjects`` (index 0..)."""
         codes = {s: i for i, s in enumerate(subjects)}
         sub = np.array([codes[self.subjects[i]] for i in self.subject[mask]], dtype=int)
-        return Cells(subjects, self.conditions, sub, self.condition[mask], self.x_um[mask],
-                     self.n[mask], self.k[mask])
+        return self._replace(mask, subjects, sub)
 
     def pooled(self) -> "Cells":
-        """Every subject's trials as one observer labelled :data:`POOLED`."""
-        return Cells((POOLED,), self.conditions, np.zeros_like(self.subject), self.condition,
-                     self.x_um, self.n, self.k)
+        """Every subject's trials as one observer labelled :data:`POOLED`: the rows of
+        equal (condition, level) merged (their counts added), sorted."""
+        key = np.stack([self.condition.astype(float), self.x_um])
+        uniq, inv = np.unique(key, axis=1, return_inverse=True)
+        n, k = np.zeros(uniq.shape[1]), np.zeros(uniq.shape[1])
+        np.add.at(n, inv.ravel(), self.n)
+        np.add.at(k, inv.ravel(), self.k)
+        return Cells((POOLED,), self.conditions, np.zeros(uniq.shape[1], dtype=int),
+                     uniq[0].astype(int), uniq[1], n, k, self.task)
+
+    def canonical(self) -> "Cells":
+        """Rows with trials only, sorted by (subject, condition, x, n, k); subjects and
+        conditions without any trial dropped (order of first appearance kept).
+
+        Raises:
+            ArgumentError: no row has a trial.
+        """
+        keep = self.n > 0
+        if not keep.any():
+            raise ArgumentError("trials", "every row has n_trials = 0", "needs at least one trial")
+        subs = [i for i in dict.fromkeys(self.subject[keep].tolist())]
+        conds = sorted(set(self.condition[keep].tolist()))
+        s_map, c_map = {s: i for i, s in enumerate(subs)}, {c: i for i, c in enumerate(conds)}
+        sub = np.array([s_map[s] for s in self.subject[keep]], dtype=int)
+        cond = np.array([c_map[c] for c in self.condition[keep]], dtype=int)
+        out = self._replace(keep, tuple(self.subjects[i] for i in subs), sub,
+                            tuple(self.conditions[c] for c in conds), cond)
+        order = np.lexsort((out.k, out.n, out.x_um, out.condition, out.subject))
+        return out._replace(order, out.subjects, out.subject[order], out.conditions, out.condition[order])
+
+    def levels(self, subject: int | None, condition: int) -> int:
+        """Number of distinct levels with trials of ``subject`` (None: anyone) in ``condition``."""
+        sel = (self.condition == condition) & (self.n > 0)
+        if subject is not None:
+            sel &= self.subject == subject
+        return int(np.unique(self.x_um[sel]).size)
 
 
-def make_cells(trials: pd.DataFrame) -> Cells:
-    """Encode a validated trial table (see :func:`feeler.psydata.read_trials`)."""
+def make_cells(trials: pd.DataFrame, task: Task | None = None) -> Cells:
+    """Encode a validated trial table (see :func:`feeler.psydata.read_trials`), row for row.
+
+    Args:
+        trials: aggregated table with ``n_comparison_higher`` (comparison design) or
+            ``n_correct`` (nAFC) counts.
+        task: the nAFC :class:`Task` for ``n_correct`` data; None or the comparison task
+            for ``n_comparison_higher`` data.
+    Raises:
+        ArgumentError: empty table, the reserved subject label, or a task that does not
+            match the counts.
+    """
     if len(trials) == 0:
         raise ArgumentError("trials", "empty table", "needs at least one row")
+    nafc_data = COUNT_COLUMNS["nafc"] in trials.columns
+    if nafc_data and (task is None or not task.is_nafc):
+        raise ArgumentError("nafc", None, "nAFC data (column n_correct) need the number of "
+                                          "alternatives (--nafc N)")
+    if not nafc_data and task is not None and task.is_nafc:
+        raise ArgumentError("nafc", task.n_alternatives, "the data count 'comparison judged higher' "
+                                                         "(a comparison design); nAFC needs n_correct")
     subjects = tuple(dict.fromkeys(str(s) for s in trials["subject"]))
     if POOLED in subjects:
         raise ArgumentError("subject", POOLED, f"the label {POOLED!r} is reserved for pooled estimates")
@@ -122,26 +144,27 @@ def make_cells(trials: pd.DataFrame) -> Cells:
     conditions = tuple(sorted(set(keys)))
     cond_index = {c: i for i, c in enumerate(conditions)}
     sub_index = {s: i for i, s in enumerate(subjects)}
+    count = COUNT_COLUMNS["nafc" if nafc_data else "comparison"]
     return Cells(subjects, conditions,
                  np.array([sub_index[str(s)] for s in trials["subject"]], dtype=int),
                  np.array([cond_index[c] for c in keys], dtype=int),
                  trials["comparison_um"].to_numpy(dtype=float),
                  trials["n_trials"].to_numpy(dtype=float),
-                 trials["n_comparison_higher"].to_numpy(dtype=float))
+                 trials[count].to_numpy(dtype=float), task or COMPARISON)
 
 
 def log_lik_cells(cells: Cells, pse, sigma, lapse, phi=None) -> np.ndarray:
     """Log-likelihood of every cell (binomial, or beta-binomial with concentration φ).
 
     Args:
-        pse, sigma (ndarray[..., n_cells]): per-cell PSE and σ (µm).
-        lapse (ndarray[..., n_cells]): per-cell lapse rate in (0, 0.5).
+        pse, sigma (ndarray[..., n_cells]): per-cell location and σ (µm).
+        lapse (ndarray[..., n_cells]): per-cell lapse rate in [0, 0.5).
         phi (ndarray[..., n_cells] | None): beta-binomial concentration, > 0.
     Returns:
         ndarray[..., n_cells]; a zero-trial cell contributes exactly 0.
     """
     n, k = cells.n, cells.k
-    log_p, log_q = log_lapse_ndtr((cells.x_um - pse) / sigma, lapse)
+    log_p, log_q = cells.task.log_pq((cells.x_um - pse) / sigma, lapse)
     log_choose = gammaln(n + 1) - gammaln(k + 1) - gammaln(n - k + 1)
     if phi is None:
         return log_choose + _xlog(k, log_p) + _xlog(n - k, log_q)
