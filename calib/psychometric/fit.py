@@ -152,12 +152,14 @@ def _rows_and_checks(cells: Cells, r, fitted, task: Task, pc: float, label: str,
     rows = []
     keys = sorted(fitted.stats, key=lambda k: (k[0] < 0, k[0], k[1]))
     row_rngs = dict(zip(keys, rng.spawn(len(keys))))
+    pooled = cells.pooled()
     for o, c in keys:
         stats = fitted.stats[(o, c)]
         subject = POOLED if o < 0 else cells.subjects[o]
         name = f"{subject} [{cells.condition_label(c)}]"
-        sel = (cells.condition == c) & ((cells.subject == o) if o >= 0 else True)
-        x, n, k = cells.x_um[sel], cells.n[sel], cells.k[sel]
+        src = pooled if o < 0 else cells
+        sel = (src.condition == c) & ((src.subject == o) if o >= 0 else True)
+        x, n, k = src.x_um[sel], src.n[sel], src.k[sel]
         d = row_draws(fitted.draws, o, c, lapse_per)
         mp = None if fitted.maps is None else fitted.maps[o]
         point = _point(mp, c, lapse_per, stats)
