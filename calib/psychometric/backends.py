@@ -88,8 +88,7 @@ def run_per_observer(cells: Cells, r, *, backend: str, lapse_per: str, overdispe
                                           enabled=progressbar):
         obs = Observer(oc, r, lapse_per=lapse_per, overdispersion=overdispersion)
         grid = observer_grid(obs, spec)
-        problems += [f"{label} [{a}]: the posterior is not contained by the grid: the data do not pin it down"
-                     for a in grid.uncontained]
+        problems += [f"{label}: {a}" for a in grid.uncontained]
         rows = [c for c in range(len(cells.conditions)) if _has(cells, o, c)]
         exact_stats = {c: grid_row_stats(grid, c, pc) for c in rows}
         if backend == "exact":

@@ -57,7 +57,8 @@ class ObserverGrid:
         log_mass (list[ndarray[L, F, S, M]]): per condition the log posterior mass of
             each node, joint with the observer's shared lapse/φ (sums to 1 per condition).
         mode (ndarray[n_par]): the mode of the θ density.
-        uncontained (list[str]): axes whose posterior the grid could not contain.
+        uncontained (list[str]): axes whose posterior the grid could not contain or
+            resolve (one sentence each).
     """
     obs: Observer
     axes: list
@@ -67,8 +68,16 @@ class ObserverGrid:
 
 
 def observer_mode(obs: Observer) -> tuple[np.ndarray, np.ndarray | None, str]:
-    """(mode of the θ density, the Hessian there, problem text or "")."""
-    mode, ok, msg = maximise(obs.log_post, obs.start())
+    """(mode of the θ density, the Hessian there, problem text or ""): the better of the
+    climbs from the prior centre and from the data (they differ when prior and data
+    disagree, e.g. heights in mm under priors set in µm)."""
+    best = None
+    for start in (obs.start(), obs.data_start()):
+        found = maximise(obs.log_post, start)
+        value = float(obs.log_post(found[0][None])[0])
+        if best is None or value > best[0]:
+            best = (value, found)
+    mode, ok, msg = best[1]
     h = hessian(obs.log_post, mode)
     grad = float(np.linalg.norm(gradient(obs.log_post, mode)))
     return mode, h, "" if ok or grad < 1e-3 else f"mode search did not converge (|gradient| {grad:.2g}: {msg})"
@@ -251,6 +260,9 @@ def _edges(obs: Observer, axes: list, log_mass: list, spec: GridSpec) -> list[st
             p = prof[name] - np.max(prof[name])
             lo_free = not (name == "l" and ax[name][0] <= L_MIN)
             hi_free = not (name == "l" and ax[name][-1] >= L_MAX)
+            where = f"the posterior of the {label} [{obs.cells.condition_label(c)}]"
             if (p[0] > spec.edge_log and lo_free) or (p[-1] > spec.edge_log and hi_free):
-                out.append(f"{label} [{obs.cells.condition_label(c)}]")
+                out.append(f"{where} is not contained by the grid: the data do not pin it down")
+            elif np.max(np.exp(p)) > 0.5 * np.sum(np.exp(p)):
+                out.append(f"{where} is not resolved by the grid (half its mass on one node): several modes?")
     return out

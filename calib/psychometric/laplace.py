@@ -1,8 +1,8 @@
 """Approximate M4 backend: per-observer mode + Laplace (Gaussian) approximation.
 
 Each subject (and the pooled observer ``all``) is fitted alone in the unconstrained
-coordinates of :mod:`.observer`; the mode comes from :func:`.mode.maximise` (polished by
-Newton steps to :data:`~.mode.MODE_XTOL`), the covariance from the inverse of the
+coordinates of :mod:`.observer`; the mode comes from :func:`.exact.observer_mode` (polished
+by Newton steps to :data:`~.mode.MODE_XTOL`), the covariance from the inverse of the
 central-difference Hessian there, and the draws from N(mode, H⁻¹) with the caller's
 generator (independent draws, so R-hat and ESS pass naturally).
 
@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from feeler.calib.psychometric.mode import MODE_XTOL, gradient, hessian, maximise, newton_polish
+from feeler.calib.psychometric.exact import observer_mode
+from feeler.calib.psychometric.mode import MODE_XTOL, gradient, hessian, newton_polish
 from feeler.calib.psychometric.observer import Observer
 
 __all__ = ["laplace_observer", "hessian", "gradient", "newton_polish", "MODE_XTOL"]
@@ -31,11 +32,9 @@ def laplace_observer(obs: Observer, *, rng: np.random.Generator, n: int) -> tupl
         problems: one line per optimiser or Hessian failure (empty when fine).
     """
     label = obs.cells.subjects[0]
-    mode, polished, msg = maximise(obs.log_post, obs.start())
-    grad = float(np.linalg.norm(gradient(obs.log_post, mode)))
-    problems = [] if polished or grad < 1e-3 else \
-        [f"subject {label}: mode search did not converge (|gradient| {grad:.2g}: {msg})"]
-    prec = -hessian(obs.log_post, mode)
+    mode, h, msg = observer_mode(obs)
+    problems = [f"subject {label}: {msg}"] if msg else []
+    prec = -h
     evals, evecs = np.linalg.eigh(0.5 * (prec + prec.T))
     if not np.all(evals > 0):
         problems.append(f"subject {label}: Laplace Hessian not positive definite "

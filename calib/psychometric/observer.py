@@ -50,6 +50,21 @@ class Observer:
         return np.concatenate([p.pse_mean, p.log_sigma_mean, np.full(self.n_lapse, np.log(b0 / (1 - b0))),
                                [p.log_phi_mean] if self.overdispersion else []])
 
+    def data_start(self) -> np.ndarray:
+        """A start from the data alone: per condition the trial-weighted mean level and a
+        quarter of the tested range (the prior centre where a condition has no trials)."""
+        theta = self.start()
+        cells, c_n = self.cells, self.n_cond
+        for c in range(c_n):
+            sel = (cells.condition == c) & (cells.n > 0)
+            if not sel.any():
+                continue
+            x = cells.x_um[sel]
+            theta[c] = float(np.average(x, weights=cells.n[sel]))
+            if x.max() > x.min():
+                theta[c_n + c] = float(np.log((x.max() - x.min()) / 4))
+        return theta
+
     def unpack(self, theta: np.ndarray) -> dict:
         """θ (..., n_par) → pse, sigma (..., n_cond), lapse (..., n_lapse), phi (...) or None."""
         c = self.n_cond
