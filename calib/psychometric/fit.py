@@ -178,6 +178,13 @@ def _rows_and_checks(cells: Cells, r, fitted, task: Task, pc: float, label: str,
             what = "PSE" if not task.is_nafc else "location"
             problems += checks.bracket_problems(name, what, stats["pse"]["lb"], stats["pse"]["ub"], lo[c], hi[c])
             problems += checks.conflict_problems(name, c, r, d)
+    if len(cells.subjects) == 1:                   # 'all' is the one subject: the same check
+        first = {(rw["standard_um"], rw["standard_speed_mm_s"], rw["comparison_speed_mm_s"]): rw
+                 for rw in rows if rw["subject"] != POOLED}
+        for rw in rows:
+            if rw["subject"] == POOLED and estimand == "pooled trials":
+                twin = first[(rw["standard_um"], rw["standard_speed_mm_s"], rw["comparison_speed_mm_s"])]
+                rw.update({k: twin[k] for k in ("deviance", "gof_p", "gof_ok")})
     gof = checks.gof_problems(rows)
     cut = checks.GOF_ALPHA / max(sum(np.isfinite(rw["gof_p"]) for rw in rows), 1)
     for rw in rows:

@@ -11,8 +11,8 @@ For a condition's masses w[l, f, s, m] (φ summed out, as no summary depends on 
 
 Rows (lapse nodes, or (lapse, s) pairs) holding less than :data:`PRUNE` of the mass are
 left out of the distribution functions. Lapse nodes where P never reaches pc count as
-"unreached" (threshold +inf): the mean of such a threshold is NaN and its quantiles
-above 1 − unreached are +inf.
+"unreached" (threshold +inf): the mean of such a threshold is NaN (unless the unreached
+mass is below :data:`NEGLIGIBLE`) and its quantiles above 1 − unreached are +inf.
 """
 from __future__ import annotations
 
@@ -27,6 +27,7 @@ __all__ = ["grid_row_stats", "grid_draws", "PROBS", "PRUNE"]
 
 PROBS = (0.025, 0.5, 0.975)
 PRUNE = 1e-12
+NEGLIGIBLE = 1e-6   # unreached mass below this does not void the mean
 
 
 def _summary(mean: float, q: np.ndarray) -> dict:
@@ -85,7 +86,7 @@ def grid_row_stats(grid: ObserverGrid, c: int, pc: float) -> dict[str, dict]:
     out["threshold"] = _threshold(lm, w3, m, sig, q0, ok, unreached)
     _, scale, _ = task.base_scale_rest(lam)
     amp = scale * np.exp(-0.5 * q0 ** 2) / np.sqrt(2 * np.pi)
-    mean = np.sum(w_ls[ok] * amp[ok, None] / sig[None, :]) if unreached == 0 else np.nan
+    mean = np.sum(w_ls[ok] * amp[ok, None] / sig[None, :]) / (1 - unreached) if unreached <= NEGLIGIBLE else np.nan
     out["slope"] = srows.stats(np.log(amp), ok, False, mean) | {"unreached": unreached}
 
     l_cdf = FineCdf(ax["l"], np.log(np.maximum(w_l, 1e-300))[None])
@@ -107,7 +108,8 @@ def _threshold(lm, w3, m, sig, q, ok, unreached) -> dict:
     def cdf(t):
         return w @ rows(t[None, :] - shift[:, None])
 
-    mean = np.sum(w3 * (m[None, None, :] + (sig[None, :] * q[:, None])[:, :, None])) if unreached == 0 else np.nan
+    t = m[None, None, :] + (sig[None, :] * q[:, None])[:, :, None]
+    mean = np.sum((w3 * ok[:, None, None]) * t) / (1 - unreached) if unreached <= NEGLIGIBLE else np.nan
     return _summary(mean, quantiles(cdf, PROBS, m[0] + shift.min(), m[-1] + shift.max())) | {"unreached": unreached}
 
 
