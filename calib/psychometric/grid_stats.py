@@ -27,7 +27,7 @@ __all__ = ["grid_row_stats", "grid_draws", "PROBS", "PRUNE"]
 
 PROBS = (0.025, 0.5, 0.975)
 PRUNE = 1e-12
-NEGLIGIBLE = 1e-6   # unreached mass below this does not void the mean
+NEGLIGIBLE = 1e-4   # unreached mass up to this: the mean is over the reached mass
 
 
 def _summary(mean: float, q: np.ndarray) -> dict:
