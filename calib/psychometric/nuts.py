@@ -86,7 +86,8 @@ def nuts_fit(cells: Cells, priors: Resolved, *, hierarchical: bool, pooled: bool
 
     Args:
         pooled (bool): add the pooled observer (every trial as one observer) as ``all``;
-            False with ``hierarchical``: ``all`` is the population.
+            False with ``hierarchical``: ``all`` is the population; False otherwise: no
+            ``*_all`` draws (the caller copies its one subject).
     Returns:
         (draws, sample_stats): ``draws`` has ``pse``, ``sigma`` (chain, draw, subject,
         condition), ``lapse`` (chain, draw, subject[, condition]), ``pse_all``,
@@ -119,7 +120,7 @@ def nuts_fit(cells: Cells, priors: Resolved, *, hierarchical: bool, pooled: bool
                 "lapse_all": get("lapse_pooled")[:, :, 0]}
         if overdispersion:
             out["phi_all"] = get("phi_pooled")[:, :, 0]
-    else:
+    elif hierarchical:
         out |= {"pse_all": out["mu_pse"], "sigma_all": np.exp(out["mu_log_sigma"]),
                 "lapse_all": out["lapse"].mean(axis=2)}
     stats = {"diverging": np.asarray(idata["sample_stats"]["diverging"].values)}

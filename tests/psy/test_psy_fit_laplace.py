@@ -46,8 +46,8 @@ def test_hessian_of_a_quadratic_is_exact():
 
 def test_recovery_coverage_over_seeds(simulate):
     inside, total, pooled_err = 0, 0, []
-    for seed in range(4):
-        trials, truth = simulate(100 + seed, n_subjects=6, n_trials=30)
+    for seed in range(3):
+        trials, truth = simulate(100 + seed, n_subjects=4, n_trials=30)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ApproximationWarning)
             result = fit_psychometric(trials, rng=np.random.default_rng(seed), backend="laplace",
