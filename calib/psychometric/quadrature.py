@@ -33,16 +33,17 @@ class FineCdf:
     Args:
         nodes (ndarray[n]): uniform axis.
         log_density (ndarray[R, n]): unnormalised log-densities, one row each.
+        refine (int): fine nodes per grid cell.
     """
 
-    def __init__(self, nodes: np.ndarray, log_density: np.ndarray):
+    def __init__(self, nodes: np.ndarray, log_density: np.ndarray, refine: int = REFINE):
         ld = np.asarray(log_density, dtype=float)
         top = np.max(ld, axis=-1, keepdims=True)
         top = np.where(np.isfinite(top), top, 0.0)
         ld = np.maximum(ld - top, FLOOR)
         n = nodes.size
-        self.x0, self.dx = float(nodes[0]), float(nodes[1] - nodes[0]) / REFINE
-        fine = self.x0 + self.dx * np.arange((n - 1) * REFINE + 1)
+        self.x0, self.dx = float(nodes[0]), float(nodes[1] - nodes[0]) / refine
+        fine = self.x0 + self.dx * np.arange((n - 1) * refine + 1)
         dens = np.exp(np.minimum(CubicSpline(nodes, ld, axis=-1)(fine), 0.5))
         cum = np.concatenate([np.zeros(ld.shape[:-1] + (1,)),
                               np.cumsum(0.5 * (dens[..., 1:] + dens[..., :-1]), axis=-1)], axis=-1)
