@@ -25,10 +25,10 @@ import numpy as np
 import pytest
 
 from _ratios import record_ratio
-from feeler.calib.psychometric.cells import make_cells
-from feeler.calib.psychometric.exact import GridSpec
+from feeler.calib.psychometric.model.cells import make_cells
+from feeler.calib.psychometric.exact.grid import GridSpec
 from feeler.calib.psychometric.fit import fit_psychometric, threshold_table
-from feeler.calib.psychometric.priors import Priors
+from feeler.calib.psychometric.model.priors import Priors
 from feeler.psydata import read_trials
 from feeler.scene import load_scene
 from feeler.simulate.psychophysics import simulate_psychophysics

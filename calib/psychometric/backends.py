@@ -16,12 +16,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from feeler.calib.progress import progress
-from feeler.calib.psychometric.cells import POOLED, Cells
-from feeler.calib.psychometric.draw_stats import draw_row_stats
-from feeler.calib.psychometric.exact import L_MIN, GridSpec, observer_grid
-from feeler.calib.psychometric.grid_stats import grid_draws, grid_row_stats
-from feeler.calib.psychometric.mode import maximise
-from feeler.calib.psychometric.observer import Observer
+from feeler.calib.psychometric.model.cells import POOLED, Cells
+from feeler.calib.psychometric.outputs.draws import draw_row_stats
+from feeler.calib.psychometric.exact.grid import L_MIN, GridSpec, observer_grid
+from feeler.calib.psychometric.exact.stats import grid_draws, grid_row_stats
+from feeler.calib.psychometric.model.mode import maximise
+from feeler.calib.psychometric.model.observer import Observer
 
 __all__ = ["Fitted", "run_per_observer", "run_nuts", "natural_map", "ApproximationWarning",
            "TAIL_TOLERANCE"]

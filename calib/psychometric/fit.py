@@ -5,10 +5,10 @@ Pipeline: trial table → canonical cells → backend → row summaries and mode
 (goodness of fit, prior–data conflict, units, identifiability) → posterior ``DataTree``
 with the thresholds table → FitResult (summary + verdict).
 
-Model (:mod:`.task`): per subject s and condition c, P = base(λ) + scale(λ)·Φ((x − m_sc)/σ_sc)
+Model (:mod:`feeler.calib.psychometric.model.task`): per subject s and condition c, P = base(λ) + scale(λ)·Φ((x − m_sc)/σ_sc)
 for the comparison design (P "comparison judged higher") or nAFC (P correct, guess 1/n);
 binomial counts, or beta-binomial with concentration φ (``overdispersion``); priors
-scaled to each condition's stimulus range (:mod:`.priors`).
+scaled to each condition's stimulus range (:mod:`feeler.calib.psychometric.model.priors`).
 
 Backends:
 - ``"exact"`` (default): each observer's posterior integrated on an adaptive grid;
@@ -34,14 +34,14 @@ import numpy as np
 import pandas as pd
 
 from feeler.calib.fit import DiagnosticWarning, FitResult, make_result, posterior_from_draws
-from feeler.calib.psychometric import checks
+from feeler.calib.psychometric.outputs import checks
 from feeler.calib.psychometric.backends import ApproximationWarning, row_draws, run_nuts, run_per_observer
-from feeler.calib.psychometric.cells import POOLED, Cells, make_cells
-from feeler.calib.psychometric.exact import GridSpec
-from feeler.calib.psychometric.observer import LAPSE_PER
-from feeler.calib.psychometric.priors import Priors, stimulus_ranges
-from feeler.calib.psychometric.table import THRESHOLD_COLUMNS, table_csv, table_rows, threshold_table
-from feeler.calib.psychometric.task import Task
+from feeler.calib.psychometric.model.cells import POOLED, Cells, make_cells
+from feeler.calib.psychometric.exact.grid import GridSpec
+from feeler.calib.psychometric.model.observer import LAPSE_PER
+from feeler.calib.psychometric.model.priors import Priors, stimulus_ranges
+from feeler.calib.psychometric.outputs.table import THRESHOLD_COLUMNS, table_csv, table_rows, threshold_table
+from feeler.calib.psychometric.model.task import Task
 from feeler.errors import ArgumentError
 from feeler.rundir import prepare_out_dir
 
@@ -252,6 +252,6 @@ def save_psychometric(result: FitResult, trials: pd.DataFrame, out_dir: str | Pa
             fh.write(f"# {line}\n")
         fh.write(table_csv(table))
     if plots:
-        from feeler.calib.psychometric.plots import write_curves
+        from feeler.calib.psychometric.outputs.plots import write_curves
         write_curves(result, out / "curves", synthetic=bool(note))
     return out

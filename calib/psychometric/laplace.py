@@ -1,8 +1,8 @@
 """Approximate M4 backend: per-observer mode + Laplace (Gaussian) approximation.
 
 Each subject (and the pooled observer ``all``) is fitted alone in the unconstrained
-coordinates of :mod:`.observer`; the mode comes from :func:`.exact.observer_mode` (polished
-by Newton steps to :data:`~.mode.MODE_XTOL`), the covariance from the inverse of the
+coordinates of :mod:`feeler.calib.psychometric.model.observer`; the mode comes from :func:`feeler.calib.psychometric.exact.grid.observer_mode` (polished
+by Newton steps to :data:`~feeler.calib.psychometric.model.mode.MODE_XTOL`), the covariance from the inverse of the
 central-difference Hessian there, and the draws from N(mode, H⁻¹) with the caller's
 generator (independent draws, so R-hat and ESS pass naturally).
 
@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from feeler.calib.psychometric.exact import observer_mode
-from feeler.calib.psychometric.mode import MODE_XTOL, gradient, hessian, newton_polish
-from feeler.calib.psychometric.observer import Observer
+from feeler.calib.psychometric.exact.grid import observer_mode
+from feeler.calib.psychometric.model.mode import MODE_XTOL, gradient, hessian, newton_polish
+from feeler.calib.psychometric.model.observer import Observer
 
 __all__ = ["laplace_observer", "hessian", "gradient", "newton_polish", "MODE_XTOL"]
 

@@ -6,7 +6,7 @@ normals; ``all`` is then either the population (μ_c, exp m_c, mean lapse) or th
 trials fitted as one more observer with its own independent priors (a separate block of
 the same model, which is the same as fitting it alone).
 Separate: independent priors per subject, and ``all`` is the pooled observer.
-The likelihood of either task (:mod:`.task`) is evaluated in log space with PyMC's
+The likelihood of either task (:mod:`feeler.calib.psychometric.model.task`) is evaluated in log space with PyMC's
 ``normal_lcdf``/``normal_lccdf`` (erfcx in the tails). Lapses are per subject or per
 subject and condition; φ (beta-binomial) per observer.
 """
@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from feeler.calib.psychometric.cells import Cells
-from feeler.calib.psychometric.priors import Resolved
+from feeler.calib.psychometric.model.cells import Cells
+from feeler.calib.psychometric.model.priors import Resolved
 from feeler.models.psychometric import LAPSE_MAX
 
 __all__ = ["nuts_fit"]

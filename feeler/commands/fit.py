@@ -97,7 +97,7 @@ def _priors(args):
     """The Priors of the --prior-* options (each checked, naming its option)."""
     import math
 
-    from feeler.calib.psychometric.priors import Priors
+    from feeler.calib.psychometric.model.priors import Priors
     from feeler.errors import ArgumentError
 
     for flag, value in (("--prior-pse-sd", args.prior_pse_sd), ("--prior-sigma", args.prior_sigma),

@@ -4,11 +4,11 @@ import pandas as pd
 import pytest
 from scipy.stats import binom
 
-from feeler.calib.psychometric import checks
-from feeler.calib.psychometric.cells import make_cells
+from feeler.calib.psychometric.outputs import checks
+from feeler.calib.psychometric.model.cells import make_cells
 from feeler.calib.psychometric.fit import fit_psychometric, threshold_table
-from feeler.calib.psychometric.priors import Priors
-from feeler.calib.psychometric.task import Task
+from feeler.calib.psychometric.model.priors import Priors
+from feeler.calib.psychometric.model.task import Task
 from feeler.errors import ArgumentError
 from feeler.psydata import TRIAL_COLUMNS
 

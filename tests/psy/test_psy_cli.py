@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from feeler.calib.psychometric.fit import THRESHOLD_COLUMNS
-from feeler.calib.psychometric.table import LEGACY_COLUMNS
+from feeler.calib.psychometric.outputs.table import LEGACY_COLUMNS
 from feeler.cli import main
 from feeler.psydata import write_trials
 

@@ -6,7 +6,7 @@ from scipy.stats import beta as beta_dist
 from scipy.stats import norm
 
 from feeler.calib.psychometric.fit import fit_psychometric, threshold_table
-from feeler.calib.psychometric.task import Task
+from feeler.calib.psychometric.model.task import Task
 from feeler.psydata import KEY_COLUMNS, TRIAL_COLUMNS
 
 LEVELS = np.array([7.6, 8.4, 9.2, 10.0, 10.8, 11.6, 12.4])

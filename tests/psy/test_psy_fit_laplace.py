@@ -8,8 +8,8 @@ import pytest
 from scipy.stats import betabinom, binom
 
 from feeler.calib.fit import load
-from feeler.calib.psychometric.cells import Priors, log_lik_cells, make_cells
-from feeler.calib.psychometric.mode import hessian, newton_polish
+from feeler.calib.psychometric.model.cells import Priors, log_lik_cells, make_cells
+from feeler.calib.psychometric.model.mode import hessian, newton_polish
 from feeler.calib.psychometric.fit import (THRESHOLD_COLUMNS, ApproximationWarning, fit_psychometric,
                                            save_psychometric, threshold_table)
 

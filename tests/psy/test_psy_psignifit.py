@@ -10,10 +10,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from feeler.calib.psychometric.cells import make_cells
+from feeler.calib.psychometric.model.cells import make_cells
 from feeler.calib.psychometric.fit import fit_psychometric, threshold_table
-from feeler.calib.psychometric.priors import Priors
-from feeler.calib.psychometric.task import Task
+from feeler.calib.psychometric.model.priors import Priors
+from feeler.calib.psychometric.model.task import Task
 from feeler.psydata import KEY_COLUMNS
 
 pytest.importorskip("psignifit")

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from feeler.calib.psychometric.table import threshold_table
-from feeler.calib.psychometric.task import Task
+from feeler.calib.psychometric.outputs.table import threshold_table
+from feeler.calib.psychometric.model.task import Task
 
 __all__ = ["write_curves", "curve_name", "INDEX_COLUMNS"]
 

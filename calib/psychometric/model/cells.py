@@ -16,8 +16,8 @@ import numpy as np
 import pandas as pd
 from scipy.special import betaln, gammaln
 
-from feeler.calib.psychometric.priors import Priors
-from feeler.calib.psychometric.task import COMPARISON, Task
+from feeler.calib.psychometric.model.priors import Priors
+from feeler.calib.psychometric.model.task import COMPARISON, Task
 from feeler.errors import ArgumentError
 
 __all__ = ["Cells", "Priors", "make_cells", "log_lik_cells", "POOLED", "COUNT_COLUMNS"]

@@ -1,6 +1,6 @@
 """Summaries of one table row from posterior draws (the Laplace and NUTS backends).
 
-The same quantities as :func:`.grid_stats.grid_row_stats` (mean, median, 95 %
+The same quantities as :func:`feeler.calib.psychometric.exact.stats.grid_row_stats` (mean, median, 95 %
 equal-tailed bounds of pse, sigma, dt, threshold and slope at ``pc``, lapse), computed on
 the draws: a draw whose lapse never lets P reach ``pc`` has the threshold +inf (and no
 slope); its share is ``unreached``.
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from feeler.calib.psychometric.task import Task
+from feeler.calib.psychometric.model.task import Task
 
 __all__ = ["draw_row_stats", "inf_quantiles"]
 

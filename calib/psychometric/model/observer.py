@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import betaln, expit, log_expit
 
-from feeler.calib.psychometric.cells import Cells, log_lik_cells
-from feeler.calib.psychometric.priors import Resolved
+from feeler.calib.psychometric.model.cells import Cells, log_lik_cells
+from feeler.calib.psychometric.model.priors import Resolved
 from feeler.models.psychometric import LAPSE_MAX
 
 __all__ = ["Observer", "LAPSE_PER"]

@@ -4,7 +4,7 @@ A marginal or conditional density known at the nodes of a uniform axis is refine
 ``REFINE`` times by a cubic spline through its logarithm (exact for a Gaussian, whose log
 is a parabola) and integrated by the trapezoid rule on the fine grid. A quantity that
 depends on several axes has its distribution function as a weighted sum of such 1-D
-distribution functions evaluated at shifted arguments (see :mod:`.exact`); quantiles come
+distribution functions evaluated at shifted arguments (see :mod:`feeler.calib.psychometric.exact.grid`); quantiles come
 from a vectorised bracketing search on that sum.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Summaries and draws of an exact-grid posterior (:mod:`.exact`), by quadrature.
+"""Summaries and draws of an exact-grid posterior (:mod:`feeler.calib.psychometric.exact.grid`), by quadrature.
 
 For a condition's masses w[l, f, s, m] (φ summed out, as no summary depends on it):
 
@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import expit
 
-from feeler.calib.psychometric.exact import ObserverGrid
-from feeler.calib.psychometric.quadrature import FineCdf, logsumexp, quantiles
+from feeler.calib.psychometric.exact.grid import ObserverGrid
+from feeler.calib.psychometric.exact.quadrature import FineCdf, logsumexp, quantiles
 from feeler.models.psychometric import LAPSE_MAX
 
 __all__ = ["grid_row_stats", "grid_draws", "PROBS", "PRUNE"]

@@ -54,7 +54,7 @@ class Priors:
             raise ArgumentError("lapse_a", self.lapse_a, "must be >= 1 (a Beta density finite at lapse 0)")
 
     def resolve(self, cells) -> "Resolved":
-        """Per-condition numbers for ``cells`` (a :class:`~.cells.Cells`)."""
+        """Per-condition numbers for ``cells`` (a :class:`~feeler.calib.psychometric.model.cells.Cells`)."""
         lo, hi = stimulus_ranges(cells)
         span = np.where(hi > lo, hi - lo, 0.1 * np.maximum(np.abs(hi), 1e-12))
         centre = (lo + hi) / 2 if cells.task.is_nafc else cells.standard_um

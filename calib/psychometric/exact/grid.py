@@ -4,7 +4,7 @@ adaptive grid.
 Given the lapse λ (and φ) the conditions of an observer are independent, so the posterior
 of an observer with C conditions is held as C four-dimensional grids [lapse node, φ node,
 log σ node, location node] on uniform axes in the unconstrained coordinates of
-:mod:`.observer` (l = logit B, f = log φ, s = log σ, m); without overdispersion the φ axis
+:mod:`feeler.calib.psychometric.model.observer` (l = logit B, f = log φ, s = log σ, m); without overdispersion the φ axis
 has one node.
 
 - **Placement**: each axis spans the range where the log posterior along it, through
@@ -17,7 +17,7 @@ has one node.
   weight(l, f) ∝ prior(l, f)·Π_c Z_c(l, f), Z_c the integral of condition c over its
   (s, m) plane.
 
-Summaries are quadratures on the grid (:mod:`.grid_stats`).
+Summaries are quadratures on the grid (:mod:`feeler.calib.psychometric.exact.stats`).
 """
 from __future__ import annotations
 
@@ -26,9 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import betaln, expit, ndtr
 
-from feeler.calib.psychometric.mode import gradient, hessian, maximise
-from feeler.calib.psychometric.observer import Observer, lapse_logit_prior
-from feeler.calib.psychometric.quadrature import logsumexp
+from feeler.calib.psychometric.model.mode import gradient, hessian, maximise
+from feeler.calib.psychometric.model.observer import Observer, lapse_logit_prior
+from feeler.calib.psychometric.exact.quadrature import logsumexp
 from feeler.models.psychometric import LAPSE_MAX
 
 __all__ = ["GridSpec", "ObserverGrid", "observer_grid", "observer_mode"]
