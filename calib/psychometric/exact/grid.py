@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import betaln, expit, ndtr
+from scipy.special import expit, gammaln, ndtr
 
 from feeler.calib.psychometric.model.mode import gradient, hessian, maximise
 from feeler.calib.psychometric.model.observer import Observer, lapse_logit_prior
@@ -42,7 +42,7 @@ class GridSpec:
     n_pse: int = 32
     n_s: int = 32
     n_l: int = 24
-    n_f: int = 12
+    n_f: int = 8
     edge_log: float = -11.5
     max_rounds: int = 8
 
@@ -137,11 +137,14 @@ def _log_joint(obs: Observer, c: int, ax: dict) -> np.ndarray:
     base, scale, rest = cells.task.base_scale_rest(LAPSE_MAX * expit(ax["l"]))
     out = np.empty((ax["l"].size, ax["f"].size, ax["s"].size, ax["m"].size))
     phi = np.exp(ax["f"])[:, None, None, None]
+    phi_part = np.sum(gammaln(n + phi[:, :, :, 0][..., None]) - gammaln(phi[:, :, :, 0][..., None]), axis=-1) \
+        if obs.overdispersion else 0.0
     with np.errstate(divide="ignore"):
         for i in range(ax["l"].size):
             p, q = base[i] + scale[i] * up, rest[i] + scale[i] * down
-            if obs.overdispersion:
-                out[i] = np.sum(betaln(k + phi * p, n - k + phi * q) - betaln(phi * p, phi * q), axis=-1)
+            if obs.overdispersion:     # betaln pair with p + q = 1: the φ-only part apart
+                a, b = phi * p, phi * q
+                out[i] = np.sum(gammaln(k + a) - gammaln(a) + gammaln(n - k + b) - gammaln(b), axis=-1) - phi_part
             else:
                 out[i, 0] = np.log(p) @ k + np.log(q) @ (n - k)
     out += (-0.5 * ((ax["m"] - r.pse_mean[c]) / r.pse_sd[c]) ** 2)[None, None, None, :]
