@@ -40,7 +40,9 @@ def _add_psychophysics(sub) -> None:
                          description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     psy.add_argument("data", metavar="DATA.csv", help="trial table (counts or one row per trial)")
     psy.add_argument("--backend", choices=("exact", "laplace", "nuts"), default="exact",
-                     help="exact grid integration (default), laplace (approximate, fast) or PyMC nuts")
+                     help="exact: the posterior integrated on an adaptive grid (default); laplace: a "
+                          "Gaussian approximation (approximate; warns where its bounds disagree with the "
+                          "exact grid); nuts: PyMC, hierarchical unless --separate")
     psy.add_argument("--separate", action="store_true",
                      help="nuts without pooling: independent priors per subject")
     psy.add_argument("--all", dest="all_estimand", choices=("pooled", "population"), default=None,
