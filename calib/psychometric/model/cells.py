@@ -107,13 +107,6 @@ class Cells:
         order = np.lexsort((out.k, out.n, out.x_um, out.condition, out.subject))
         return out._replace(order, out.subjects, out.subject[order], out.conditions, out.condition[order])
 
-    def levels(self, subject: int | None, condition: int) -> int:
-        """Number of distinct levels with trials of ``subject`` (None: anyone) in ``condition``."""
-        sel = (self.condition == condition) & (self.n > 0)
-        if subject is not None:
-            sel &= self.subject == subject
-        return int(np.unique(self.x_um[sel]).size)
-
 
 def make_cells(trials: pd.DataFrame, task: Task | None = None) -> Cells:
     """Encode a validated trial table (see :func:`feeler.psydata.read_trials`), row for row.
