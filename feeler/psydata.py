@@ -1,14 +1,24 @@
-"""2AFC trial tables: the CSV schema for human (or synthetic) psychophysics data.
+"""Forced-choice trial tables: the CSV schemas for human (or synthetic) psychophysics data.
 
-One row per (subject, standard, comparison) cell::
+Four layouts, told apart by their columns (order free, extra columns ignored, ``#``
+lines are comments: the synthetic datasets say so there). Every layout has
 
-    subject, standard_um, standard_speed_mm_s, comparison_um, comparison_speed_mm_s,
-    n_trials, n_comparison_higher
+    subject, standard_um, standard_speed_mm_s, comparison_um, comparison_speed_mm_s
 
-``n_comparison_higher`` counts the trials in which the comparison was judged higher.
-Lines starting with ``#`` are comments (the synthetic datasets say so there). Extra
-columns are ignored. Rows with ``n_trials = 0`` are allowed (they contribute nothing to a
-likelihood), as are cells where every answer was right or every answer wrong.
+and then either counts, one row per (subject, standard, comparison) cell::
+
+    n_trials, n_comparison_higher     comparison design ("which step is higher")
+    n_trials, n_correct               nAFC proportion correct (fit with --nafc N)
+
+or one row per trial, as experiment software writes it (aggregated on reading)::
+
+    comparison_higher                 1/0 (also true/false, yes/no)
+    correct                           1/0: nAFC
+
+In nAFC the standard is the height the odd stimulus is told apart from (0 = a flat
+plate: detection). Rows with ``n_trials = 0`` are allowed (they contribute nothing), as
+are cells where every answer was right or every answer wrong; a table without a single
+trial is refused.
 """
 from __future__ import annotations
 
@@ -21,24 +31,56 @@ import pandas as pd
 
 from feeler.errors import DataFileError
 
-__all__ = ["TRIAL_COLUMNS", "read_trials", "write_trials", "synthetic_note"]
+__all__ = ["TRIAL_COLUMNS", "NAFC_COLUMNS", "KEY_COLUMNS", "RESPONSES", "read_trials", "write_trials",
+           "synthetic_note", "count_column"]
 
-TRIAL_COLUMNS = ("subject", "standard_um", "standard_speed_mm_s", "comparison_um",
-                 "comparison_speed_mm_s", "n_trials", "n_comparison_higher")
-_POSITIVE = ("standard_um", "standard_speed_mm_s", "comparison_um", "comparison_speed_mm_s")
-_COUNTS = ("n_trials", "n_comparison_higher")
+KEY_COLUMNS = ("subject", "standard_um", "standard_speed_mm_s", "comparison_um", "comparison_speed_mm_s")
+TRIAL_COLUMNS = KEY_COLUMNS + ("n_trials", "n_comparison_higher")
+NAFC_COLUMNS = KEY_COLUMNS + ("n_trials", "n_correct")
+#: response column of a trial-by-trial file → count column of the aggregated table
+RESPONSES = {"comparison_higher": "n_comparison_higher", "correct": "n_correct"}
+_TRUE, _FALSE = {"1", "true", "yes", "y", "1.0"}, {"0", "false", "no", "n", "0.0"}
+
+
+def count_column(trials: pd.DataFrame) -> str:
+    """``n_correct`` for nAFC tables, else ``n_comparison_higher``."""
+    return "n_correct" if "n_correct" in trials.columns else "n_comparison_higher"
+
+
+def _layout(path, header: list[str], lineno: int) -> tuple[str, str]:
+    """(count or response column, "counts" | "trials") from the header."""
+    counts = [c for c in RESPONSES.values() if c in header]
+    responses = [c for c in RESPONSES if c in header]
+    missing = [c for c in KEY_COLUMNS if c not in header]
+    if "n_trials" in header and len(counts) == 1 and not missing:
+        return counts[0], "counts"
+    if "n_trials" not in header and len(responses) == 1 and not counts and not missing:
+        return responses[0], "trials"
+    if len(counts) > 1 or len(responses) > 1:
+        raise DataFileError(path, f"line {lineno}: both {' and '.join(counts or responses)}; "
+                                  f"a table counts one kind of response")
+    if "n_trials" in header and not counts:
+        missing.append("n_comparison_higher or n_correct")
+    elif not counts and not responses:
+        missing.append("n_trials with n_comparison_higher or n_correct (or, one row per trial, "
+                       "comparison_higher or correct)")
+    raise DataFileError(path, f"line {lineno}: missing column(s) {', '.join(missing)}; required: "
+                              f"{', '.join(KEY_COLUMNS)} and counts or responses")
 
 
 def read_trials(path: str | Path) -> pd.DataFrame:
-    """Read and validate a trial table.
+    """Read, validate and (for trial-by-trial files) aggregate a trial table.
 
     Returns:
-        DataFrame with exactly ``TRIAL_COLUMNS``: ``subject`` str, heights and speeds
-        float64 (µm, mm/s), counts int64; ``attrs["comments"]`` holds the ``#`` lines.
+        DataFrame with ``TRIAL_COLUMNS`` (comparison design) or ``NAFC_COLUMNS``:
+        ``subject`` str, heights and speeds float64 (µm, mm/s), counts int64;
+        ``attrs["comments"]`` holds the ``#`` lines, ``attrs["trial_rows"]`` the number
+        of trial rows aggregated (0 for a file of counts).
     Raises:
         DataFileError: missing file or columns, empty table, non-numeric value, negative
-            or non-integer count, n_comparison_higher > n_trials, non-positive height or
-            speed (one line naming the file, the line and the column).
+            or non-integer count, a count above n_trials, a response that is not 1/0, a
+            non-positive height or speed (a standard may be 0 in nAFC), no trial at all
+            (one line naming the file, the line and the column).
     """
     path = Path(path)
     try:
@@ -53,14 +95,12 @@ def read_trials(path: str | Path) -> pd.DataFrame:
         raise DataFileError(path, "no header line; expected columns " + ", ".join(TRIAL_COLUMNS))
     rows = list(csv.reader([line for _, line in lines]))
     header = [h.strip() for h in rows[0]]
-    missing = [c for c in TRIAL_COLUMNS if c not in header]
-    if missing:
-        raise DataFileError(path, f"line {lines[0][0]}: missing column(s) {', '.join(missing)}; "
-                                  f"required: {', '.join(TRIAL_COLUMNS)}")
+    count, layout = _layout(path, header, lines[0][0])
     if len(rows) == 1:
         raise DataFileError(path, "no data rows")
-    index = {c: header.index(c) for c in TRIAL_COLUMNS}
-    data: dict[str, list] = {c: [] for c in TRIAL_COLUMNS}
+    nafc = count in ("n_correct", "correct")
+    index = {c: header.index(c) for c in header}
+    data: dict[str, list] = {c: [] for c in KEY_COLUMNS + ("n_trials", "k")}
     for (lineno, _), row in zip(lines[1:], rows[1:]):
         if len(row) != len(header):
             raise DataFileError(path, f"line {lineno}: {len(row)} fields, header has {len(header)}")
@@ -68,20 +108,42 @@ def read_trials(path: str | Path) -> pd.DataFrame:
         if not subject:
             raise DataFileError(path, f"line {lineno}, column subject: empty")
         data["subject"].append(subject)
-        for col in _POSITIVE:
-            data[col].append(_number(path, lineno, col, row[index[col]], positive=True))
-        n, k = (_count(path, lineno, col, row[index[col]]) for col in _COUNTS)
-        if k > n:
-            raise DataFileError(path, f"line {lineno}, column n_comparison_higher: {k} > "
-                                      f"n_trials {n}")
+        for col in KEY_COLUMNS[1:]:
+            data[col].append(_number(path, lineno, col, row[index[col]],
+                                     allow_zero=nafc and col == "standard_um"))
+        if layout == "counts":
+            n, k = (_count(path, lineno, col, row[index[col]]) for col in ("n_trials", count))
+            if k > n:
+                raise DataFileError(path, f"line {lineno}, column {count}: {k} > n_trials {n}")
+        else:
+            n, k = 1, _response(path, lineno, count, row[index[count]])
         data["n_trials"].append(n)
-        data["n_comparison_higher"].append(k)
-    frame = pd.DataFrame(data, columns=list(TRIAL_COLUMNS))
-    frame = frame.astype({c: "float64" for c in _POSITIVE} | {c: "int64" for c in _COUNTS}
-                         | {"subject": str})
+        data["k"].append(k)
+    frame = _frame(data, RESPONSES.get(count, count))
+    if layout == "trials":
+        frame = _aggregate(frame)
+    if frame["n_trials"].sum() == 0:
+        raise DataFileError(path, "no trials: every row has n_trials = 0")
     frame.attrs["comments"] = [line.lstrip()[1:].strip() for line in text.splitlines()
                                if line.lstrip().startswith("#")]
+    frame.attrs["trial_rows"] = len(rows) - 1 if layout == "trials" else 0
     return frame
+
+
+def _frame(data: dict, count: str) -> pd.DataFrame:
+    data = dict(data)
+    data[count] = data.pop("k")
+    cols = list(KEY_COLUMNS) + ["n_trials", count]
+    frame = pd.DataFrame(data, columns=cols)
+    return frame.astype({c: "float64" for c in KEY_COLUMNS[1:]} | {"n_trials": "int64", count: "int64"}
+                        | {"subject": str})
+
+
+def _aggregate(trials: pd.DataFrame) -> pd.DataFrame:
+    """One row per (subject, standard, comparison, speeds), first-appearance order."""
+    keys = list(KEY_COLUMNS)
+    out = trials.groupby(keys, sort=False, as_index=False)[[c for c in trials.columns if c not in keys]].sum()
+    return out.reset_index(drop=True)
 
 
 def synthetic_note(trials: pd.DataFrame) -> str:
@@ -90,33 +152,48 @@ def synthetic_note(trials: pd.DataFrame) -> str:
     return "\n".join(comments) if any("synthetic" in c.lower() for c in comments) else ""
 
 
-def _number(path, lineno: int, col: str, text: str, *, positive: bool) -> float:
+def _number(path, lineno: int, col: str, text: str, *, allow_zero: bool = False) -> float:
     try:
         value = float(text)
     except ValueError:
         raise DataFileError(path, f"line {lineno}, column {col}: {text.strip()!r} is not a "
                                   f"number") from None
-    if not math.isfinite(value) or (positive and value <= 0):
+    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
         raise DataFileError(path, f"line {lineno}, column {col}: {value!r} must be finite "
-                                  f"and > 0")
+                                  f"and {'>= 0' if allow_zero else '> 0'}")
     return value
 
 
 def _count(path, lineno: int, col: str, text: str) -> int:
-    value = _number(path, lineno, col, text, positive=False)
-    if value < 0 or value != int(value):
+    try:
+        value = float(text)
+    except ValueError:
+        raise DataFileError(path, f"line {lineno}, column {col}: {text.strip()!r} is not a "
+                                  f"number") from None
+    if not math.isfinite(value) or value < 0 or value != int(value):
         raise DataFileError(path, f"line {lineno}, column {col}: {text.strip()!r} must be a "
                                   f"whole number >= 0")
     return int(value)
 
 
+def _response(path, lineno: int, col: str, text: str) -> int:
+    word = text.strip().lower()
+    if word in _TRUE:
+        return 1
+    if word in _FALSE:
+        return 0
+    raise DataFileError(path, f"line {lineno}, column {col}: {text.strip()!r} must be 1 or 0 "
+                              f"(or true/false, yes/no)")
+
+
 def write_trials(path: str | Path, trials: pd.DataFrame, *, comment: str = "") -> None:
-    """Write ``trials`` (the ``TRIAL_COLUMNS``) as CSV, ``comment`` lines first as ``# ...``."""
+    """Write an aggregated table as CSV, ``comment`` lines first as ``# ...``."""
     path = Path(path)
+    count = count_column(trials)
     with path.open("w", encoding="utf-8", newline="") as fh:
         for line in comment.splitlines():
             fh.write(f"# {line}\n")
-        out = trials.loc[:, list(TRIAL_COLUMNS)].copy()
-        for col in _COUNTS:
+        out = trials.loc[:, list(KEY_COLUMNS) + ["n_trials", count]].copy()
+        for col in ("n_trials", count):
             out[col] = np.asarray(out[col], dtype=np.int64)
         out.to_csv(fh, index=False, float_format="%.6g", lineterminator="\n")

@@ -28,7 +28,7 @@ from scipy.special import logsumexp
 from scipy.stats import beta as beta_dist
 
 from feeler.calib.fit import FitResult, make_result, posterior_from_draws
-from feeler.calib.psychometric.cells import make_cells
+from feeler.calib.psychometric.model.cells import make_cells
 from feeler.calib.psychometric.fit import with_problems
 from feeler.errors import ArgumentError
 from feeler.models.neuron import peak_pulse_density, peak_window_sum

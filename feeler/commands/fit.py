@@ -1,15 +1,27 @@
-"""Fit human 2AFC psychophysics data (M4). Sub-commands:
+"""Fit forced-choice psychophysics data (M4). Sub-commands:
 
   psychophysics  psychometric functions (cumulative normal with lapse, optional
-                 beta-binomial overdispersion, subjects pooled hierarchically):
-                 difference thresholds and PSEs with 95 % intervals per speed
+                 beta-binomial overdispersion; subjects alone, or pooled hierarchically
+                 with NUTS): PSE, difference threshold, the threshold and slope at any
+                 proportion (--pc), goodness of fit, per subject and condition
   finger-route   τ and the decision noise σ_d through the finger chain (skin → FA-I
                  neuron → observer), reported beside the paper's "τ ≤ 300 ms"
 
-DATA.csv has the columns subject, standard_um, standard_speed_mm_s, comparison_um,
-comparison_speed_mm_s, n_trials, n_comparison_higher ('#' lines are comments). The
-difference threshold is the distance from the PSE to the 75 % point of
-P(comparison judged higher). Exit status 1 when the posterior fails its diagnostics.
+DATA.csv: subject, standard_um, standard_speed_mm_s, comparison_um, comparison_speed_mm_s
+and either counts (n_trials with n_comparison_higher, or n_correct for nAFC) or one row
+per trial (comparison_higher, or correct for nAFC, as 1/0), aggregated on reading; '#'
+lines are comments. Comparison design: P(comparison judged higher) = λ/2 + (1 −
+λ)·Φ((x − PSE)/σ); the difference threshold DT is the distance from the PSE to the 75 %
+point. nAFC (--nafc N, n_correct data): P(correct) = 1/N + (1 − 1/N)(1 − λ)·Φ((x − m)/σ).
+A lapse is a guess. Priors are scaled to each condition's range of tested levels unless
+set with --prior-*; the output states them in words.
+
+Backends: exact (default; the posterior integrated on an adaptive grid, deterministic),
+laplace (a Gaussian approximation: approximate, warns when its bounds disagree with the
+exact posterior), nuts (PyMC; hierarchical unless --separate). Exit status 1 when the
+verdict fails: sampler diagnostics, a model that does not fit its data (posterior
+predictive p of the deviance), prior–data conflict, heights that look like mm or nm, or
+data that cannot pin the function down.
 """
 from __future__ import annotations
 
@@ -20,27 +32,51 @@ from feeler.commands._fit_output import add_fit_arguments, print_summary
 __all__ = ["NAME", "HELP", "register", "run_psychophysics", "run_finger_route"]
 
 NAME = "fit"
-HELP = "fit 2AFC psychophysics: psychometric functions (M4) or τ through the finger chain"
+HELP = "fit forced-choice psychophysics: psychometric functions (M4) or τ through the finger chain"
+
+
+def _add_psychophysics(sub) -> None:
+    psy = sub.add_parser("psychophysics", help="PSE, thresholds and slopes per subject and condition",
+                         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    psy.add_argument("data", metavar="DATA.csv", help="trial table (counts or one row per trial)")
+    psy.add_argument("--backend", choices=("exact", "laplace", "nuts"), default="exact",
+                     help="exact: the posterior integrated on an adaptive grid (default); laplace: a "
+                          "Gaussian approximation (approximate; warns where its bounds disagree with the "
+                          "exact grid); nuts: PyMC, hierarchical unless --separate")
+    psy.add_argument("--separate", action="store_true",
+                     help="nuts without pooling: independent priors per subject")
+    psy.add_argument("--all", dest="all_estimand", choices=("pooled", "population"), default=None,
+                     help="what the 'all' rows estimate: the pooled trials fitted as one observer, or the "
+                          "population mean of the hierarchical model (default: population for hierarchical "
+                          "nuts, else pooled)")
+    psy.add_argument("--nafc", type=int, default=None, metavar="N",
+                     help="nAFC proportion-correct data (n_correct / correct columns) with N alternatives")
+    psy.add_argument("--pc", type=float, default=None,
+                     help="proportion for the threshold and slope columns (default 0.75; nAFC: (1 + 1/N)/2)")
+    psy.add_argument("--lapse", choices=("subject", "condition"), default="subject",
+                     help="one lapse rate per subject (default) or per subject and condition (as psignifit)")
+    psy.add_argument("--overdispersion", action="store_true", help="beta-binomial counts")
+    psy.add_argument("--prior-pse-sd", type=float, default=None, metavar="UM",
+                     help="sd of the PSE prior in µm (default: half the range of tested levels)")
+    psy.add_argument("--prior-sigma", type=float, default=None, metavar="UM",
+                     help="median of the σ prior in µm (default: a quarter of the range of tested levels)")
+    psy.add_argument("--prior-sigma-log-sd", type=float, default=1.0, metavar="S",
+                     help="sd of log σ in the σ prior (default 1)")
+    psy.add_argument("--prior-lapse", default="2,18", metavar="A,B",
+                     help="lapse = 0.5·Beta(A, B) (default 2,18: mean 0.05)")
+    psy.add_argument("--target-accept", type=float, default=0.99,
+                     help="NUTS target acceptance rate (default 0.99)")
+    psy.add_argument("--no-plots", action="store_true", help="with --out, skip the curves/*.png")
+    add_fit_arguments(psy)
+    psy.set_defaults(run=run_psychophysics)
 
 
 def register(parser) -> None:
     sub = parser.add_subparsers(title="what to fit", metavar="WHAT")
-    psy = sub.add_parser("psychophysics", help="difference thresholds and PSEs per subject and speed",
-                         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    psy.add_argument("data", metavar="DATA.csv", help="2AFC trial table")
-    psy.add_argument("--backend", choices=("nuts", "laplace"), default="nuts",
-                     help="PyMC NUTS (default) or per-subject MAP + Laplace (fast, deterministic)")
-    psy.add_argument("--separate", action="store_true",
-                     help="NUTS without pooling: independent priors per subject ('all' = every trial as one observer)")
-    psy.add_argument("--overdispersion", action="store_true", help="beta-binomial counts")
-    psy.add_argument("--target-accept", type=float, default=0.99,
-                     help="NUTS target acceptance rate (default 0.99)")
-    add_fit_arguments(psy)
-    psy.set_defaults(run=run_psychophysics)
-
+    _add_psychophysics(sub)
     route = sub.add_parser("finger-route", help="posterior of τ and σ_d through skin → neuron → observer",
                            description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    route.add_argument("data", metavar="DATA.csv", help="2AFC trial table")
+    route.add_argument("data", metavar="DATA.csv", help="2AFC trial table (comparison design)")
     route.add_argument("--level", choices=("l0", "l1", "l2"), default="l0", help="skin fidelity (default l0)")
     route.add_argument("--check-level", choices=("l0", "l1", "l2"), default=None,
                        help="recompute the choice probabilities at the posterior mean with this level")
@@ -59,26 +95,91 @@ def _banner(note: str) -> None:
         print("DATA: " + note.replace("\n", "\nDATA: "))
 
 
+def _priors(args):
+    """The Priors of the --prior-* options (each checked, naming its option)."""
+    import math
+
+    from feeler.calib.psychometric.model.priors import Priors
+    from feeler.errors import ArgumentError
+
+    for flag, value in (("--prior-pse-sd", args.prior_pse_sd), ("--prior-sigma", args.prior_sigma),
+                        ("--prior-sigma-log-sd", args.prior_sigma_log_sd)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ArgumentError(flag, value, "must be a finite number > 0 (µm for heights)")
+    try:
+        a, b = (float(v) for v in args.prior_lapse.split(","))
+    except ValueError:
+        raise ArgumentError("--prior-lapse", args.prior_lapse, "two numbers A,B (lapse = 0.5·Beta(A, B))") from None
+    if not (math.isfinite(a) and math.isfinite(b) and a >= 1 and b > 0):
+        raise ArgumentError("--prior-lapse", args.prior_lapse, "needs A >= 1 and B > 0")
+    return Priors(pse_sd_um=args.prior_pse_sd, sigma_um=args.prior_sigma,
+                  log_sigma_sd=args.prior_sigma_log_sd, lapse_a=a, lapse_b=b)
+
+
+def _report_warnings(caught) -> None:
+    """One formatted line per warning the fit raised (the verdict lists its problems)."""
+    from feeler.calib.fit import DiagnosticWarning
+
+    seen = set()
+    for w in caught:
+        if issubclass(w.category, DiagnosticWarning):
+            continue
+        text = str(w.message).strip().splitlines()[0] if str(w.message).strip() else w.category.__name__
+        if text not in seen:
+            seen.add(text)
+            print(f"warning: {text}")
+
+
+_SHOW = ("subject", "standard_um", "standard_speed_mm_s", "comparison_speed_mm_s", "pse_um", "pse_lb_um",
+         "pse_ub_um", "dt_um", "dt_lb_um", "dt_ub_um", "threshold_um", "threshold_lb_um", "threshold_ub_um",
+         "slope_per_um", "lapse", "deviance", "gof_p")
+
+
 def run_psychophysics(args) -> int:
+    print(f"fit psychophysics: reading {args.data} ...", flush=True)
+    import warnings
+
     import numpy as np
+    import pandas as pd
 
     from feeler.calib.psychometric.fit import fit_psychometric, save_psychometric, threshold_table
     from feeler.psydata import read_trials, synthetic_note
+    from feeler.rundir import prepare_out_dir
 
+    priors = _priors(args)
+    if args.out:
+        prepare_out_dir(args.out, ("thresholds.csv", "posterior.nc", "summary.csv", "verdict.json")
+                        + (() if args.no_plots else ("curves/index.csv",)), force=args.force)
     trials = read_trials(args.data)
     note = synthetic_note(trials)
     _banner(note)
-    result = fit_psychometric(trials, rng=np.random.default_rng(args.seed), backend=args.backend,
-                              hierarchical=not args.separate, overdispersion=args.overdispersion,
-                              chains=args.chains, draws=args.draws, tune=args.tune,
-                              target_accept=args.target_accept, progressbar=bool(args.progress))
+    rows = trials.attrs.get("trial_rows", 0)
+    print(f"fitting {trials['subject'].nunique()} subject(s), {int(trials['n_trials'].sum())} trials"
+          f"{f' (aggregated from {rows} trial rows)' if rows else ''}, backend {args.backend} ...", flush=True)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = fit_psychometric(trials, rng=np.random.default_rng(args.seed), backend=args.backend,
+                                  hierarchical=not args.separate, overdispersion=args.overdispersion,
+                                  priors=priors, lapse_per=args.lapse, all_estimand=args.all_estimand,
+                                  nafc=args.nafc, pc=args.pc, chains=args.chains, draws=args.draws,
+                                  tune=args.tune, target_accept=args.target_accept, progressbar=args.progress)
     print_summary(result)
-    table = threshold_table(result, observed=trials)
-    print("thresholds (µm; posterior mean and 95 % interval; DT = PSE → 75 % point):")
-    print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    table = threshold_table(result)
+    pc = float(table["pc"].iloc[0])
+    print(f"thresholds (µm; posterior mean and 95 % interval; DT = PSE → 75 % point; threshold and slope "
+          f"at P = {pc:g}; 'all' = {table['estimand'].iloc[-1]}):")
+    with pd.option_context("display.width", 200, "display.max_columns", 30):
+        print(table[list(_SHOW)].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    for r in table.itertuples(index=False):
+        if r.threshold_unreached > 0:
+            print(f"note: {r.subject} at {r.standard_speed_mm_s:g}/{r.comparison_speed_mm_s:g} mm/s: "
+                  f"{100 * r.threshold_unreached:.1f} % of the posterior never reaches P = {pc:g} (lapse); "
+                  f"bounds past it are inf")
+    _report_warnings(caught)
     if args.out:
-        out = save_psychometric(result, trials, args.out, force=args.force, note=note)
-        print(f"wrote {out / 'thresholds.csv'}, posterior.nc, summary.csv, verdict.json")
+        out = save_psychometric(result, trials, args.out, force=True, note=note, plots=not args.no_plots)
+        print(f"wrote {out / 'thresholds.csv'}, posterior.nc, summary.csv, verdict.json"
+              f"{'' if args.no_plots else ', curves/*.png and curves/index.csv'}")
     return 0 if result.verdict.ok else 1
 
 
@@ -93,6 +194,9 @@ def run_finger_route(args) -> int:
     if args.n_tau < 2:
         raise ArgumentError("--n-tau", args.n_tau, "needs at least 2 grid nodes")
     trials = read_trials(args.data)
+    if "n_correct" in trials.columns:
+        raise ArgumentError("DATA.csv", args.data, "the finger route needs comparison data "
+                                                   "(n_comparison_higher), not nAFC (n_correct)")
     note = synthetic_note(trials)
     _banner(note)
     if args.out:

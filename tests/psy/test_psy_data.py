@@ -1,4 +1,4 @@
-"""The 2AFC CSV reader (every validation branch), the scene and the simulator."""
+"""The trial-table reader (every layout and validation branch), the scene and the simulator."""
 import json
 from pathlib import Path
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from feeler.errors import DataFileError, OverwriteError, SceneError
-from feeler.psydata import TRIAL_COLUMNS, read_trials, write_trials
+from feeler.psydata import KEY_COLUMNS, NAFC_COLUMNS, TRIAL_COLUMNS, read_trials, write_trials
 from feeler.scene import load_scene
 from feeler.simulate.psychophysics import simulate_psychophysics
 
@@ -39,6 +39,16 @@ def test_extra_columns_are_ignored_and_order_is_free(tmp_path):
 @pytest.mark.parametrize("rows, header, match", [
     (("A,10,20,7.6,20,10,3",), "subject,standard_um,comparison_um,n_trials,n_comparison_higher",
      "missing column.*standard_speed_mm_s"),
+    (("A,10,20,7.6,20,10",), ",".join(KEY_COLUMNS) + ",n_trials", "missing column.*n_comparison_higher or n_correct"),
+    (("A,10,20,7.6,20",), ",".join(KEY_COLUMNS), "missing column.*one row per trial"),
+    (("A,10,20,7.6,20,10,3,3",), HEADER + ",n_correct", "both n_comparison_higher and n_correct"),
+    (("A,10,20,7.6,20,1,0",), ",".join(KEY_COLUMNS) + ",correct,comparison_higher", "both comparison_higher and correct"),
+    (("A,10,20,7.6,20,maybe",), ",".join(KEY_COLUMNS) + ",correct", "line 2, column correct: 'maybe' must be 1 or 0"),
+    (("A,10,20,7.6,20,2",), ",".join(KEY_COLUMNS) + ",comparison_higher", "column comparison_higher: '2' must be 1 or 0"),
+    (("A,0,20,7.6,20,10,3",), HEADER, "column standard_um: 0.0 must be finite and > 0"),
+    (("A,-1,20,7.6,20,10,3",), ",".join(NAFC_COLUMNS), "column standard_um: -1.0 must be finite and >= 0"),
+    (("A,10,20,7.6,20,0,0", "B,10,20,8.4,20,0,0"), HEADER, "no trials: every row has n_trials = 0"),
+    (("A,10,20,7.6,20,ten,3",), HEADER, "column n_trials: 'ten' is not a number"),
     (("A,10,20,7.6,20,-1,0",), HEADER, "line 2, column n_trials.*whole number"),
     (("A,10,20,7.6,20,10,-2",), HEADER, "line 2, column n_comparison_higher.*whole number"),
     (("A,10,20,7.6,20,10,11",), HEADER, "line 2, column n_comparison_higher: 11 > n_trials 10"),
@@ -55,6 +65,28 @@ def test_each_validation_branch_is_one_line_error(tmp_path, rows, header, match)
     with pytest.raises(DataFileError, match=match) as info:
         read_trials(path)
     assert "\n" not in str(info.value) and str(path) in str(info.value)
+
+
+def test_trial_by_trial_file_is_aggregated_like_its_counts(tmp_path):
+    trials = ["A,10,20,7.6,20,1", "A,10,20,7.6,20,no", "B,10,40,8.4,20,TRUE", "A,10,20,7.6,20,0",
+              "A,10,20,12.4,20,yes", "B,10,40,8.4,20,false"]
+    path = _csv(tmp_path, *trials, header=",".join(KEY_COLUMNS) + ",comparison_higher")
+    df = read_trials(path)
+    assert list(df.columns) == list(TRIAL_COLUMNS) and df.attrs["trial_rows"] == 6
+    assert df[["subject", "comparison_um", "n_trials", "n_comparison_higher"]].values.tolist() == [
+        ["A", 7.6, 3, 1], ["B", 8.4, 2, 1], ["A", 12.4, 1, 1]]
+    counts = _csv(tmp_path, "A,10,20,7.6,20,3,1", "B,10,40,8.4,20,2,1", "A,10,20,12.4,20,1,1")
+    assert read_trials(counts).equals(df) and read_trials(counts).attrs["trial_rows"] == 0
+
+
+def test_nafc_tables_allow_a_flat_standard(tmp_path):
+    path = _csv(tmp_path, "A,0,20,1.5,20,40,30", header=",".join(NAFC_COLUMNS))
+    df = read_trials(path)
+    assert list(df.columns) == list(NAFC_COLUMNS) and df.loc[0, "standard_um"] == 0.0
+    write_trials(tmp_path / "o.csv", df)
+    assert read_trials(tmp_path / "o.csv").equals(df)
+    trial = _csv(tmp_path, "A,0,20,1.5,20,1", "A,0,20,1.5,20,0", header=",".join(KEY_COLUMNS) + ",correct")
+    assert read_trials(trial)[["n_trials", "n_correct"]].values.tolist() == [[2, 1]]
 
 
 def test_missing_empty_and_undecodable_files(tmp_path):

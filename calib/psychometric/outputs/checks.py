@@ -1,0 +1,149 @@
+"""What a verdict checks beyond the sampler: does the model fit, do prior and data agree,
+are the heights in µm, can the data pin the function down.
+
+- **Goodness of fit** per table row: the deviance (binomial, against the saturated model)
+  at the point estimate, and the posterior predictive p-value of the deviance,
+  p = P(D(y_rep, θ) ≥ D(y, θ)) over posterior draws θ with y_rep simulated from θ
+  (beta-binomial when φ is fitted). The verdict fails when some p < α/m (Bonferroni over
+  the m rows, α = :data:`GOF_ALPHA`).
+- **Prior–data conflict**: a posterior mean of the location or log σ more than
+  :data:`CONFLICT_Z` prior sds from the prior's centre, or a lapse beyond its prior's
+  1 − :data:`CONFLICT_TAIL` quantile; a factor of ~10³ between posterior and prior
+  names the likely unit mistake.
+- **Units**: heights whose median is below 0.05 µm or above 1000 µm are ~10³ off the
+  range of fingertip step heights: likely mm or nm.
+- **Identifiability**: fewer than two tested levels, or a 95 % interval of the location
+  reaching more than the tested range beyond the tested levels.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.stats import beta as beta_dist
+
+from feeler.models.psychometric import LAPSE_MAX
+
+__all__ = ["deviance", "gof", "unit_problems", "conflict_problems", "level_problems",
+           "bracket_problems", "gof_problems", "GOF_ALPHA", "CONFLICT_Z", "CONFLICT_TAIL",
+           "PLAUSIBLE_UM"]
+
+GOF_ALPHA = 0.05
+CONFLICT_Z = 4.0
+CONFLICT_TAIL = 1e-4
+PLAUSIBLE_UM = (0.05, 1000.0)   # fingertip step heights: far below the edge threshold .. 1 mm
+
+
+def deviance(n: np.ndarray, k: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """2 Σ [k log(k/(n p)) + (n − k) log((n − k)/(n (1 − p)))] over the last axis."""
+    n, k = np.asarray(n, float), np.asarray(k, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = np.where(k > 0, k * np.log(k / (n * p)), 0.0)
+        b = np.where(n - k > 0, (n - k) * np.log((n - k) / (n * (1.0 - p))), 0.0)
+    return 2.0 * np.sum(a + b, axis=-1)
+
+
+def gof(task, x, n, k, draws: dict, point: dict, rng: np.random.Generator, max_draws: int = 4000):
+    """(deviance at ``point``, posterior predictive p-value) of one row's cells.
+
+    Args:
+        x, n, k (ndarray[m]): levels (µm), trials, counts of the row.
+        draws (dict): ``pse``, ``sigma``, ``lapse`` (N,) and optional ``phi`` (N,).
+        point (dict): ``pse``, ``sigma``, ``lapse`` of the point estimate.
+    """
+    d_point = float(deviance(n, k, task.p(x, point["pse"], point["sigma"], point["lapse"])))
+    take = slice(None, max_draws)
+    pse, sig, lam = (np.asarray(draws[v]).ravel()[take][:, None] for v in ("pse", "sigma", "lapse"))
+    p = np.clip(task.p(x[None, :], pse, sig, lam), 1e-300, 1 - 1e-16)
+    p_rep = p
+    if draws.get("phi") is not None:
+        phi = np.asarray(draws["phi"]).ravel()[take][:, None]
+        p_rep = rng.beta(np.maximum(phi * p, 1e-12), np.maximum(phi * (1 - p), 1e-12))
+    y_rep = rng.binomial(n.astype(np.int64)[None, :], p_rep)
+    ppp = float(np.mean(deviance(n, y_rep, p) >= deviance(n, k, p) - 1e-9))
+    return d_point, ppp
+
+
+def gof_problems(rows: list[dict]) -> list[str]:
+    """Rows whose posterior predictive p is below GOF_ALPHA / (number of rows tested)."""
+    tested = [r for r in rows if np.isfinite(r["gof_p"])]
+    if not tested:
+        return []
+    cut = GOF_ALPHA / len(tested)
+    return [f"{r['label']}: the model does not fit its data (deviance {r['deviance']:.1f} on "
+            f"{r['n_cells']} cells, posterior predictive p = {r['gof_p']:.4f} < {cut:.2g} = "
+            f"{GOF_ALPHA}/{len(tested)}); check the design (--nafc?), or try --overdispersion"
+            for r in tested if r["gof_p"] < cut]
+
+
+def unit_problems(levels_um: np.ndarray) -> list[str]:
+    """One problem when the tested heights look like mm or nm rather than µm."""
+    levels = np.asarray(levels_um, float)
+    levels = levels[levels > 0]
+    if not levels.size:
+        return []
+    med, (lo, hi) = float(np.median(levels)), PLAUSIBLE_UM
+    span = f"{levels.min():.4g}–{levels.max():.4g}"
+    if med < lo:
+        return [f"heights: the tested levels {span} 'µm' (median {med:.3g}) are below fingertip step "
+                f"heights ({lo:g}–{hi:g} µm): were they given in mm? "
+                f"(× 1000 → {1000 * levels.min():.4g}–{1000 * levels.max():.4g} µm)"]
+    if med > hi:
+        return [f"heights: the tested levels {span} 'µm' (median {med:.3g}) are above fingertip step "
+                f"heights ({lo:g}–{hi:g} µm): were they given in nm? "
+                f"(÷ 1000 → {levels.min() / 1000:.4g}–{levels.max() / 1000:.4g} µm)"]
+    return []
+
+
+def _unit_hint(ratio: float) -> str:
+    if not (np.isfinite(ratio) and ratio > 0):
+        return ""
+    dec = math.log10(ratio)
+    if -4.0 <= dec <= -2.0:
+        return f" — the data are ~10^{dec:.1f} × the prior: heights in mm instead of µm?"
+    if 2.0 <= dec <= 4.0:
+        return f" — the data are ~10^{dec:.1f} × the prior: heights in nm instead of µm?"
+    return ""
+
+
+def conflict_problems(label: str, c: int, r, draws: dict) -> list[str]:
+    """Prior–data conflict of one row (``r``: the resolved priors; ``draws`` of the row)."""
+    out = []
+    pse = float(np.mean(draws["pse"]))
+    z = (pse - r.pse_mean[c]) / r.pse_sd[c]
+    if abs(z) > CONFLICT_Z:
+        ratio = pse / r.pse_mean[c] if r.pse_mean[c] > 0 else np.nan
+        out.append(f"{label}: prior–data conflict: location {pse:.4g} µm lies {abs(z):.1f} prior sds from "
+                   f"the prior's {r.pse_mean[c]:.4g} µm (sd {r.pse_sd[c]:.3g}){_unit_hint(ratio)}")
+    log_s = float(np.mean(np.log(draws["sigma"])))
+    z = (log_s - r.log_sigma_mean[c]) / r.log_sigma_sd
+    if abs(z) > CONFLICT_Z:
+        out.append(f"{label}: prior–data conflict: σ {math.exp(log_s):.3g} µm lies {abs(z):.1f} prior sds "
+                   f"(log scale) from the prior's median {math.exp(r.log_sigma_mean[c]):.3g} µm"
+                   f"{_unit_hint(math.exp(log_s - r.log_sigma_mean[c]))}")
+    lam = float(np.median(draws["lapse"]))
+    tail = float(beta_dist.sf(lam / LAPSE_MAX, r.lapse_a, r.lapse_b))
+    if tail < CONFLICT_TAIL:
+        out.append(f"{label}: prior–data conflict: lapse {lam:.3f} is beyond the prior's "
+                   f"{100 * (1 - CONFLICT_TAIL):.2f} % quantile (P = {tail:.1e}): the responses do not "
+                   f"follow a rising psychometric function")
+    return out
+
+
+def level_problems(label: str, n_levels: int, x_um: np.ndarray) -> list[str]:
+    """Fewer than two tested levels: location and spread come from the prior alone."""
+    if n_levels >= 2:
+        return []
+    return [f"{label}: a single tested level ({float(x_um[0]):.4g} µm): the data cannot pin down "
+            f"the location and the spread (they follow the prior)"]
+
+
+def bracket_problems(label: str, what: str, lb: float, ub: float, lo: float, hi: float) -> list[str]:
+    """A 95 % interval reaching more than the tested range beyond the tested levels."""
+    span = hi - lo
+    if not span > 0 or not (np.isfinite(lb) and np.isfinite(ub)):
+        return []
+    if lo - lb > span or ub - hi > span:
+        return [f"{label}: the 95 % interval of the {what} [{lb:.4g}, {ub:.4g}] µm reaches far beyond "
+                f"the tested levels {lo:.4g}–{hi:.4g} µm: the data do not pin it down"]
+    return []

@@ -1,0 +1,110 @@
+"""What the M4 verdict checks: goodness of fit, prior–data conflict, units, levels."""
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.stats import binom
+
+from feeler.calib.psychometric.outputs import checks
+from feeler.calib.psychometric.model.cells import make_cells
+from feeler.calib.psychometric.fit import fit_psychometric, threshold_table
+from feeler.calib.psychometric.model.priors import Priors
+from feeler.calib.psychometric.model.task import Task
+from feeler.errors import ArgumentError
+from feeler.psydata import TRIAL_COLUMNS
+
+pytestmark = pytest.mark.filterwarnings("ignore::feeler.calib.fit.DiagnosticWarning")
+LEVELS = np.array([7.6, 8.4, 9.2, 10.0, 10.8, 11.6, 12.4])
+
+
+def _fit(trials, **kw):
+    return fit_psychometric(trials, rng=np.random.default_rng(0), draws=300, **kw)
+
+
+def test_deviance_is_twice_the_log_likelihood_ratio_to_the_saturated_model():
+    n, k, p = np.array([10, 20, 5]), np.array([3, 20, 0]), np.array([0.4, 0.9, 0.2])
+    want = 2 * np.sum(binom.logpmf(k, n, k / n) - binom.logpmf(k, n, p))
+    assert checks.deviance(n, k, p) == pytest.approx(want, rel=1e-12)
+    assert checks.deviance(n, k, k / n) == 0.0
+
+
+def test_data_forced_into_the_wrong_design_fail_the_fit_check():
+    """2AFC proportions correct (floor ½) read as 'comparison judged higher' (floor 0):
+    the misfit fails the verdict with its reason; fitted as 2AFC they pass."""
+    rng = np.random.default_rng(12)
+    k = rng.binomial(60, Task(2).p(LEVELS - 10.0 + 2.0, 2.0, 0.8, 0.02))
+    rows = [("A", 2.0, 20.0, x - 8.0, 20.0, 60, int(kk)) for x, kk in zip(LEVELS, k)]
+    wrong = pd.DataFrame(rows, columns=list(TRIAL_COLUMNS))
+    result = _fit(wrong)
+    assert not result.verdict.ok
+    assert any("does not fit its data" in p and "--nafc" in p for p in result.verdict.problems)
+    assert not threshold_table(result).gof_ok.iloc[0]
+    right = _fit(wrong.rename(columns={"n_comparison_higher": "n_correct"}), nafc=2)
+    assert right.verdict.ok and threshold_table(right).gof_ok.all()
+
+
+def test_data_from_the_model_pass_the_fit_check(simulate):
+    passed = 0
+    for seed in range(4):
+        trials, _ = simulate(300 + seed, n_subjects=3)
+        table = threshold_table(_fit(trials))
+        passed += int(table.gof_ok.all())
+        assert table.gof_p.between(0, 1).all()
+    assert passed >= 3
+
+
+@pytest.mark.parametrize("scale, unit", [(1e-3, "mm"), (1e3, "nm")])
+def test_heights_off_by_a_thousand_name_the_unit(simulate, scale, unit):
+    trials, _ = simulate(41, n_subjects=2)
+    scaled = trials.assign(standard_um=trials.standard_um * scale, comparison_um=trials.comparison_um * scale)
+    result = _fit(scaled)
+    assert not result.verdict.ok and f"given in {unit}?" in result.verdict.problems[0]
+    assert "7.6–12.4 µm" in result.verdict.problems[0]
+    assert not checks.unit_problems(trials.comparison_um.to_numpy())
+
+
+def test_priors_in_um_on_heights_in_mm_are_a_conflict_naming_the_unit(simulate):
+    """Enough trials that the data outweigh the prior: σ sits ~10³ below the prior's."""
+    trials, _ = simulate(41, n_subjects=1, n_trials=80)
+    mm = trials.assign(standard_um=trials.standard_um / 1000, comparison_um=trials.comparison_um / 1000)
+    result = _fit(mm, priors=Priors(pse_sd_um=3.0, sigma_um=1.5))
+    conflicts = [p for p in result.verdict.problems if "prior–data conflict" in p]
+    assert conflicts and "mm instead of µm" in conflicts[0]
+    clean = _fit(trials, priors=Priors(pse_sd_um=3.0, sigma_um=1.5))
+    assert not [p for p in clean.verdict.problems if "conflict" in p]
+
+
+def test_a_pse_far_from_its_prior_is_a_conflict():
+    r = Priors().resolve(make_cells(pd.DataFrame([("A", 10.0, 20.0, x, 20.0, 10, 5) for x in LEVELS],
+                                                 columns=list(TRIAL_COLUMNS))))
+    draws = {"pse": np.full(10, 30.0), "sigma": np.full(10, 1.2), "lapse": np.full(10, 0.02)}
+    assert "location 30 µm lies 8.3 prior sds" in checks.conflict_problems("A", 0, r, draws)[0]
+    draws["lapse"] = np.full(10, 0.45)
+    assert any("lapse 0.450" in p for p in checks.conflict_problems("A", 0, r, draws))
+
+
+def test_a_single_level_fails_with_its_reason(simulate):
+    trials, _ = simulate(6, n_subjects=2)
+    result = _fit(trials[trials.comparison_um == 10.8])
+    assert not result.verdict.ok
+    assert sum("a single tested level (10.8 µm)" in p for p in result.verdict.problems) == 6
+
+
+def test_levels_that_do_not_bracket_the_pse_fail(simulate):
+    trials, _ = simulate(7, n_subjects=1, n_trials=40)
+    low = trials[trials.comparison_um <= 8.4]              # every level far below the PSE
+    result = _fit(low)
+    assert any("do not pin it down" in p for p in result.verdict.problems)
+
+
+def test_refusals_at_the_api(simulate):
+    trials, _ = simulate(8, n_subjects=1)
+    with pytest.raises(ArgumentError, match="every row has n_trials = 0"):
+        _fit(trials.assign(n_trials=0, n_comparison_higher=0))
+    with pytest.raises(ArgumentError, match="at least 2 subjects"):
+        _fit(trials, backend="nuts")
+    with pytest.raises(ArgumentError, match="population"):
+        _fit(trials, all_estimand="population")
+    with pytest.raises(ArgumentError, match="lapse"):
+        _fit(trials, lapse_per="trial")
+    with pytest.raises(ArgumentError, match="number of alternatives"):
+        _fit(trials.rename(columns={"n_comparison_higher": "n_correct"}))
