@@ -30,7 +30,7 @@ EXACT = ["scan_id", "plate", "step_mm", "speed_mm_s", "t_sched_s", "repeat"]
 def one_scan_plan(tmp_path: Path) -> Path:
     path = tmp_path / "one.toml"
     path.write_text(TINY.read_text().replace("heights_mm = [0.0, 0.2]", "heights_mm = [0.0]")
-                    .replace("origin_x_mm = [10.0, 14.0]", "origin_x_mm = [10.0]")
+                    .replace("origin_x_mm = [-20.0, -16.0]", "origin_x_mm = [-20.0]")
                     .replace("scans_per_plate = 2", "scans_per_plate = 1"))
     return path
 
@@ -210,11 +210,11 @@ def test_corrupt_video_mid_run_is_one_line_and_keeps_what_was_written(reference,
 
 def test_plan_beyond_the_soft_limits_is_refused_before_writing(tmp_path, capsys):
     plan = tmp_path / "far.toml"
-    plan.write_text(TINY.read_text().replace("origin_x_mm = [10.0, 14.0]", "origin_x_mm = [10.0, 198.0]"))
+    plan.write_text(TINY.read_text().replace("origin_x_mm = [-20.0, -16.0]", "origin_x_mm = [-20.0, -2.0]"))
     code = main(["acquire", "--emulate", "--plan", str(plan), "--out", str(tmp_path / "run")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
-    assert "scan.traverse_mm: scan 2 moves x to 201 mm, beyond the soft limits [0, 200] mm" in err[0]
+    assert "scan.traverse_mm: scan 2 moves x to 1 mm, beyond the soft limits [-200, 0] mm" in err[0]
     assert not (tmp_path / "run").exists()
 
 
