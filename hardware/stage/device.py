@@ -62,6 +62,7 @@ class Stage(StageTracking):
         status = self.status()
         self.target_mm: Vec = status.mpos_mm
         self.locked = status.state == "Alarm"
+        self._held = False
 
     @classmethod
     def open(cls, port: str, *, limits: StageLimits | None = None, geometry: StageGeometry = StageGeometry(),
@@ -237,15 +238,24 @@ class Stage(StageTracking):
     def hold(self) -> None:
         """Feed hold: decelerate to a stop (``Hold:1``, then ``Hold:0``); :meth:`resume`."""
         self.protocol.feed_hold()
+        self._held = True
 
     def resume(self) -> Status:
-        """Cycle start once the hold is complete (Grbl ignores ``~`` during ``Hold:1``)."""
-        status = self.status()
-        deadline = time.monotonic() + self.stall_s
-        while status.state == "Hold" and status.substate == 1 and time.monotonic() < deadline:
-            time.sleep(self.poll_s)
+        """Cycle start once the hold is complete: Grbl ignores ``~`` until then (``Hold:1``,
+        or a ``!`` it has not yet acted on). Returns the first status after the hold."""
+        last = None
+        stalled_at = time.monotonic() + self.stall_s
+        while True:                                       # wait for Hold:0, while the stage slows
             status = self.status()
-        for _ in range(3):
+            if status.state == "Hold" and status.substate == 0 or not self._held and status.state != "Hold":
+                break
+            if status.mpos_mm != last:
+                last, stalled_at = status.mpos_mm, time.monotonic() + self.stall_s
+            elif time.monotonic() > stalled_at:
+                raise StageTimeout(f"hold of {self.port} to complete (still {status.state})", self.stall_s)
+            time.sleep(self.poll_s)
+        self._held = False
+        for _ in range(5):
             if status.state != "Hold":
                 return status
             self.protocol.cycle_start()

@@ -31,11 +31,13 @@ from pathlib import Path
 
 import pytest
 
-__all__ = ["ROOT", "SOURCES", "firmware_exe", "Firmware", "read_until"]
+__all__ = ["ROOT", "SOURCES", "firmware_exe", "Firmware", "read_until", "BANNER_END", "UNLOCK"]
 
 ROOT = Path(__file__).resolve().parents[2]
 SOURCES = Path(os.environ.get("FEELER_GRBL_SIM", ROOT.parent / "shared" / "grbl-sim"))
 _BUILT: dict[Path, Path] = {}
+BANNER_END = b"['$' for help]\r\n"
+UNLOCK = b"[MSG:'$H'|'$X' to unlock]\r\n"
 
 
 def _sources_hash(src: Path) -> str:
@@ -94,8 +96,12 @@ class Firmware:
     """
 
     def __init__(self, workdir: Path, exe: Path | None = None, ready_timeout_s: float = 60.0):
-        self.workdir = Path(workdir)
+        self.workdir, self.exe, self.ready_timeout_s = Path(workdir), exe, ready_timeout_s
         self.workdir.mkdir(parents=True, exist_ok=True)
+        self._start()
+
+    def _start(self) -> None:
+        exe, ready_timeout_s = self.exe, self.ready_timeout_s
         master, self._slave = os.openpty()
         tty.setraw(self._slave)
         self.path = os.ttyname(self._slave)
@@ -122,6 +128,31 @@ class Firmware:
             raise RuntimeError(f"grbl-sim {self.pid} did not answer '?' within {timeout_s} s: {boot!r}")
         self.boot = boot[: boot.rindex(b"<")]          # everything it sent before the report
         read_until(fd, lambda d: False, 0.05)
+
+    @property
+    def fd(self) -> int:
+        """This process's own descriptor of the device (not to be used while a driver is)."""
+        return self._slave
+
+    def prepare(self, timeout_s: float = 60.0) -> None:
+        """Back at machine zero, Grbl's defaults, idle, report counters at zero (replies dropped)."""
+        fd = self._slave
+        home = [(b"$%d=%d\n" % (n, v), b"ok\r\n") for n, v in ((110, 3000), (111, 3000), (112, 3000),
+                                                              (120, 1000), (121, 1000), (122, 1000))]
+        home += [(b"G53 G0 X0 Y0 Z0\n", b"ok\r\n"), (b"G4 P0\n", b"ok\r\n")]
+        wipe = [(b"$RST=*\n", BANNER_END), (b"$X\n", b"ok\r\n")]
+        read_until(fd, lambda d: False, 0.05)
+        for send, end in [(b"\x18", BANNER_END), *wipe, *home, *wipe, (b"\x18", BANNER_END)]:
+            os.write(fd, send)
+            got = read_until(fd, lambda d: d.endswith(end) or d.endswith(end + UNLOCK), timeout_s)
+            if end not in got:
+                raise RuntimeError(f"grbl-sim {self.pid}: no {end!r} after {send!r}: {got!r}")
+        read_until(fd, lambda d: False, 0.3)
+
+    def power_cycle(self) -> None:
+        """Stop the program and start it again in the same directory (its EEPROM kept)."""
+        self.stop()
+        self._start()
 
     def stop(self) -> None:
         """Stop the program (by its PID) and release the pty."""

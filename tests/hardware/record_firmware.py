@@ -2,8 +2,8 @@
 
     .venv/bin/python tests/hardware/record_firmware.py      # rewrites data/grbl-1.1h-exchanges.json
 
-Each exchange runs on the firmware after :func:`prepare` (back at machine zero, then
-``$RST=*``, ``$X``, Ctrl-X: Grbl's default settings, idle, report counters at zero). The file keeps, per
+Each exchange runs on the firmware after :meth:`Firmware.prepare` (back at machine zero,
+then ``$RST=*``, ``$X``, Ctrl-X: Grbl's default settings, idle, report counters at zero). The file keeps, per
 step, the bytes sent and the bytes received, exactly (latin-1 text in JSON), and the
 seconds the reply took; ``power_up_locked`` is what the firmware sends at power-up with
 ``$22=1`` (homing enabled: it boots locked in Alarm). ``test_firmware_live.py`` checks that
@@ -21,38 +21,20 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from firmware_exchanges import EXCHANGES, RESET, record  # noqa: E402
+from firmware_exchanges import EXCHANGES, record  # noqa: E402
 from grbl_firmware import Firmware, read_until  # noqa: E402
 
-__all__ = ["FIXTURE", "prepare", "power_up_locked", "load_fixture"]
+__all__ = ["FIXTURE", "power_up_locked", "load_fixture"]
 
 FIXTURE = Path(__file__).parent / "data" / "grbl-1.1h-exchanges.json"
-BANNER_END = b"['$' for help]\r\n"
-
-
-def prepare(fd: int, timeout_s: float = 60.0) -> None:
-    """Back at machine zero, Grbl's defaults, idle, report counters at zero; replies dropped."""
-    home = [(b"$%d=%d\n" % (n, v), b"ok\r\n") for n, v in ((110, 3000), (111, 3000), (112, 3000),
-                                                          (120, 1000), (121, 1000), (122, 1000))]
-    home += [(b"G53 G0 X0 Y0 Z0\n", b"ok\r\n"), (b"G4 P0\n", b"ok\r\n")]
-    wipe = [(b"$RST=*\n", BANNER_END), (b"$X\n", b"ok\r\n")]
-    for send, end in [(RESET, BANNER_END), *wipe, *home, *wipe, (RESET, BANNER_END)]:
-        os.write(fd, send)
-        got = read_until(fd, lambda d: d.endswith(end) or d.endswith(end + b"[MSG:'$H'|'$X' to unlock]\r\n"),
-                         timeout_s)
-        if end not in got:
-            raise RuntimeError(f"no {end!r} after {send!r}: {got!r}")
-    read_until(fd, lambda d: False, 0.3)
 
 
 def power_up_locked(workdir: Path) -> bytes:
     """Boot output of a firmware whose EEPROM has ``$22=1`` (set, then power-cycled)."""
     with Firmware(workdir) as fw:
-        fd = os.open(fw.path, os.O_RDWR | os.O_NOCTTY)
-        os.write(fd, b"$22=1\n")
-        read_until(fd, lambda d: d.endswith(b"ok\r\n"), 30)
-        os.close(fd)
-    with Firmware(workdir) as fw:
+        os.write(fw.fd, b"$22=1\n")
+        read_until(fw.fd, lambda d: d.endswith(b"ok\r\n"), 30)
+        fw.power_cycle()
         return fw.boot
 
 
@@ -70,9 +52,9 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         out["power_up_locked"] = power_up_locked(Path(tmp) / "locked").decode("latin-1")
         with Firmware(Path(tmp) / "fw") as fw:
-            fd = os.open(fw.path, os.O_RDWR | os.O_NOCTTY)
+            fd = fw.fd
             for name, steps in EXCHANGES.items():
-                prepare(fd)
+                fw.prepare()
                 start = time.monotonic()
                 replies, seconds = [], []
                 for step in steps:
@@ -82,7 +64,6 @@ def main() -> int:
                 print(f"{name}: {len(steps)} steps in {time.monotonic() - start:.1f} s", file=sys.stderr)
                 out["exchanges"][name] = [{"send": s["send"].decode("latin-1"), "reply": r.decode("latin-1"),
                                            "seconds": t} for s, r, t in zip(steps, replies, seconds)]
-            os.close(fd)
     FIXTURE.write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
     print(f"wrote {FIXTURE}", file=sys.stderr)
     return 0
