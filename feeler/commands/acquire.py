@@ -69,6 +69,7 @@ def _interrupt(signum, frame):
 
 
 def run(args) -> int:
+    import logging
     import signal
 
     from feeler.errors import ArgumentError
@@ -80,12 +81,21 @@ def run(args) -> int:
     if args.emulate and args.stage is not None:
         raise ArgumentError("--stage", args.stage, "no port with --emulate (the emulator provides one)")
     observers = () if args.progress is False else (Progress(live=None if args.progress is None else True),)
-    summary = acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,
-                      emulate=args.emulate, resume=args.resume, force=args.force,
-                      calibration=args.calibration,
-                      emulator_faults=tuple(parse_fault(spec) for spec in args.fault),
-                      unlock=args.unlock, home=args.home, late_fraction=args.late_fraction,
-                      observers=observers)
+    handlers = logging.getLogger().handlers
+    for progress in observers:
+        for handler in handlers:
+            handler.addFilter(progress.clear)
+    try:
+        summary = acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,
+                          emulate=args.emulate, resume=args.resume, force=args.force,
+                          calibration=args.calibration,
+                          emulator_faults=tuple(parse_fault(spec) for spec in args.fault),
+                          unlock=args.unlock, home=args.home, late_fraction=args.late_fraction,
+                          observers=observers)
+    finally:
+        for progress in observers:
+            for handler in handlers:
+                handler.removeFilter(progress.clear)
     state = "complete" if summary["complete"] else "incomplete"
     print(f"{args.out}: {summary['scans_done']} of {summary['scans_planned']} scans ({state}), "
           f"{summary['samples_written']} samples, {summary['bad_frames']} bad frames, "

@@ -154,7 +154,7 @@ def _sample(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpe
         before = time.monotonic()
         pos = _status(stage, store, scan.scan_id, k, seen).mpos_mm
         after = time.monotonic()
-        grab = camera.grab(pos)
+        grab = camera.grab(pos, k)
         problem = grab.problem
         if problem is None:
             areas, problem = extract(grab.frame)

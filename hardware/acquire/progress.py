@@ -7,8 +7,9 @@ calls the observers it holds, so anything that watches a run — :class:`Progres
 live decoder of the samples — attaches without changing the campaign loop.
 
 :class:`Progress` writes to a terminal one live line (scan i of n, samples, bad and late
-samples, ETA), redrawn at most every ``interval_s``; to anything else, one line per
-finished scan.
+samples, ETA), redrawn at most every ``interval_s`` (log warnings, e.g. of a late sample,
+print on lines of their own: :meth:`Progress.clear` is a logging filter); to anything
+else, one line per finished scan.
 """
 from __future__ import annotations
 
@@ -107,6 +108,14 @@ class Progress(CampaignObserver):
         return (f"scan {min(self.done + 1, self.planned)} of {self.planned} (id {scan}), sample "
                 f"{self.in_scan} of {self.per_scan}; {self.samples} samples, {self.bad} bad, {self.late} late; "
                 f"{self._eta()}")
+
+    def clear(self, record=None) -> bool:
+        """Wipe the live line (a ``logging`` filter: a warning then prints on a line of its
+        own, and the next sample redraws the progress below it). Always True."""
+        if self.live and self._drawn:
+            self._write("\r" + " " * self._drawn + "\r")
+            self._drawn, self._last_draw = 0, -1e9
+        return True
 
     def _draw(self, force: bool = False) -> None:
         now = self.clock()
