@@ -3,8 +3,9 @@
 :class:`GrblProtocol` sends G-code lines with character-counting flow control (the sum of
 the lengths of unacknowledged lines, ``\\n`` included, stays within the controller's
 receive buffer, 127 of its 128 bytes), matches every ``ok``/``error:N`` to the oldest line
-in flight, sends the real-time ``?``, ``!``, ``~``, 0x85 and Ctrl-X bytes, and turns
-controller status into exceptions in exactly one place, :meth:`GrblProtocol._check`.
+in flight, queries the status with ``?``, and turns controller status into exceptions in
+exactly one place, :meth:`GrblProtocol._check`; the other real-time bytes, the reset and
+the ``$`` queries are in :mod:`.commands`.
 
 Waiting for an acknowledgement follows the planner (:mod:`.planner`): Grbl answers a move
 once it is planned, so with the planner full an ``ok`` waits for the moves ahead of it; a
@@ -26,20 +27,19 @@ from collections import Counter, deque
 from dataclasses import dataclass
 
 from feeler.errors import ArgumentError
+from feeler.hardware.stage.commands import GrblCommands
 from feeler.hardware.stage.errors import ProtocolError, StageAlarm, StageTimeout
 from feeler.hardware.stage.planner import dwell_s
-from feeler.hardware.stage.replies import (Alarm, Banner, Error, Message, Ok, Reply, Setting, Status,
-                                           parse_reply)
+from feeler.hardware.stage.replies import Alarm, Banner, Error, Message, Ok, Reply, Status, parse_reply
 from feeler.hardware.stage.transport import Transport
 
 __all__ = ["GrblProtocol", "Sent", "RX_BUFFER_BYTES", "MAX_LINE_CHARS", "DAMAGES", "damage_of",
-           "parse_reply", "moving", "MOVING", "JOG_CANCEL"]
+           "parse_reply", "moving", "MOVING"]
 
 log = logging.getLogger("feeler.hardware.stage")
 
 RX_BUFFER_BYTES = 128
 MAX_LINE_CHARS = 78
-JOG_CANCEL = b"\x85"
 _REALTIME = set("?!~\x18")
 #: states in which the controller is working through its planner
 MOVING = ("Run", "Jog", "Home")
@@ -69,7 +69,7 @@ class Sent:
     pollable: bool = True
 
 
-class GrblProtocol:
+class GrblProtocol(GrblCommands):
     """Grbl conversation over a :class:`Transport`.
 
     Args:
@@ -244,82 +244,6 @@ class GrblProtocol:
                 self.transport.discard_input(0.05)  # a late report of an earlier query
             return reply
         raise AssertionError("unreachable")
-
-    def feed_hold(self) -> None:
-        """``!``: decelerate to a stop (state ``Hold:1``, then ``Hold:0``)."""
-        self.transport.write(b"!")
-
-    def cycle_start(self) -> None:
-        """``~``: resume after a completed feed hold (ignored while ``Hold:1``)."""
-        self.transport.write(b"~")
-
-    def jog_cancel(self) -> None:
-        """0x85: stop a jog (decelerate, drop the jog moves queued)."""
-        self.transport.write(JOG_CANCEL)
-
-    def soft_reset(self, timeout_s: float | None = None) -> Banner:
-        """Ctrl-X: stop, clear buffers, wait for the banner (pushed alarms are recorded).
-
-        After a hard or soft limit Grbl discards a Ctrl-X that arrives before it prints
-        ``[MSG:Reset to continue]`` (0.5 s after the alarm); the reset is sent again then.
-        """
-        timeout_s = timeout_s or self.reply_timeout_s + self.slack * 0.5
-        self.transport.discard_input(0.0)
-        self.transport.write(b"\x18")
-        self.in_flight.clear()
-        deadline = time.monotonic() + timeout_s
-        while True:
-            line = self.transport.read_line(max(deadline - time.monotonic(), 0.001), "banner after reset")
-            try:
-                reply = parse_reply(line) if line else None
-            except ProtocolError as exc:
-                log.debug("%s: ignoring %s while resetting", self.transport.name, exc)
-                continue
-            if isinstance(reply, Alarm):
-                self.last_alarm = reply.code
-            elif isinstance(reply, Message) and reply.text == "Reset to continue":
-                self.transport.write(b"\x18")
-                deadline = time.monotonic() + timeout_s
-            elif isinstance(reply, Banner):
-                self._check(reply)
-                return self._settle(reply)
-
-    def _settle(self, banner: Banner) -> Banner:
-        """Read on for a quiet spell after a banner: one from power-up (a board that resets
-        when its port opens) may be followed by the one of our own reset."""
-        while True:
-            try:
-                line = self.transport.read_line(self.reply_timeout_s / 4, "quiet after the banner")
-            except StageTimeout:
-                return banner
-            try:
-                reply = parse_reply(line) if line else None
-            except ProtocolError:
-                continue
-            if isinstance(reply, Banner):
-                banner = reply
-            elif isinstance(reply, Message):
-                self.messages.append(reply)
-
-    def unlock(self) -> list[Reply]:
-        """``$X``: leave the alarm state."""
-        return self.send("$X")
-
-    def settings(self) -> dict[int, float]:
-        """``$$``: the controller's settings, number → value."""
-        return {r.number: r.value for r in self.send("$$") if isinstance(r, Setting)}
-
-    def build_info(self) -> dict[str, str]:
-        """``$I``: ``{"VER": "1.1h.20190830:", "OPT": "V,15,128"}``."""
-        return {r.kind: r.text for r in self.send("$I") if isinstance(r, Message)}
-
-    def resync(self, quiet_s: float = 0.05) -> Status:
-        """After a lost or damaged acknowledgement: forget lines in flight, drop stale
-        input and confirm the controller answers (returns its status)."""
-        self.in_flight.clear()
-        self._stray.clear()
-        self.transport.discard_input(quiet_s)
-        return self.status()
 
 
 def moving(status: Status) -> bool:

@@ -78,6 +78,8 @@ EXCHANGES: dict[str, list[dict]] = {
         S(b"G4 P0\n"), Q(), S(b"G90 G20 G0 X-0.1\n"), S(b"G4 P0\n"), Q(), S(b"G21 G53 G0 X0 Y0 Z0\n"),
         S(b"G4 P0\n"), S(b"G4 P0.3\n"), S(b"G1 X0 F100\n"), S(b"G0 X0\n"), S(b"G1 F100\n"), S(b"G91\n"),
         S(b"G1 X-0.02\n" * 10, b"ok\r\n" * 10), S(b"G1 X-0.02\n" * 8, b"ok\r\n" * 8), S(b"G4 P0\n"), Q(),
+        S(b"G1 X-1 F60\n"), S(b"$I\n"), S(b"$X\n"), S(b"$$\n"), S(b"$G\n"), S(b"$#\n"), S(b"$C\n"), S(b"$H\n"),
+        S(b"$22=1\n"), S(b"G4 P0\n"), Q(), S(b"G90 G0 X0\n"), S(b"G4 P0\n"),
         S(b"G4 P2\n", b"", quiet_s=0.2), S(b"\x18", b"help]\r\n", quiet_s=0.3), Q(), S(b"M0\n", b"", quiet_s=0.3),
         Q(), S(b"~", quiet_s=0.1), Q(), S(b"G4 P0.2\n$G\n", b"ok\r\n", quiet_s=0.0),
     ],
