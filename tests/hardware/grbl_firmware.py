@@ -150,7 +150,15 @@ class Firmware:
         read_until(fd, lambda d: False, 0.3)
 
     def power_cycle(self) -> None:
-        """Stop the program and start it again in the same directory (its EEPROM kept)."""
+        """Stop the program and start it again in the same directory (its EEPROM kept).
+
+        The simulator writes EEPROM.DAT through a buffered stream: it is stopped with
+        Ctrl-F (0x06), on which it exits and flushes, so the last setting written survives.
+        """
+        with contextlib.suppress(OSError):
+            os.write(self._slave, b"\x06")
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self.process.wait(30)
         self.stop()
         self._start()
 

@@ -121,7 +121,7 @@ def test_work_positions_in_inches_are_machine_millimetres(firmware):
 def test_a_board_that_boots_locked(firmware, tmp_path, capsys):
     """Homing enabled at power-up: refused unless homed or unlocked (the simulator's homing
     ends in ALARM:8: it reads every limit switch pressed), also by ``feeler acquire``."""
-    settings(firmware, _22=1)
+    settings(firmware, _22=1, _24=600, _25=3000, _26=10, _27=0.2)          # a quick homing cycle
     firmware.power_cycle()
     with pytest.raises(StageLocked, match="homing is enabled"):
         open_stage(firmware)
