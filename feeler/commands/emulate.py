@@ -9,7 +9,8 @@ as a real /dev/ttyUSB0. It starts with Grbl 1.1h's default settings (500 mm/min,
 200 mm of travel per axis), changed by the options below; machine positions follow Grbl's
 convention (soft limits, when enabled, on [-travel, 0]). Serves until Ctrl-C or SIGTERM.
 Fault specs are
-KIND[:key=value,...] with KIND one of delay, drop, garble, truncate, alarm, vanish and keys
+KIND[:key=value,...] with KIND one of delay, drop, garble, truncate, alarm, vanish, lose (a line
+from the host lost on the way) and keys
 reply (any, ok, error, status, alarm, banner, msg, setting), nth (1-based or none),
 p (probability when nth=none), delay_s, code, x_mm, y_mm, z_mm, after_s.
 """

@@ -80,7 +80,7 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
     ``summary.json`` says why it stopped): DataFileError (a video that ends early, too many
     bad frames in a row), StageError (alarm, timeout, repeated bad lines).
     """
-    from feeler.hardware.stage import Stage, StageLocked
+    from feeler.hardware.stage import ProtocolError, Stage, StageLocked
 
     from .cameras import CaptureCamera, VirtualCamera
 
@@ -110,6 +110,11 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
         except StageLocked as exc:
             raise StageLocked(exc.port, exc.alarm, "pass --home to home it ($H), or --unlock to clear the "
                               "lock without homing ($X)") from None
+        except ProtocolError as exc:
+            if home and exc.code == 5:
+                raise ArgumentError("--home", True, f"a board with homing enabled ($22=1); {stage_port} "
+                                    "has it disabled (pass --unlock, or nothing, instead)") from None
+            raise
         check_moves(plan, plan_path, stage.limits, stage.port, stage.target_mm)
         store = RunStore.resume(out, plan_path) if resume else RunStore.create(out, plan_path, force=force)
         stack.callback(store.close)

@@ -110,4 +110,10 @@ def test_cli_progress_forced_or_off_and_every_sample_reaches_an_observer(tmp_pat
     assert main(["acquire", "--emulate", "--plan", str(plan), "--out", str(tmp_path / "d"),
                  "--late-fraction", "0"]) == 2
     assert "argument --late-fraction=0.0: a fraction of the sample period > 0" in capsys.readouterr().err
+    assert main(["acquire", "--emulate", "--plan", str(plan), "--out", str(tmp_path / "d"), "--home"]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
+    assert len(err) == 1 and "argument --home=True: a board with homing enabled ($22=1)" in err[0]
+    assert main(["acquire", "--emulate", "--plan", str(plan), "--out", str(tmp_path / "d"), "--home",
+                 "--unlock"]) == 2
+    assert "argument --unlock=True: not together with --home" in capsys.readouterr().err
     assert not (tmp_path / "d").exists()
