@@ -25,7 +25,7 @@ import math
 import time
 
 from feeler.errors import ArgumentError
-from feeler.hardware.stage.errors import StageError, StageLocked, StageTimeout
+from feeler.hardware.stage.errors import ProtocolError, StageError, StageLocked, StageTimeout
 from feeler.hardware.stage.limits import AXES, StageGeometry, StageLimits
 from feeler.hardware.stage.planner import homing_s, move_duration_s
 from feeler.hardware.stage.protocol import GrblProtocol, damage_of
@@ -85,7 +85,11 @@ class Stage(StageTracking):
             protocol = GrblProtocol(transport, reply_timeout_s=reply_timeout_s, slack=slack)
             protocol.soft_reset()
             settings = protocol.settings()
-            options = protocol.build_info().get("OPT", "").split(",")
+            try:
+                options = protocol.build_info().get("OPT", "").split(",")
+            except ProtocolError as exc:          # a firmware without $I: Grbl's defaults then
+                log.info("%s: no build options (%s)", port, exc)
+                options = [""]
             if len(options) >= 3 and options[2].isdigit():
                 protocol.rx_buffer_bytes = int(options[2])
             if limits is None:
