@@ -45,11 +45,14 @@ def test_sample_pieces(benchmark, world):
 
     extract = AreaExtractor(world.layout)
     rng = np.random.default_rng(0)
-    pos = (12.0, 10.0, 19.95)
+    pos = (-18.0, -10.0, -20.05)                          # mid-stroke over plate 0, pressed
     render = best_seconds(lambda: world.render(0, pos, rng), repeat=20)
     frame = world.render(0, pos, rng)
     extract_s = best_seconds(lambda: extract(frame), repeat=20)
-    with campaign_emulator() as port, Stage.open(port) as stage:
+    from feeler.hardware.acquire import load_plan as plan_of
+    from feeler.hardware.acquire.emulated import emulated_stage
+
+    with campaign_emulator(emulated_stage(plan_of(PLAN))) as port, Stage.open(port) as stage:
         status_s = best_seconds(stage.status, repeat=20)
 
         def sample():

@@ -1,8 +1,15 @@
 """Run an acquisition campaign (a scan plan) on the stage and the tactile camera.
 
   feeler acquire --stage /dev/ttyUSB0 --camera 0 --plan PLAN.toml --out RUN
+  feeler acquire --stage /dev/ttyUSB0 --camera 0 --plan PLAN.toml --out RUN --home   # $22=1 boards
   feeler acquire --emulate --plan PLAN.toml --out RUN       # emulated stage + virtual camera
   feeler acquire --emulate --plan PLAN.toml --out RUN --resume   # continue an interrupted run
+
+The stage is a Grbl 1.1 board; the plan's positions are its machine coordinates (Grbl's
+convention: [-travel, 0] per axis). A board with homing enabled ($22=1) powers up locked:
+--home runs its homing cycle ($H), --unlock clears the lock without homing ($X); without
+either, acquire stops with a one-line error before anything moves. Every move of the plan is
+checked against the board's soft limits and the axes' maximum rates ($110-$112) first.
 
 --camera is a device index, a video file or an image sequence (frames/%05d.png). With
 --emulate a Grbl emulator runs on a pty in a child process and, without --camera, a virtual
@@ -11,14 +18,21 @@ camera renders the optical sensor for the stage's position over the plan's plate
 
 RUN/samples.csv receives every sample as it arrives (flushed and fsync-ed), RUN/scans.csv
 every complete scan in the format of `feeler simulate` (scan_id, plate, step_mm, speed_mm_s,
-t_s, x_mm, ux_mm, uy_mm, uz_mm, then stage position, frame time, areas and forces), and
-RUN/scene.toml is the plan: `feeler calibrate neuron RUN` reads the run directly. After a
-crash, --resume continues with the scans not yet done; Ctrl-C or SIGTERM stop a run
-cleanly (exit 130, RUN/summary.json says where). Bad frames and bad status lines are
-logged, counted and never used; RUN/summary.json reports the counts. Displacement is read
-as U = C F with C the posterior mean of an M1 fit (--calibration DIR) or the nominal optics.
+t_s, x_mm, ux_mm, uy_mm, uz_mm, then the schedule, the status query's round trip, the late
+flag, stage position, frame time, areas and forces), and RUN/scene.toml is the plan:
+`feeler calibrate neuron RUN` reads the run directly. t_s is when the position was read,
+from the start of the traverse; a sample read more than --late-fraction of a period after its
+schedule is counted late (never relabelled). One process writes RUN at a time (a second one
+is refused, naming the first one's PID). After a crash, --resume continues with the scans not
+yet done; Ctrl-C or SIGTERM stop a run cleanly (exit 130, RUN/summary.json says where). Bad
+frames and bad status lines are logged, counted and never used; RUN/summary.json reports the
+counts. Displacement is read as U = C F with C the posterior mean of an M1 fit
+(--calibration DIR) or the nominal optics. Progress goes to stderr: a live line on a
+terminal, a line per finished scan otherwise (--no-progress: none).
 """
 from __future__ import annotations
+
+import argparse
 
 NAME = "acquire"
 HELP = "run a scan plan on the stage and camera (or --emulate) into a run directory"
@@ -40,6 +54,13 @@ def register(parser) -> None:
     parser.add_argument("--calibration", metavar="DIR", default=None,
                         help="M1 fit directory (feeler calibrate sensor --out DIR): read U with its C")
     parser.add_argument("--force", action="store_true", help="overwrite an earlier run in RUN")
+    parser.add_argument("--home", action="store_true", help="home the stage first ($H; unlocks a $22=1 board)")
+    parser.add_argument("--unlock", action="store_true",
+                      help="clear the stage's alarm lock without homing ($X; positions not re-referenced)")
+    parser.add_argument("--late-fraction", type=float, default=0.25, metavar="F",
+                        help="a sample read more than F sample periods after its schedule is late (default 0.25)")
+    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                        help="progress on stderr (default: live on a terminal, a line per scan otherwise)")
     parser.set_defaults(run=run)
 
 
@@ -48,21 +69,36 @@ def _interrupt(signum, frame):
 
 
 def run(args) -> int:
+    import logging
     import signal
 
     from feeler.errors import ArgumentError
     from feeler.hardware.acquire import acquire
+    from feeler.hardware.acquire.progress import Progress
     from feeler.hardware.emulators import parse_fault
 
     signal.signal(signal.SIGTERM, _interrupt)      # stop like Ctrl-C: the summary says why
     if args.emulate and args.stage is not None:
         raise ArgumentError("--stage", args.stage, "no port with --emulate (the emulator provides one)")
-    summary = acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,
-                      emulate=args.emulate, resume=args.resume, force=args.force,
-                      calibration=args.calibration,
-                      emulator_faults=tuple(parse_fault(spec) for spec in args.fault))
+    observers = () if args.progress is False else (Progress(live=None if args.progress is None else True),)
+    handlers = logging.getLogger().handlers
+    for progress in observers:
+        for handler in handlers:
+            handler.addFilter(progress.clear)
+    try:
+        summary = acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,
+                          emulate=args.emulate, resume=args.resume, force=args.force,
+                          calibration=args.calibration,
+                          emulator_faults=tuple(parse_fault(spec) for spec in args.fault),
+                          unlock=args.unlock, home=args.home, late_fraction=args.late_fraction,
+                          observers=observers)
+    finally:
+        for progress in observers:
+            for handler in handlers:
+                handler.removeFilter(progress.clear)
     state = "complete" if summary["complete"] else "incomplete"
     print(f"{args.out}: {summary['scans_done']} of {summary['scans_planned']} scans ({state}), "
           f"{summary['samples_written']} samples, {summary['bad_frames']} bad frames, "
-          f"{summary['bad_lines']} bad lines, {summary['partial_lines_dropped']} partial lines dropped")
+          f"{summary['bad_lines']} bad lines, {summary['late_samples']} late samples, "
+          f"{summary['partial_lines_dropped']} partial lines dropped")
     return 0 if summary["complete"] else 1

@@ -1,11 +1,16 @@
 """Run a device emulator on a pseudo-terminal and print its device path.
 
-  feeler emulate stage                       # a Grbl 1.1 stage; prints e.g. /dev/pts/7
-  feeler emulate stage --fault drop:reply=ok,nth=3 --fault alarm:code=1,x_mm=50
+  feeler emulate stage                       # a Grbl 1.1h stage; prints e.g. /dev/pts/7
+  feeler emulate stage --fault drop:reply=ok,nth=3 --fault alarm:code=1,x_mm=-50
+  feeler emulate stage --setting 22=1 --setting 20=1   # homing and soft limits: boots locked
 
 Open the printed path with any serial program (or `feeler acquire --stage PATH`) exactly
-as a real /dev/ttyUSB0. Serves until Ctrl-C or SIGTERM. Fault specs are
-KIND[:key=value,...] with KIND one of delay, drop, garble, truncate, alarm, vanish and keys
+as a real /dev/ttyUSB0. It starts with Grbl 1.1h's default settings (500 mm/min, 10 mm/s²,
+200 mm of travel per axis), changed by the options below; machine positions follow Grbl's
+convention (soft limits, when enabled, on [-travel, 0]). Serves until Ctrl-C or SIGTERM.
+Fault specs are
+KIND[:key=value,...] with KIND one of delay, drop, garble, truncate, alarm, vanish, lose (a line
+from the host lost on the way) and keys
 reply (any, ok, error, status, alarm, banner, msg, setting), nth (1-based or none),
 p (probability when nth=none), delay_s, code, x_mm, y_mm, z_mm, after_s.
 """
@@ -27,15 +32,32 @@ def register(parser) -> None:
                        help="inject a fault, KIND[:key=value,...] (repeatable)")
     stage.add_argument("--seed", type=int, default=0, help="seed of random faults (default 0)")
     stage.add_argument("--travel-mm", type=float, nargs=3, metavar=("X", "Y", "Z"),
-                       default=(200.0, 200.0, 50.0), help="soft limits [0, travel] per axis")
+                       default=(200.0, 200.0, 200.0), help="$130-$132: travel per axis (default 200)")
     stage.add_argument("--max-rate-mm-min", type=float, nargs=3, metavar=("X", "Y", "Z"),
-                       default=(3000.0, 3000.0, 1000.0), help="per-axis maximum rate")
+                       default=(500.0, 500.0, 500.0), help="$110-$112: per-axis maximum rate (default 500)")
     stage.add_argument("--accel-mm-s2", type=float, nargs=3, metavar=("X", "Y", "Z"),
-                       default=(500.0, 500.0, 200.0), help="per-axis acceleration")
+                       default=(10.0, 10.0, 10.0), help="$120-$122: per-axis acceleration (default 10)")
     stage.add_argument("--start-mm", type=float, nargs=3, metavar=("X", "Y", "Z"),
-                       default=(0.0, 0.0, 0.0), help="position at power-up")
+                       default=(0.0, 0.0, 0.0), help="machine position at power-up (default 0 0 0)")
+    stage.add_argument("--setting", action="append", default=[], metavar="N=VALUE",
+                       help="any other Grbl setting at power-up, e.g. 22=1 (repeatable)")
     stage.set_defaults(run=run_stage)
     parser.set_defaults(run=lambda args: parser.print_help() or 2)
+
+
+def _setting(spec: str) -> tuple[int, float]:
+    from feeler.errors import ArgumentError
+    from feeler.hardware.emulators.config import GRBL_DEFAULTS
+
+    number, _, value = spec.partition("=")
+    try:
+        pair = int(number.lstrip("$")), float(value)
+    except ValueError:
+        raise ArgumentError("--setting", spec, "N=VALUE, e.g. 22=1") from None
+    if pair[0] not in GRBL_DEFAULTS or pair[1] < 0:
+        raise ArgumentError("--setting", spec, f"a Grbl 1.1h setting ({', '.join(map(str, GRBL_DEFAULTS))}) "
+                            "with a value >= 0")
+    return pair
 
 
 def run_stage(args) -> int:
@@ -47,11 +69,10 @@ def run_stage(args) -> int:
         if not all(v > 0 for v in values):
             raise ArgumentError(f"--{name.replace('_', '-')}", values, "three numbers > 0")
     config = GrblConfig(travel_mm=tuple(args.travel_mm), max_rate_mm_min=tuple(args.max_rate_mm_min),
-                        accel_mm_s2=tuple(args.accel_mm_s2), start_mm=tuple(args.start_mm))
+                        accel_mm_s2=tuple(args.accel_mm_s2), start_mm=tuple(args.start_mm),
+                        settings=tuple(_setting(spec) for spec in args.setting))
     faults = tuple(parse_fault(spec) for spec in args.fault)
     emulator = GrblEmulator(config, faults, args.seed)
-    if not emulator.within_travel(config.start_mm):
-        raise ArgumentError("--start-mm", args.start_mm, "inside [0, travel] on every axis")
     stop: list[int] = []
     signal.signal(signal.SIGTERM, lambda signum, _: stop.append(signum))
 

@@ -1,7 +1,7 @@
 """Cameras of a campaign: a real source through ``cv2.VideoCapture``, or the virtual camera.
 
-Both offer ``name``, ``start_scan(scan_id)``, ``grab(stage_mm) -> Grab``, ``end_scan()`` and
-``close()``. A grab
+Both offer ``name``, ``start_scan(scan_id)``, ``grab(stage_mm, sample) -> Grab``, ``end_scan()``
+and ``close()``. A grab
 is a frame (grey uint8, the layout's size) or a reason why there is none; a bad frame is
 returned with its reason (the campaign counts and logs it and grabs again), never used.
 
@@ -9,7 +9,11 @@ returned with its reason (the campaign counts and logs it and grabs again), neve
 per grab); a file that runs out of frames is an error naming it (:class:`DataFileError`).
 :class:`VirtualCamera` renders the optical sensor for the stage's position over the plan's
 plate (:mod:`.world`) and records every frame it delivers into a lossless FFV1 video per
-scan, ``video/scan_NNNN.avi``, which replays through :class:`CaptureCamera`.
+scan, ``video/scan_NNNN.avi``, which replays through :class:`CaptureCamera`. It renders the
+sensor where the stage stood at the sample's recorded time (the position of its status
+query), with shot noise drawn for that sample alone (``SeedSequence([seed, scan, sample,
+try])``): two runs of one plan and seed draw the same noise for every sample, so they
+differ only where the stage was when the sample was read — which the time base records.
 """
 from __future__ import annotations
 
@@ -22,7 +26,7 @@ import numpy as np
 
 from feeler.errors import DataFileError
 
-__all__ = ["Grab", "CaptureCamera", "VirtualCamera", "video_path"]
+__all__ = ["Grab", "CaptureCamera", "VirtualCamera", "video_path", "sample_rng"]
 
 log = logging.getLogger("feeler.acquire")
 
@@ -34,6 +38,11 @@ class Grab:
     t_s: float
     frame: np.ndarray | None
     problem: str | None = None
+
+
+def sample_rng(seed: int, scan_id: int, sample: int, tries: int = 0) -> np.random.Generator:
+    """The virtual camera's noise for one try at one sample of one scan."""
+    return np.random.default_rng(np.random.SeedSequence([seed, scan_id, sample, tries]))
 
 
 def video_path(run_dir: Path, scan_id: int) -> Path:
@@ -62,7 +71,7 @@ class CaptureCamera:
     def end_scan(self) -> None:
         pass
 
-    def grab(self, stage_mm) -> Grab:
+    def grab(self, stage_mm, sample: int | None = None) -> Grab:
         import cv2
 
         from feeler.hardware.camera.source import _frozen_tile
@@ -95,13 +104,14 @@ class VirtualCamera:
     Args:
         world (VirtualWorld): plate, tip and optics of the emulated set-up.
         run_dir (Path): the run directory (videos go to ``video/``).
-        seed (int): root of the shot noise; scan ``i`` draws from ``SeedSequence([seed, i])``.
+        seed (int): root of the shot noise: try ``j`` at sample ``k`` of scan ``i`` draws from
+            ``SeedSequence([seed, i, k, j])`` (:func:`sample_rng`).
     """
 
     def __init__(self, world, run_dir: Path, seed: int):
         self.world, self.run_dir, self.seed = world, Path(run_dir), seed
         self.name = "virtual camera"
-        self._writer, self._rng, self._scan = None, None, None
+        self._writer, self._scan, self._tries = None, None, {}
 
     def start_scan(self, scan_id: int) -> None:
         import cv2
@@ -114,11 +124,11 @@ class VirtualCamera:
                                        (layout.width_px, layout.height_px), isColor=False)
         if not self._writer.isOpened():
             raise DataFileError(path, "cannot open a video writer (FFV1)")
-        self._rng = np.random.default_rng(np.random.SeedSequence([self.seed, scan_id]))
-        self._scan = scan_id
+        self._scan, self._tries = scan_id, {}
 
-    def grab(self, stage_mm) -> Grab:
-        frame = self.world.render(self._scan, stage_mm, self._rng)
+    def grab(self, stage_mm, sample: int = 0) -> Grab:
+        tries = self._tries[sample] = self._tries.get(sample, -1) + 1
+        frame = self.world.render(self._scan, stage_mm, sample_rng(self.seed, self._scan, sample, tries))
         self._writer.write(frame)
         return Grab(time.monotonic(), frame)
 

@@ -21,8 +21,12 @@ status query, whose round trip is ``status_rtt_s`` — from the moment the trave
 commanded; so (t_s, x_mm) lie on the stage's motion whatever the scheduler did, and the
 neuron core (exact on non-uniform times) uses them. ``t_sched_s`` is when the sample was
 scheduled; a sample taken more than :data:`LATE_FRACTION` of a period after it is flagged
-``late`` = 1, journalled as ``late_sample`` and counted in the summary, never relabelled.
+``late`` = 1, journalled as ``late_sample`` and counted in the summary, never relabelled;
+the tolerance is :attr:`Setup.late_fraction` (``feeler acquire --late-fraction``).
 ``t_frame_s`` is when the frame arrived.
+
+Observers of the store (:mod:`.progress`: the progress display, a live decoder) see the
+campaign start, every sample as it is written, every event and the final summary.
 """
 from __future__ import annotations
 
@@ -33,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feeler.errors import DataFileError
+from feeler.errors import ArgumentError, DataFileError
 from feeler.hardware.stage import ProtocolError, StageTimeout
 from feeler.models.optics import Layout, OpticsParams, displacement_from_force, force_from_areas
 
@@ -57,12 +61,19 @@ class Setup:
         layout (Layout): the camera's view.
         c_mm_per_n (ndarray[3, 3]): C used to read U = C F (mm/N).
         optics (OpticsParams): the area law (rest area, gains).
+        late_fraction (float): a sample read later than this fraction of the sample period
+            after its schedule is late, > 0.
     """
 
     plan: object
     layout: Layout
     c_mm_per_n: np.ndarray
     optics: OpticsParams = OpticsParams()
+    late_fraction: float = LATE_FRACTION
+
+    def __post_init__(self):
+        if not (isinstance(self.late_fraction, (int, float)) and 0 < self.late_fraction < float("inf")):
+            raise ArgumentError("--late-fraction", self.late_fraction, "a fraction of the sample period > 0")
 
 
 def run_campaign(setup: Setup, stage, camera, store: RunStore, extra: dict) -> dict:
@@ -71,8 +82,9 @@ def run_campaign(setup: Setup, stage, camera, store: RunStore, extra: dict) -> d
 
     extract = AreaExtractor(setup.layout, blur_sd_px=setup.plan.optics.blur_sd_px)
     scans = scans_of(setup.plan)
-    extra = {**extra, "scans_planned": len(scans)}
+    extra = {**extra, "scans_planned": len(scans), "late_fraction": setup.late_fraction}
     seen: Counter = Counter()                    # driver recoveries already journalled
+    store.notify("started", len(scans), len(store.done), len(sample_times_s(setup.plan)))
     try:
         for scan in scans:
             if scan.scan_id in store.done:
@@ -82,9 +94,12 @@ def run_campaign(setup: Setup, stage, camera, store: RunStore, extra: dict) -> d
             store.write_summary({**extra, "complete": False})
     except BaseException as exc:                 # the counts so far, and why the run stopped
         _journal_recovered(stage, store, seen, None, None)
-        store.write_summary({**extra, "complete": False, "stopped": f"{type(exc).__name__}: {exc}"})
+        store.notify("finished", store.write_summary({**extra, "complete": False,
+                                                      "stopped": f"{type(exc).__name__}: {exc}"}))
         raise
-    return store.write_summary({**extra, "complete": len(store.done) == len(scans)})
+    summary = store.write_summary({**extra, "complete": len(store.done) == len(scans)})
+    store.notify("finished", summary)
+    return summary
 
 
 def run_scan(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpec, *,
@@ -103,7 +118,7 @@ def run_scan(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSp
     try:
         _move(stage, moves[4], wait=False)
         t0 = time.monotonic()
-        late_s = LATE_FRACTION * float(setup.plan.scan.sample_period_s)
+        late_s = setup.late_fraction * float(setup.plan.scan.sample_period_s)
         for k, t_k in enumerate(sample_times_s(setup.plan)):
             time.sleep(max(0.0, t0 + t_k - time.monotonic()))
             row = _sample(setup, stage, camera, extract, store, scan, k, seen)
@@ -139,7 +154,7 @@ def _sample(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpe
         before = time.monotonic()
         pos = _status(stage, store, scan.scan_id, k, seen).mpos_mm
         after = time.monotonic()
-        grab = camera.grab(pos)
+        grab = camera.grab(pos, k)
         problem = grab.problem
         if problem is None:
             areas, problem = extract(grab.frame)

@@ -11,7 +11,8 @@ simulate``). Each scan's moves, in order (stage coordinates, mm; feeds mm/min)::
     lift      z = surface + clearance                 at move_feed
 
 :func:`check_moves` validates every one of them against the stage's soft limits and feed
-ceiling before anything moves, naming the plan key that put a move out of range.
+ceilings before anything moves, naming the plan key that put a move out of range.
+Coordinates are the stage's machine coordinates: on a Grbl board, ``[-travel, 0]``.
 """
 from __future__ import annotations
 
@@ -67,22 +68,44 @@ def moves_of(plan, scan: ScanSpec) -> list[tuple[str, tuple[float, float, float]
             ("scan.clearance_mm", (x1, p.y_mm, up), s.move_feed_mm_min, "z")]
 
 
-def check_moves(plan, plan_path: str | Path, limits, port: str) -> None:
-    """Raise :class:`SceneError` (naming the plan file, the key, the value and the stage's
-    range) for the first move beyond the soft limits or a feed above the ceiling."""
-    feed_keys = {"scan.traverse_mm": "scan.speed_mm_s", "plates.surface_z_mm": "scan.press_feed_mm_min",
-                 "scan.press_mm": "scan.press_feed_mm_min"}
+_FEED_KEYS = {"scan.traverse_mm": "scan.speed_mm_s", "plates.surface_z_mm": "scan.press_feed_mm_min",
+              "scan.press_mm": "scan.press_feed_mm_min"}
+
+
+def _feed_problem(plan, key: str, feed: float, ceiling: float, start, target, limits, port) -> tuple[str, str]:
+    """The plan key behind a move's feed, and what is wrong with it."""
+    length = math.dist(start, target)
+    axis = min((i for i in range(3) if start[i] != target[i]),
+               key=lambda i: limits.max_rate_mm_min[i] * length / abs(target[i] - start[i]))
+    fkey = _FEED_KEYS.get(key, "scan.move_feed_mm_min")
+    value = f"{plan.scan.speed_mm_s:g} mm/s ({feed:g} mm/min)" if fkey == "scan.speed_mm_s" else f"{feed:g} mm/min"
+    return fkey, (f"{value} is above the ceiling of {ceiling:g} mm/min of {port} for this move "
+                  f"(${110 + axis}, the {'xyz'[axis]} axis' maximum rate, is {limits.max_rate_mm_min[axis]:g} "
+                  f"mm/min): lower {fkey} or raise ${110 + axis}")
+
+
+def check_moves(plan, plan_path: str | Path, limits, port: str, start_mm=None) -> None:
+    """Raise :class:`SceneError` (naming the plan file, the key, the value and the board's
+    limit) for the first move beyond the soft limits (axes that move) or faster than the
+    moving axes' maximum rates ``$110-$112`` (Grbl would silently run it slower).
+
+    Args:
+        limits (StageLimits): the stage's ranges and per-axis rates.
+        start_mm (tuple | None): where the stage stands before the first move (None: not
+            known; the feed of a move from an unknown position is not checked).
+    """
+    start = (math.nan,) * 3 if start_mm is None else tuple(float(v) for v in start_mm)   # nan: not known
     for scan in scans_of(plan):
         for key, target, feed, axes in moves_of(plan, scan):
-            if feed > limits.max_feed_mm_min:
-                fkey = feed_keys.get(key, "scan.move_feed_mm_min")
-                raise SceneError(plan_path, fkey, f"feed {feed:g} mm/min is above the ceiling "
-                                 f"{limits.max_feed_mm_min:g} mm/min of {port}")
-            for axis, value in zip(("x_mm", "y_mm", "z_mm"), target):
-                if axis[0] not in axes:
-                    continue
-                key = "plates.y_mm" if axis == "y_mm" else key
-                lo, hi = getattr(limits, axis)
-                if not lo <= value <= hi:
-                    raise SceneError(plan_path, key, f"scan {scan.scan_id} moves {axis[0]} to {value:g} mm, "
-                                     f"beyond the soft limits [{lo:g}, {hi:g}] mm of {port}")
+            target = tuple(target[i] if "xyz"[i] in axes else start[i] for i in range(3))
+            for i, axis in enumerate(("x_mm", "y_mm", "z_mm")):
+                lo, hi = limits.range_of(axis)
+                if not math.isnan(target[i]) and target[i] != start[i] and not lo <= target[i] <= hi:
+                    where = "plates.y_mm" if axis == "y_mm" else key
+                    raise SceneError(plan_path, where, f"scan {scan.scan_id} moves {axis[0]} to {target[i]:g} mm, "
+                                     f"beyond the soft limits [{lo:g}, {hi:g}] mm of {port} ({limits.source})")
+            known = not any(math.isnan(v) for v in start + target)
+            ceiling = limits.feed_ceiling(start, target) if known else math.inf
+            if feed > ceiling * (1 + 1e-9):
+                raise SceneError(plan_path, *_feed_problem(plan, key, feed, ceiling, start, target, limits, port))
+            start = target

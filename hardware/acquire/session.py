@@ -1,14 +1,14 @@
 """One ``feeler acquire`` session: open everything in a safe order, then run the campaign.
 
-Order: the plan and its layout, the C matrix, the camera, the stage (or the emulator),
-the plan's moves against the stage's soft limits — every one of them can refuse with a
-one-line error before the run directory is touched — then the run directory (new, or
-reopened with ``resume``), and the campaign.
+Order: the plan and its layout, the C matrix, the camera, the stage (or the emulator;
+a board in its alarm lock is homed or unlocked only when asked), the plan's moves against
+the stage's soft limits and feed ceilings — every one of them can refuse with a one-line
+error before the run directory is touched — then the run directory, locked for this
+process (new, or reopened with ``resume``), and the campaign.
 """
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 from dataclasses import asdict
 from pathlib import Path
 
@@ -19,8 +19,8 @@ from feeler.models.optics import OpticsParams
 from feeler.rundir import write_json
 from feeler.scene import load_scene, scene_as_dict
 
-from .campaign import Setup, run_campaign
-from .plan import check_moves, moves_of, scans_of
+from .campaign import LATE_FRACTION, Setup, run_campaign
+from .plan import check_moves
 from .store import RunStore
 from .world import VirtualWorld, optics_of_plan, plan_layout
 
@@ -57,13 +57,16 @@ def c_from_calibration(directory: str | Path | None) -> tuple[np.ndarray, str]:
 def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = None,
             camera_src: str | None = None, emulate: bool = False, resume: bool = False,
             force: bool = False, calibration: str | Path | None = None,
-            emulator_faults: tuple = ()) -> dict:
+            emulator_faults: tuple = (), unlock: bool = False, home: bool = False,
+            late_fraction: float = LATE_FRACTION, observers: tuple = ()) -> dict:
     """Run (or resume) a campaign into ``out``; returns the summary.
 
     With ``emulate`` the stage is a Grbl emulator on a pty in a child process and, unless
     ``camera_src`` is given, the camera is the virtual camera of the plan's ``[virtual]``
     set-up, and ``emulator_faults`` (:class:`~feeler.hardware.emulators.Fault`) are injected
-    into the emulator. Otherwise ``stage_port`` and ``camera_src`` are required.
+    into the emulator. Otherwise ``stage_port`` and ``camera_src`` are required. A board in
+    its alarm lock (homing enabled, ``$22=1``) is homed with ``home`` or unlocked with
+    ``unlock``; ``observers`` (:class:`~.progress.CampaignObserver`) watch the run.
 
     Raises (before the run directory is touched):
         ArgumentError: conflicting or missing arguments, a plan of another kind.
@@ -71,11 +74,13 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
         DataFileError: a camera or video that cannot be opened, an unreadable fit directory.
         CalibrationFailed: ``calibration`` is a fit that failed its diagnostics.
         PortError: a stage port that does not exist, is busy or is not permitted.
+        StageLocked: a locked board and neither ``unlock`` nor ``home``.
+        RunLocked: another process writes ``out``.
     Raises during the run (``samples.csv`` and ``journal.jsonl`` keep every sample so far,
     ``summary.json`` says why it stopped): DataFileError (a video that ends early, too many
     bad frames in a row), StageError (alarm, timeout, repeated bad lines).
     """
-    from feeler.hardware.stage import Stage
+    from feeler.hardware.stage import ProtocolError, Stage, StageLocked
 
     from .cameras import CaptureCamera, VirtualCamera
 
@@ -85,9 +90,11 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
         raise ArgumentError("--fault", len(emulator_faults), "only with --emulate")
     if not emulate and (stage_port is None or camera_src is None):
         raise ArgumentError("--stage/--camera", (stage_port, camera_src), "both, or --emulate")
+    if unlock and home:
+        raise ArgumentError("--unlock", True, "not together with --home (homing unlocks)")
     plan = load_plan(plan_path)
     c_mm_per_n, c_source = c_from_calibration(calibration)
-    setup = Setup(plan, plan_layout(plan, plan_path), c_mm_per_n, optics_of_plan(plan))
+    setup = Setup(plan, plan_layout(plan, plan_path), c_mm_per_n, optics_of_plan(plan), late_fraction)
     world = VirtualWorld.of_plan(plan, plan_path) if emulate and camera_src is None else None
     with contextlib.ExitStack() as stack:
         camera = None
@@ -95,14 +102,23 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
             camera = CaptureCamera(camera_src, (setup.layout.width_px, setup.layout.height_px))
             stack.callback(camera.close)
         if emulate:
-            from .emulated import FAST_STAGE, campaign_emulator
-            start = moves_of(plan, scans_of(plan)[0])[1][1]          # over the first plate
-            config = dataclasses.replace(FAST_STAGE, start_mm=tuple(min(max(v, 0.0), t) for v, t in
-                                                                    zip(start, FAST_STAGE.travel_mm)))
-            stage_port = stack.enter_context(campaign_emulator(config, emulator_faults))
-        stage = stack.enter_context(Stage.open(stage_port))
-        check_moves(plan, plan_path, stage.limits, stage.port)
+            from .emulated import campaign_emulator, emulated_stage
+
+            stage_port = stack.enter_context(campaign_emulator(emulated_stage(plan), emulator_faults))
+        try:
+            stage = stack.enter_context(Stage.open(stage_port, unlock=unlock, home=home))
+        except StageLocked as exc:
+            raise StageLocked(exc.port, exc.alarm, "pass --home to home it ($H), or --unlock to clear the "
+                              "lock without homing ($X)") from None
+        except ProtocolError as exc:
+            if home and exc.code == 5:
+                raise ArgumentError("--home", True, f"a board with homing enabled ($22=1); {stage_port} "
+                                    "has it disabled (pass --unlock, or nothing, instead)") from None
+            raise
+        check_moves(plan, plan_path, stage.limits, stage.port, stage.target_mm)
         store = RunStore.resume(out, plan_path) if resume else RunStore.create(out, plan_path, force=force)
+        stack.callback(store.close)
+        store.observers.extend(observers)
         if world is not None:
             camera = VirtualCamera(world, store.out, plan.scene.seed)
             stack.callback(camera.close)

@@ -14,6 +14,10 @@ sample is taken):
 A scan is complete when its ``scan_done`` event is in the journal. On resume a line cut
 by the crash (the sample in flight) is dropped and counted, and ``scans.csv`` is rebuilt
 from the complete scans, so a scan written but not yet journalled is not doubled.
+
+One process writes a run directory at a time: :meth:`RunStore.create` and
+:meth:`RunStore.resume` take its lock (:mod:`.lock`) before reading or changing anything;
+the store's observers (:class:`~.progress.CampaignObserver`) see every sample and event.
 """
 from __future__ import annotations
 
@@ -26,6 +30,8 @@ from pathlib import Path
 from feeler.errors import ArgumentError, DataFileError
 from feeler.rundir import prepare_out_dir, write_json
 from feeler.simulate import CSV_COLUMNS
+
+from .lock import lock_run_dir, release_run_dir
 
 __all__ = ["SCAN_COLUMNS", "SAMPLE_COLUMNS", "RunStore"]
 
@@ -62,22 +68,36 @@ def _drop_partial_line(path: Path) -> int:
 class RunStore:
     """Append-only writer of one run directory; use :meth:`create` or :meth:`resume`."""
 
-    def __init__(self, out: Path):
+    def __init__(self, out: Path, lock_fd: int | None = None):
         self.out = Path(out)
         self.done: set[int] = set()
         self.counts: Counter = Counter()
         self.attempts: Counter = Counter()
+        self.observers: list = []
+        self._lock_fd = lock_fd
 
     @classmethod
     def create(cls, out, plan_path: str | Path, *, force: bool = False) -> "RunStore":
-        """A new run directory (refuses to overwrite an earlier run without ``force``;
-        with it, the earlier run's files and ``video/`` are removed first)."""
-        out = prepare_out_dir(out, FILES + ("video",), force=force)
+        """A new run directory, locked for this process (refuses to overwrite an earlier
+        run without ``force``; with it, the earlier run's files and ``video/`` are removed).
+
+        Raises:
+            RunLocked: another process writes ``out``. OverwriteError: an earlier run.
+        """
+        fresh = not Path(out).exists()
+        fd = lock_run_dir(out)
+        try:
+            out = prepare_out_dir(out, FILES + ("video",), force=force)
+        except BaseException:
+            release_run_dir(fd)
+            if fresh:
+                shutil.rmtree(out, ignore_errors=True)
+            raise
         for name in FILES[1:]:
             (out / name).unlink(missing_ok=True)
         shutil.rmtree(out / "video", ignore_errors=True)
         shutil.copyfile(plan_path, out / "scene.toml")
-        store = cls(out)
+        store = cls(out, fd)
         for name, cols in (("samples.csv", SAMPLE_COLUMNS), ("scans.csv", SCAN_COLUMNS)):
             _append(out / name, ",".join(cols) + "\n")
         store.event("run", resume=False)
@@ -85,15 +105,25 @@ class RunStore:
 
     @classmethod
     def resume(cls, out, plan_path: str | Path) -> "RunStore":
-        """Reopen ``out`` written by an interrupted run of the same plan."""
+        """Reopen ``out`` written by an interrupted run of the same plan, locked for this
+        process (RunLocked if another process writes it)."""
         out = Path(out)
-        journal = out / "journal.jsonl"
         for name in ("scene.toml", "journal.jsonl", "samples.csv", "scans.csv"):
             if not (out / name).is_file():
                 raise DataFileError(out / name, "missing: not a run directory to --resume")
-        if (out / "scene.toml").read_bytes() != Path(plan_path).read_bytes():
-            raise ArgumentError("--plan", str(plan_path), f"the plan the run was started with ({out / 'scene.toml'})")
-        store = cls(out)
+        fd = lock_run_dir(out)
+        try:
+            if (out / "scene.toml").read_bytes() != Path(plan_path).read_bytes():
+                raise ArgumentError("--plan", str(plan_path), f"the plan the run was started with ({out / 'scene.toml'})")
+            return cls._reopen(out, fd)
+        except BaseException:
+            release_run_dir(fd)
+            raise
+
+    @classmethod
+    def _reopen(cls, out: Path, fd: int) -> "RunStore":
+        journal = out / "journal.jsonl"
+        store = cls(out, fd)
         dropped = _drop_partial_line(out / "samples.csv") + _drop_partial_line(journal)
         for number, line in enumerate(journal.read_text(encoding="utf-8").splitlines(), 1):
             try:
@@ -129,14 +159,32 @@ class RunStore:
             os.fsync(f.fileno())
         os.replace(tmp, path)
 
+    def close(self) -> None:
+        """Release the run directory's lock (the operating system does it at exit anyway)."""
+        if self._lock_fd is not None:
+            release_run_dir(self._lock_fd)
+            self._lock_fd = None
+
+    def __enter__(self) -> "RunStore":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def notify(self, hook: str, *args) -> None:
+        """Call ``hook`` on every observer (:class:`~.progress.CampaignObserver`)."""
+        for observer in self.observers:
+            getattr(observer, hook)(*args)
+
     def event(self, kind: str, **fields) -> None:
-        """Journal one event (durable before returning) and count it."""
+        """Journal one event (durable before returning), count it, tell the observers."""
         ev = {"event": kind, **fields}
         _append(self.out / "journal.jsonl", json.dumps(ev) + "\n")
         if kind != "run":
             self._account(ev)
         else:
             self.counts["runs"] += 1
+        self.notify("event", kind, fields)
 
     def start_scan(self, scan_id: int) -> int:
         """Journal the start of an attempt at ``scan_id``; returns the attempt number (0-based)."""
@@ -147,6 +195,7 @@ class RunStore:
     def append_sample(self, row: dict) -> None:
         """One sample (a dict over :data:`SAMPLE_COLUMNS`) to ``samples.csv``, durably."""
         _append(self.out / "samples.csv", _format(row, SAMPLE_COLUMNS))
+        self.notify("sample", row)
 
     def finish_scan(self, scan_id: int, rows: list[dict]) -> None:
         """A complete scan to ``scans.csv``, then its ``scan_done`` event."""

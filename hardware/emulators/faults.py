@@ -4,7 +4,8 @@ A spec is ``KIND[:key=value,...]``, e.g. ``drop:reply=ok,nth=2`` (drop the secon
 ``delay:reply=status,delay_s=1.5`` (hold the first status report 1.5 s),
 ``garble:reply=any,nth=none,p=0.1`` (corrupt each reply with probability 0.1),
 ``truncate:reply=status``, ``alarm:code=1,x_mm=5`` (a limit switch at x = 5 mm),
-``alarm:code=1,after_s=2``, ``vanish:after_s=1`` or ``vanish:reply=ok,nth=3``.
+``alarm:code=1,after_s=2``, ``vanish:after_s=1``, ``vanish:reply=ok,nth=3``, or
+``lose:nth=4`` (the fourth line the host sends is lost on the way: never received).
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from feeler.errors import ArgumentError
 
 __all__ = ["Fault", "FaultPlan", "parse_fault", "KINDS", "REPLY_KINDS"]
 
-KINDS = ("delay", "drop", "garble", "truncate", "alarm", "vanish")
+KINDS = ("delay", "drop", "garble", "truncate", "alarm", "vanish", "lose")
 REPLY_KINDS = ("any", "ok", "error", "status", "alarm", "banner", "msg", "setting")
 _AXES = ("x_mm", "y_mm", "z_mm")
 
@@ -29,8 +30,8 @@ class Fault:
     Attributes:
         kind (str): one of ``KINDS``.
         reply (str): which replies it hits (``REPLY_KINDS``), for reply faults.
-        nth (int | None): hit the nth matching reply (1-based); ``None``: every match,
-            each with probability ``p``.
+        nth (int | None): hit the nth matching reply (1-based; for ``lose``: the nth line
+            the host sends); ``None``: every match, each with probability ``p``.
         p (float): probability per match when ``nth`` is ``None``, in (0, 1].
         delay_s (float): how long a ``delay`` holds the reply, seconds, > 0.
         code (int): the ``ALARM:code`` an ``alarm`` raises, 1..10.
@@ -115,8 +116,10 @@ class FaultPlan:
     """Decides, reply by reply, which fault (if any) strikes; seeded and deterministic."""
 
     def __init__(self, faults: tuple[Fault, ...], seed: int):
-        self.reply_faults = [f for f in faults if not f.timed]
+        self.reply_faults = [f for f in faults if not f.timed and f.kind != "lose"]
         self.timed_faults = [f for f in faults if f.timed]
+        self.line_faults = [f for f in faults if f.kind == "lose"]
+        self._lines = 0
         self._counts = [0] * len(self.reply_faults)
         self._rng = np.random.default_rng(seed)
 
@@ -133,6 +136,12 @@ class FaultPlan:
                 fires = bool(self._rng.random() < fault.p)
             hit = hit or (fault if fires else None)
         return hit
+
+    def lose_line(self) -> bool:
+        """Whether the next line from the host is lost on the way (counts it)."""
+        self._lines += 1
+        return any(self._lines == f.nth if f.nth is not None else bool(self._rng.random() < f.p)
+                   for f in self.line_faults)
 
     def garble(self, line: bytes) -> bytes:
         """``line`` with one byte replaced by a non-ASCII byte (never a valid reply)."""

@@ -1,21 +1,29 @@
-"""The G-code subset of the emulated Grbl 1.1, with Grbl's own error codes.
+"""G-code of the emulated Grbl 1.1h: a block checked in Grbl's order, with Grbl's error codes.
 
-Supported: G0 G1 (motion), G4 P<s> (dwell), G90 G91 (distance mode), G20 G21 (units),
-G17 G54 G94 (accepted, no effect), M2 M5 M30 M9 (accepted), words N F P X Y Z.
-Anything else is ``error:20``; a failing line raises :class:`GcodeError` with the code
-Grbl would send (see ``feeler.hardware.stage.errors.GRBL_ERRORS``).
+:func:`parse_block` imports a cleaned, upper-cased line's words (Grbl's step 2: letters,
+numbers, modal groups, repeats); :func:`~feeler.hardware.emulators.gcode_exec.interpret`
+checks the block against the parser state and lists what the controller runs (steps 3
+and 4). A failing line raises :class:`GcodeError` with the code Grbl sends. Positions are
+machine coordinates in mm.
+
+Supported as in Grbl: G0 G1 G4 G10 (L2, L20) G17-G19 G20 G21 G28 G30 (and .1) G40 G43.1 G49
+G53 G54-G59 G61 G80 G90 G91 G91.1 G92 G92.1 G94, M0 M1 M2 M3 M4 M5 M8 M9 M30, words F I J K L
+N P R S T X Y Z. Left out, and answered ``error:20`` as Grbl answers a command it cannot do:
+arcs (G2 G3), probing (G38.x) and inverse-time feed (G93).
 """
 from __future__ import annotations
 
-import re
-from dataclasses import dataclass, replace
+import math
+from dataclasses import dataclass, field, replace
 
-__all__ = ["GcodeError", "Modal", "Action", "clean_line", "parse_words", "interpret"]
+from feeler.hardware.emulators.settings import read_float
 
-_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)")
-_MOTION, _DISTANCE, _UNITS = {0, 1}, {90, 91}, {20, 21}
-_NO_EFFECT_G, _NO_EFFECT_M = {17, 54, 94}, {2, 5, 9, 30}
-_AXES = "XYZ"
+__all__ = ["GcodeError", "Modal", "ParserState", "parse_block", "clean_line", "LEFT_OUT", "MM_PER_INCH"]
+
+MM_PER_INCH = 25.4
+N_COORD = 6
+LEFT_OUT = {2: "G2", 3: "G3", 38: "G38.x", 93: "G93"}
+_VALUE_LETTERS = "FIJKLNPRSTXYZ"
 
 
 class GcodeError(Exception):
@@ -28,119 +36,182 @@ class GcodeError(Exception):
 
 @dataclass(frozen=True)
 class Modal:
-    """Modal state after a reset: G0, G90, G21 and an undefined feed rate."""
+    """Modal groups: motion 0/1/80, plane 0-2 (G17-G19), distance 0/1 (G90/G91), inches,
+    coord_select 0-5 (G54-G59), tlo_dynamic (G43.1), program_flow 0/3 (M0)/2/30,
+    spindle 3/4/5, coolant 0/8."""
 
     motion: int = 0
-    absolute: bool = True
+    plane: int = 0
+    distance: int = 0
     inches: bool = False
+    coord_select: int = 0
+    tlo_dynamic: bool = False
+    program_flow: int = 0
+    spindle: int = 5
+    coolant: int = 0
+
+
+@dataclass
+class ParserState:
+    """Grbl's ``gc_state``: modes, feed (mm/min), spindle speed, tool, the parser's position
+    and the work offsets (active system, G92, tool length on Z), machine coordinates, mm."""
+
+    modal: Modal = field(default_factory=Modal)
     feed_mm_min: float = 0.0
+    spindle_rpm: float = 0.0
+    tool: int = 0
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    coord_system: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    g92: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    tlo: float = 0.0
+
+    def wco(self) -> tuple[float, float, float]:
+        """Work coordinate offset: machine − work position."""
+        return tuple(c + o + (self.tlo if i == 2 else 0.0) for i, (c, o) in enumerate(zip(self.coord_system, self.g92)))
 
 
-@dataclass(frozen=True)
-class Action:
-    """What a line asks for: ``kind`` is ``"none"``, ``"move"`` or ``"dwell"``."""
+def clean_line(raw: bytes) -> tuple[str, bool]:
+    """Grbl's serial filter: drop controls, blanks, '/', comments; upper-case. Returns the
+    line and whether it overflowed the 80-byte line buffer."""
+    out, paren, semicolon, overflow = [], False, False, False
+    for c in raw:
+        if paren or semicolon or overflow:
+            paren = paren and c != ord(")")
+            continue
+        if c <= 32 or c == ord("/"):
+            continue
+        if c == ord("("):
+            paren = True
+        elif c == ord(";"):
+            semicolon = True
+        elif len(out) >= 79:
+            overflow = True
+        else:
+            out.append(chr(c).upper() if ord("a") <= c <= ord("z") else chr(c))
+    return "".join(out), overflow
 
-    kind: str
+
+def _round(x: float) -> int:
+    return int(math.floor(abs(x) + 0.5)) * (1 if x >= 0 else -1)
+
+
+@dataclass
+class _Block:
     modal: Modal
-    target_mm: tuple[float, float, float] | None = None
-    rapid: bool = False
-    dwell_s: float = 0.0
+    non_modal: int = 0
+    axis_command: str = ""
+    groups: set = field(default_factory=set)
+    words: dict = field(default_factory=dict)
+    axes: dict = field(default_factory=dict)
 
 
-def clean_line(raw: str) -> str:
-    """Grbl's pre-processing: drop blanks and comments, upper-case the rest."""
-    out, in_paren = [], False
-    for ch in raw:
-        if in_paren:
-            in_paren = ch != ")"
-        elif ch == "(":
-            in_paren = True
-        elif ch == ";":
-            break
-        elif ch not in " \t%":
-            out.append(ch.upper())
-    return "".join(out)
+def _g_word(block: _Block, iv: int, mantissa: int) -> tuple[str, int]:
+    """One G word (Grbl's STEP 2); returns the modal group and the mantissa left unused."""
+    m = block.modal
+    if iv in LEFT_OUT:
+        raise GcodeError(20)
+    if iv in (10, 28, 30, 92) and mantissa == 0:
+        if block.axis_command:
+            raise GcodeError(24)
+        block.axis_command = "non_modal"
+    if iv in (4, 10, 28, 30, 53, 92):
+        block.non_modal = iv
+        if iv in (28, 30, 92):
+            if mantissa not in (0, 10):
+                raise GcodeError(20)
+            block.non_modal, mantissa = iv + mantissa, 0
+        return "G0", mantissa
+    if iv in (0, 1, 80):
+        if iv != 80:
+            if block.axis_command:
+                raise GcodeError(24)
+            block.axis_command = "motion"
+        block.modal = replace(m, motion=iv)
+        return "G1", mantissa
+    if iv in (17, 18, 19):
+        block.modal = replace(m, plane=iv - 17)
+        return "G2", mantissa
+    if iv in (90, 91):
+        if mantissa == 0:
+            block.modal = replace(m, distance=iv - 90)
+            return "G3", 0
+        if mantissa != 10 or iv == 90:
+            raise GcodeError(20)
+        return "G4", 0
+    if iv == 94:
+        return "G5", mantissa
+    if iv in (20, 21):
+        block.modal = replace(m, inches=iv == 20)
+        return "G6", mantissa
+    if iv == 40:
+        return "G7", mantissa
+    if iv in (43, 49):
+        if block.axis_command:
+            raise GcodeError(24)
+        block.axis_command = "tlo"
+        if iv == 43 and mantissa != 10:
+            raise GcodeError(20)
+        block.modal = replace(m, tlo_dynamic=iv == 43)
+        return "G8", 0
+    if 54 <= iv <= 59:
+        block.modal = replace(m, coord_select=iv - 54)
+        return "G12", mantissa
+    if iv == 61:
+        if mantissa != 0:
+            raise GcodeError(20)
+        return "G13", 0
+    raise GcodeError(20)
 
 
-def parse_words(line: str) -> list[tuple[str, float]]:
-    """Split a cleaned line into (letter, value) words (errors 1 and 2)."""
-    words, i = [], 0
+def _m_word(block: _Block, iv: int) -> str:
+    m = block.modal
+    if iv in (0, 1, 2, 30):
+        if iv != 1:
+            block.modal = replace(m, program_flow=3 if iv == 0 else iv)
+        return "M4"
+    if iv in (3, 4, 5):
+        block.modal = replace(m, spindle=iv)
+        return "M7"
+    if iv in (8, 9):
+        block.modal = replace(m, coolant=8 if iv == 8 else 0)
+        return "M8"
+    raise GcodeError(20)
+
+
+def parse_block(line: str, modal: Modal, jog: bool = False) -> _Block:
+    """Grbl's STEP 2: import every word, checking letters, numbers, groups and repeats."""
+    block = _Block(modal=replace(modal, motion=1) if jog else modal)
+    i = 3 if jog else 0
     while i < len(line):
         letter = line[i]
-        if not ("A" <= letter <= "Z"):
+        if not "A" <= letter <= "Z":
             raise GcodeError(1)
-        match = _NUMBER.match(line, i + 1)
-        if match is None:
+        value, i = read_float(line, i + 1)
+        if value is None:
             raise GcodeError(2)
-        words.append((letter, float(match.group())))
-        i = match.end()
-    return words
-
-
-def interpret(words: list[tuple[str, float]], modal: Modal, position_mm) -> Action:
-    """Apply one block's words to ``modal`` at machine position ``position_mm``."""
-    seen: dict[str, float] = {}
-    groups: dict[str, int] = {}
-    for letter, value in words:
-        if letter in "GM":
-            if value != int(value):
-                raise GcodeError(20)
-            code = int(value)
-            group = _group(letter, code)
-            if group in groups:
-                raise GcodeError(21)
-            groups[group] = code
-        elif letter in "NFPXYZ":
-            if letter in seen:
-                raise GcodeError(25)
-            seen[letter] = value
+        iv = int(math.trunc(value)) % 256
+        mantissa = _round(100 * (value - iv)) % 65536
+        if letter == "G":
+            group, mantissa = _g_word(block, iv, mantissa)
+            if mantissa > 0:
+                raise GcodeError(23)
+        elif letter == "M":
+            if mantissa > 0:
+                raise GcodeError(23)
+            group = _m_word(block, iv)
         else:
-            raise GcodeError(20)
-    if seen.get("N", 0) < 0 or seen.get("N", 0) > 9999999:
-        raise GcodeError(27)
-    for letter in "FP":
-        if seen.get(letter, 0.0) < 0:
-            raise GcodeError(4)
-    if "motion" in groups:
-        modal = replace(modal, motion=groups["motion"])
-    if "distance" in groups:
-        modal = replace(modal, absolute=groups["distance"] == 90)
-    if "units" in groups:
-        modal = replace(modal, inches=groups["units"] == 20)
-    scale = 25.4 if modal.inches else 1.0
-    if "F" in seen:
-        modal = replace(modal, feed_mm_min=seen["F"] * scale)
-    if groups.get("dwell") == 4:
-        if "P" not in seen:
-            raise GcodeError(28)
-        if any(a in seen for a in _AXES):
-            raise GcodeError(31)
-        return Action("dwell", modal, dwell_s=seen["P"])
-    if "P" in seen:
-        raise GcodeError(36)
-    if not any(a in seen for a in _AXES):
-        return Action("none", modal)
-    if modal.motion == 1 and modal.feed_mm_min <= 0:
-        raise GcodeError(22)
-    target = tuple(
-        (seen[a] * scale if modal.absolute else p + seen[a] * scale) if a in seen else p
-        for a, p in zip(_AXES, position_mm))
-    return Action("move", modal, target_mm=target, rapid=modal.motion == 0)
-
-
-def _group(letter: str, code: int) -> str:
-    if letter == "M":
-        if code not in _NO_EFFECT_M:
-            raise GcodeError(20)
-        return "mcode"
-    if code in _MOTION:
-        return "motion"
-    if code in _DISTANCE:
-        return "distance"
-    if code in _UNITS:
-        return "units"
-    if code == 4:
-        return "dwell"
-    if code in _NO_EFFECT_G:
-        return f"g{code}"
-    raise GcodeError(20)
+            if letter not in _VALUE_LETTERS:
+                raise GcodeError(20)
+            if letter == "T" and value > 255:
+                raise GcodeError(38)
+            if letter in block.words:
+                raise GcodeError(25)
+            if letter in "FNPTS" and value < 0:
+                raise GcodeError(4)
+            block.words[letter] = iv if letter in "LT" else (math.trunc(value) if letter == "N" else value)
+            continue
+        if group in block.groups:
+            raise GcodeError(21)
+        block.groups.add(group)
+    block.axes = {"XYZ".index(a): block.words[a] for a in "XYZ" if a in block.words}
+    return block

@@ -108,8 +108,12 @@ def emulator_process(config: GrblConfig = GrblConfig(), faults: tuple[Fault, ...
                           daemon=True, name="grbl-emulator")
     process.start()
     try:
-        if not here.poll(start_timeout_s):
-            raise RuntimeError(f"emulator did not start within {start_timeout_s} s")
+        deadline = time.monotonic() + start_timeout_s
+        while not here.poll(0.05):
+            if not process.is_alive():
+                raise RuntimeError(f"emulator process exited with code {process.exitcode} before it started")
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"emulator did not start within {start_timeout_s} s")
         yield EmulatorProcess(here.recv(), process)
     finally:
         process.terminate()

@@ -4,8 +4,8 @@
 """
 from feeler.hardware.stage.device import Stage
 from feeler.hardware.stage.errors import (PortError, ProtocolError, StageAlarm, StageDisconnected,
-                                          StageError, StageTimeout)
+                                          StageError, StageLocked, StageTimeout)
 from feeler.hardware.stage.limits import StageGeometry, StageLimits
 
 __all__ = ["Stage", "StageLimits", "StageGeometry", "StageError", "StageTimeout", "StageAlarm",
-           "ProtocolError", "StageDisconnected", "PortError"]
+           "ProtocolError", "StageDisconnected", "StageLocked", "PortError"]

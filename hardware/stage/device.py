@@ -1,10 +1,18 @@
 """Device layer: a scanning stage driven by Grbl, with units in every name.
 
 ``Stage.open("/dev/ttyUSB0")`` (or the emulator's pty path, or any pyserial URL) resets
-the controller, reads its settings for the soft limits and feed ceiling, and tracks the
-commanded target. Moves are absolute G-code (``G90 G1 ... F...``), so a move whose
-acknowledgement was lost or damaged is safely re-sent once. Targets beyond the soft
-limits and non-positive feeds are refused before anything is sent.
+the controller, reads its settings (soft limits in Grbl's convention, per-axis feed
+ceilings, steps per mm) and build options, refuses a locked board unless asked to home
+(``$H``) or unlock (``$X``) it, and tracks the commanded target. Moves are absolute
+machine coordinates (``G53 G1 ... F...``), whatever work offsets the board has; positions
+are machine positions, from ``MPos`` or from ``WPos + WCO`` when ``$10`` reports work
+positions. Targets beyond the soft limits (on the axes that move) and feeds above what
+the moving axes allow are refused before anything is sent.
+
+A lost or damaged acknowledgement of a move is never answered by sending the move again
+blindly: the stage is left to finish whatever it received, and the move is sent again
+only when the stage stands idle where it was before it, with nothing pending — the one
+case where the controller certainly did not receive it.
 
 A campaign drives it as: ``stage.move_to(...)``, ``stage.press(depth_mm, feed_mm_min)``,
 then ``stage.traverse(dx_mm, speed_mm_s)`` (returns once planned) and
@@ -15,13 +23,14 @@ from __future__ import annotations
 import logging
 import math
 import time
-from typing import Iterator
 
 from feeler.errors import ArgumentError
-from feeler.hardware.stage.errors import ProtocolError, StageAlarm, StageTimeout
+from feeler.hardware.stage.errors import ProtocolError, StageError, StageLocked, StageTimeout
 from feeler.hardware.stage.limits import AXES, StageGeometry, StageLimits
-from feeler.hardware.stage.protocol import GrblProtocol
+from feeler.hardware.stage.planner import homing_s, move_duration_s
+from feeler.hardware.stage.protocol import GrblProtocol, damage_of
 from feeler.hardware.stage.replies import Status
+from feeler.hardware.stage.tracking import StageTracking
 from feeler.hardware.stage.transport import Transport
 
 __all__ = ["Stage"]
@@ -30,39 +39,69 @@ log = logging.getLogger("feeler.hardware.stage")
 Vec = tuple[float, float, float]
 
 
-class Stage:
+class Stage(StageTracking):
     """A Grbl stage. Use :meth:`open`; close with :meth:`close` or a ``with`` block.
 
     Args:
         protocol: the Grbl conversation.
-        limits (StageLimits): soft limits (mm) and feed ceiling (mm/min).
+        limits (StageLimits): soft limits (mm), feed ceilings (mm/min), accelerations.
         geometry (StageGeometry): which axis scans and which presses, and the sign.
         poll_s (float): interval between status queries while waiting, seconds.
+        settings (dict[int, float]): the controller's ``$$`` (steps/mm, report units, homing).
+
+    Attributes:
+        target_mm (tuple[float, float, float]): the last commanded machine target, mm.
+        locked (bool): the controller was in its alarm lock when last seen.
     """
 
-    def __init__(self, protocol: GrblProtocol, limits: StageLimits,
-                 geometry: StageGeometry = StageGeometry(), *, poll_s: float = 0.01):
+    def __init__(self, protocol: GrblProtocol, limits: StageLimits, geometry: StageGeometry = StageGeometry(),
+                 *, poll_s: float = 0.01, settings: dict[int, float] | None = None):
         self.protocol, self.limits, self.geometry, self.poll_s = protocol, limits, geometry, poll_s
+        self.settings = dict(settings or {})
         self.port = protocol.transport.name
-        self.target_mm: Vec = self.status().mpos_mm
+        status = self.status()
+        self.target_mm: Vec = status.mpos_mm
+        self.locked = status.state == "Alarm"
+        self._held = False
 
     @classmethod
-    def open(cls, port: str, *, limits: StageLimits | None = None,
-             geometry: StageGeometry = StageGeometry(), baudrate: int = 115200,
-             reply_timeout_s: float = 2.0, poll_s: float = 0.01, exclusive: bool = True) -> "Stage":
-        """Open ``port``, soft-reset the controller and set millimetres and absolute mode.
+    def open(cls, port: str, *, limits: StageLimits | None = None, geometry: StageGeometry = StageGeometry(),
+             baudrate: int = 115200, reply_timeout_s: float = 2.0, poll_s: float = 0.01, exclusive: bool = True,
+             slack: float = 4.0, unlock: bool = False, home: bool = False, allow_locked: bool = False) -> "Stage":
+        """Open ``port``, soft-reset the controller, read its settings, set millimetres.
 
+        Args:
+            unlock (bool): leave an alarm lock with ``$X`` (position not re-referenced).
+            home (bool): run the homing cycle ``$H`` (needs ``$22=1``), locked or not.
+            allow_locked (bool): return a locked stage instead of raising StageLocked.
+            slack (float): how many times slower than its clock the controller may run.
         Raises:
             PortError: the port does not exist, is busy or is not permitted.
+            StageLocked: the board is in its alarm lock and neither ``unlock`` nor ``home``.
+            StageAlarm: homing failed (e.g. ``ALARM:8``, a switch that stays pressed).
         """
         transport = Transport.open(port, baudrate=baudrate, exclusive=exclusive)
         try:
-            protocol = GrblProtocol(transport, reply_timeout_s=reply_timeout_s)
+            protocol = GrblProtocol(transport, reply_timeout_s=reply_timeout_s, slack=slack)
             protocol.soft_reset()
+            settings = protocol.settings()
+            try:
+                options = protocol.build_info().get("OPT", "").split(",")
+            except ProtocolError as exc:          # a firmware without $I: Grbl's defaults then
+                log.info("%s: no build options (%s)", port, exc)
+                options = [""]
+            if len(options) >= 3 and options[2].isdigit():
+                protocol.rx_buffer_bytes = int(options[2])
             if limits is None:
-                limits = StageLimits.from_settings(protocol.settings())
-            stage = cls(protocol, limits, geometry, poll_s=poll_s)
-            if stage.status().state != "Alarm":
+                limits = StageLimits.from_settings(settings, origin_at_home="Z" in options[0])
+            stage = cls(protocol, limits, geometry, poll_s=poll_s, settings=settings)
+            if home:
+                stage.home()
+            elif stage.locked and unlock:
+                stage.unlock()
+            elif stage.locked and not allow_locked:
+                raise StageLocked(port, protocol.last_alarm)
+            if not stage.locked:
                 protocol.send("G21 G90")
             return stage
         except BaseException:
@@ -74,29 +113,40 @@ class Stage:
                 z_mm: float | None = None, feed_mm_min: float) -> Vec:
         """Plan a straight move to the given machine coordinates (others unchanged).
 
-        Returns once the controller has planned it (not finished: see :meth:`wait_idle`).
-        Returns the new target (mm). Raises ``ArgumentError`` before sending for a target
-        beyond the soft limits or a feed outside (0, max].
+        Returns the new target (mm) once the controller has planned it (not finished:
+        see :meth:`wait_idle`). Raises ``ArgumentError`` before sending for a target beyond
+        the soft limits or a feed that is not > 0 or above the moving axes' ``$11x``.
         """
-        asked = {"x_mm": x_mm, "y_mm": y_mm, "z_mm": z_mm}
-        target = tuple(self.target_mm[i] if asked[a] is None else float(asked[a])
-                       for i, a in enumerate(AXES))
-        self.limits.check(target, feed_mm_min, self.port)
-        words = " ".join(f"{a[0].upper()}{v:.4f}" for a, v in zip(AXES, target)
-                         if asked[a] is not None)
+        target, words = self._target(x_mm, y_mm, z_mm, feed_mm_min)
         if words:
-            self._send_move(f"G90 G1 {words} F{feed_mm_min:.1f}")
+            self._send_move(f"G53 G1 {words} F{feed_mm_min:.1f}", target, feed_mm_min)
         self.target_mm = target
         return target
 
-    def press(self, depth_mm: float, feed_mm_min: float, *, wait_s: float | None = 30.0) -> Vec:
+    def jog_to(self, *, x_mm: float | None = None, y_mm: float | None = None,
+               z_mm: float | None = None, feed_mm_min: float) -> Vec:
+        """Jog (``$J=G53 ...``) to machine coordinates: state ``Jog``, stopped by
+        :meth:`jog_cancel`; checked like :meth:`move_to`. Returns the target once planned."""
+        target, words = self._target(x_mm, y_mm, z_mm, feed_mm_min)
+        if words:
+            self.protocol.send(f"$J=G53 {words} F{feed_mm_min:.1f}", motion_s=self._duration(target, feed_mm_min))
+        self.target_mm = target
+        return target
+
+    def jog_cancel(self) -> Status:
+        """Stop a jog (0x85): the stage decelerates and drops the jog moves still queued."""
+        self.protocol.jog_cancel()
+        status = self.wait_idle(at_target=False)
+        self.target_mm = status.mpos_mm
+        return status
+
+    def press(self, depth_mm: float, feed_mm_min: float, *, wait: bool = True) -> Vec:
         """Move the press axis ``depth_mm`` (> 0) into the surface; wait until idle."""
         if not (math.isfinite(depth_mm) and depth_mm > 0):
             raise ArgumentError("depth_mm", depth_mm, "a press depth > 0 mm")
-        target = self._offset(self.geometry.press_axis, self.geometry.press_sign * depth_mm,
-                              feed_mm_min)
-        if wait_s is not None:
-            self.wait_idle(wait_s)
+        target = self._offset(self.geometry.press_axis, self.geometry.press_sign * depth_mm, feed_mm_min)
+        if wait:
+            self.wait_idle()
         return target
 
     def traverse(self, dx_mm: float, speed_mm_s: float) -> Vec:
@@ -111,78 +161,111 @@ class Stage:
         i = AXES.index(axis)
         return self.move_to(**{axis: self.target_mm[i] + delta_mm}, feed_mm_min=feed_mm_min)
 
-    def _send_move(self, line: str) -> None:
-        """Send an absolute move; re-send once if its acknowledgement was lost or damaged."""
+    def _target(self, x_mm, y_mm, z_mm, feed_mm_min) -> tuple[Vec, str]:
+        asked = {"x_mm": x_mm, "y_mm": y_mm, "z_mm": z_mm}
+        target = tuple(self.target_mm[i] if asked[a] is None else float(asked[a]) for i, a in enumerate(AXES))
+        self.limits.check(self.target_mm, target, feed_mm_min, self.port)
+        words = " ".join(f"{a[0].upper()}{v:.4f}" for a, v in zip(AXES, target) if asked[a] is not None)
+        return target, words
+
+    def _duration(self, target: Vec, feed_mm_min: float) -> float:
+        return move_duration_s(self.target_mm, target, feed_mm_min, self.limits.max_rate_mm_min,
+                               self.limits.accel_mm_s2)
+
+    def _send_move(self, line: str, target: Vec, feed_mm_min: float) -> None:
+        """Send an absolute move; after a lost or damaged reply, send it again only if the
+        stage certainly did not receive it (idle where it stood before, nothing pending)."""
+        before = self.target_mm
+        duration = self._duration(target, feed_mm_min)
         try:
-            self.protocol.send(line)
-        except (StageTimeout, ProtocolError) as exc:
-            if isinstance(exc, ProtocolError) and exc.code is not None:
+            self.protocol.send(line, motion_s=duration)
+            return
+        except StageError as exc:
+            if damage_of(exc) is None:
                 raise
-            log.warning("%s: %s; resynchronising and re-sending %r", self.port, exc, line)
+            log.warning("%s: %s; waiting for the stage to settle before deciding on %r", self.port, exc, line)
             self.protocol.count_recovered("ok", exc)
-            self.protocol.resync()
-            self.protocol.send(line)
+        self.protocol.resync()
+        self.target_mm = target
+        final = self.wait_idle(at_target=False)
+        if self.at(final.mpos_mm, target):
+            return                                       # it arrived; only its reply was lost
+        time.sleep(max(self.protocol.reply_timeout_s / 4, self.poll_s))
+        again = self.status()
+        if again.state == "Idle" and self.at(again.mpos_mm, before) and self.at(final.mpos_mm, before):
+            log.warning("%s: the stage never received %r; sending it again", self.port, line)
+            self.protocol.send(line, motion_s=duration)
+            return
+        self.target_mm = again.mpos_mm
+        raise StageError(f"{self.port}: after a lost reply to {line!r} the stage stands at {again.mpos_mm} "
+                         f"({again.state}), neither where it was ({before}) nor at the target ({target})")
 
-    # ---- state
-    @property
-    def recovered(self) -> dict[str, int]:
-        """Damaged or lost replies recovered from since opening (a copy), e.g.
-        ``{"status_malformed": 2, "ok_lost": 1}``: keys ``"<reply>_<damage>"``, see
-        :attr:`GrblProtocol.recovered <feeler.hardware.stage.protocol.GrblProtocol>`."""
-        return dict(self.protocol.recovered)
-
-    def status(self) -> Status:
-        """The controller's status report (position, state, feed)."""
-        status = self.protocol.status()
-        if status.mpos_mm is None:
-            raise ProtocolError(None, b"status without MPos (set $10=1)")
-        return status
-
-    def position_mm(self) -> Vec:
-        """Current machine position (x, y, z) in mm, as the controller reports it."""
-        return self.status().mpos_mm
-
-    def track(self, timeout_s: float = 60.0) -> Iterator[Status]:
-        """Yield status reports every ``poll_s`` until the stage is idle (the last one).
-
-        Raises:
-            StageAlarm: the controller reports (or pushes) an alarm.
-            StageTimeout: still moving after ``timeout_s``.
-        """
-        deadline = time.monotonic() + timeout_s
-        while True:
-            status = self.status()
-            yield status
-            if status.state == "Idle":
-                return
-            if status.state == "Alarm":
-                raise StageAlarm(self.protocol.last_alarm or 0)
-            if time.monotonic() > deadline:
-                raise StageTimeout(f"idle state of {self.port} (last {status.state})", timeout_s)
-            time.sleep(self.poll_s)
-
-    def wait_idle(self, timeout_s: float = 60.0) -> Status:
-        """Block until the stage is idle; return the final status (see :meth:`track`)."""
-        for status in self.track(timeout_s):
-            pass
-        return status
-
-    # ---- recovery and control
-    def recover(self) -> Status:
-        """After an alarm or a fault: soft reset, ``$X`` unlock, millimetres, absolute."""
-        self.protocol.soft_reset()
-        self.protocol.unlock()
-        self.protocol.send("G21 G90")
+    # ---- homing, unlocking, recovery
+    def home(self) -> Status:
+        """``$H``: the homing cycle (minutes on a large machine; no reports meanwhile)."""
+        self.protocol.send("$H", wait_s=homing_s(self.settings), pollable=False)
         status = self.status()
-        self.target_mm = status.mpos_mm
+        self.locked, self.target_mm = status.state == "Alarm", status.mpos_mm
         return status
+
+    def unlock(self) -> None:
+        """``$X``: leave the alarm lock without homing (the position is not re-referenced)."""
+        self.protocol.unlock()
+        self.locked = False
+
+    def recover(self) -> Status:
+        """After an alarm or a fault: reset (waiting out Grbl's 0.5 s alarm report and
+        ``[MSG:Reset to continue]``), ``$X`` unlock, millimetres, absolute mode."""
+        p = self.protocol
+        if not (p.awaiting_reset and p.last_alarm not in (1, 2) and self._await_banner()):
+            p.soft_reset()
+        p.transport.discard_input(0.05)
+        if self.status().state == "Alarm":
+            self.unlock()
+        p.send("G21 G90")
+        status = self.status()
+        self.target_mm, self.locked = status.mpos_mm, False
+        return status
+
+    def _await_banner(self) -> bool:
+        """Wait for the reset Grbl does by itself after a non-critical alarm."""
+        deadline = time.monotonic() + self.protocol.reply_timeout_s + self.protocol.slack * 0.5
+        while self.protocol.awaiting_reset:
+            try:
+                self.protocol._read_reply("banner after the alarm", max(deadline - time.monotonic(), 0.001))
+            except StageTimeout:
+                return False
+            except StageError:
+                continue
+        return True
 
     def hold(self) -> None:
-        """Feed hold: decelerate to a stop; :meth:`resume` continues."""
+        """Feed hold: decelerate to a stop (``Hold:1``, then ``Hold:0``); :meth:`resume`."""
         self.protocol.feed_hold()
+        self._held = True
 
-    def resume(self) -> None:
-        self.protocol.cycle_start()
+    def resume(self) -> Status:
+        """Cycle start once the hold is complete: Grbl ignores ``~`` until then (``Hold:1``,
+        or a ``!`` it has not yet acted on). Returns the first status after the hold."""
+        last = None
+        stalled_at = time.monotonic() + self.stall_s
+        while True:                                       # wait for Hold:0, while the stage slows
+            status = self.status()
+            if status.state == "Hold" and status.substate == 0 or not self._held and status.state != "Hold":
+                break
+            if status.mpos_mm != last:
+                last, stalled_at = status.mpos_mm, time.monotonic() + self.stall_s
+            elif time.monotonic() > stalled_at:
+                raise StageTimeout(f"hold of {self.port} to complete (still {status.state})", self.stall_s)
+            time.sleep(self.poll_s)
+        self._held = False
+        for _ in range(5):
+            if status.state != "Hold":
+                return status
+            self.protocol.cycle_start()
+            time.sleep(self.poll_s)
+            status = self.status()
+        raise StageTimeout(f"resume of {self.port} (still {status.state}:{status.substate})", self.stall_s)
 
     def close(self) -> None:
         self.protocol.transport.close()

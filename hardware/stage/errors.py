@@ -16,7 +16,9 @@ __all__ = [
     "StageAlarm",
     "ProtocolError",
     "StageDisconnected",
+    "StageLocked",
     "PortError",
+    "CRITICAL_ALARMS",
 ]
 
 #: Grbl 1.1 ``error:N`` codes (from Grbl's ``error_codes_en_US.csv``).
@@ -72,6 +74,10 @@ GRBL_ALARMS: dict[int, str] = {
     9: "homing fail: could not find the limit switch",
     10: "homing fail: could not find the second limit switch (dual axis)",
 }
+
+
+#: alarms after which Grbl ignores everything but a reset (hard and soft limits)
+CRITICAL_ALARMS = (1, 2)
 
 
 class StageError(FeelerError):
@@ -136,6 +142,21 @@ class StageDisconnected(StageError):
     def __init__(self, port: str, detail: str):
         self.port, self.detail = str(port), detail
         super().__init__(f"port {self.port} disconnected: {detail}")
+
+
+class StageLocked(StageError, InputError):
+    """The controller is in its alarm lock (``$22=1`` boots locked; or an earlier alarm) and
+    the caller did not ask to home (``$H``) or unlock (``$X``) it.
+
+    Attributes:
+        port (str): the port path or URL; ``alarm`` (int | None) the alarm seen, if any.
+    """
+
+    def __init__(self, port: str, alarm: int | None = None, hint: str = "home it ($H) or unlock it ($X)"):
+        self.port, self.alarm = str(port), alarm
+        why = f"ALARM:{alarm}, {GRBL_ALARMS.get(alarm, 'unknown alarm')}" if alarm else \
+            "Alarm state: homing is enabled ($22=1) and the board has not been homed since power-up"
+        super().__init__(f"stage {self.port} is locked ({why}): {hint}")
 
 
 class PortError(InputError):

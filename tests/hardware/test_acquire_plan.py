@@ -32,30 +32,37 @@ def test_shipped_plan_matches_four_plates_sampling():
     t = sample_times_s(plan)
     assert plan.n_scans == 96 and len(t) == 41 and t[-1] == pytest.approx(20.0)
     assert plan_layout(plan, SHIPPED).name == "sensor-16"
-    check_moves(plan, SHIPPED, StageLimits(), "stage")       # inside a 200 x 200 x 50 mm stage
+    check_moves(plan, SHIPPED, StageLimits(), "stage")       # on a board with Grbl's default settings
+    check_moves(plan, SHIPPED, StageLimits(), "stage", start_mm=(-1.0, -1.0, -1.0))   # from the homed corner
 
 
 def test_scans_are_numbered_plate_by_plate_and_moves_follow_the_plan():
     plan = load_plan(TINY)
     scans = scans_of(plan)
     assert [(s.scan_id, s.plate, s.repeat, s.step_mm, s.origin_x_mm) for s in scans] == [
-        (0, 0, 0, 0.0, 10.0), (1, 0, 1, 0.0, 10.0), (2, 1, 0, 0.2, 14.0), (3, 1, 1, 0.2, 14.0)]
+        (0, 0, 0, 0.0, -20.0), (1, 0, 1, 0.0, -20.0), (2, 1, 0, 0.2, -16.0), (3, 1, 1, 0.2, -16.0)]
     np.testing.assert_array_equal(sample_times_s(plan), np.arange(4) * 0.1)
     moves = moves_of(plan, scans[2])
-    assert [m[1] for m in moves] == [(14.0, 10.0, 20.2), (14.0, 10.0, 20.2), (14.0, 10.0, 20.0),
-                                     (14.0, 10.0, 19.95), (17.0, 10.0, 19.95), (17.0, 10.0, 20.2)]
+    np.testing.assert_allclose([m[1] for m in moves], [(-16.0, -10.0, -19.8), (-16.0, -10.0, -19.8),
+                                                       (-16.0, -10.0, -20.0), (-16.0, -10.0, -20.05),
+                                                       (-13.0, -10.0, -20.05), (-13.0, -10.0, -19.8)])
     assert [m[2] for m in moves] == [6000.0, 6000.0, 3000.0, 3000.0, 600.0, 6000.0]
     assert [m[3] for m in moves] == ["z", "xy", "z", "z", "x", "z"]
 
 
+FAST = {"max_rate_mm_min": (1e4,) * 3}
+
+
 @pytest.mark.parametrize("limits, key, words", [
-    (StageLimits(x_mm=(0.0, 16.0), max_feed_mm_min=1e4), "scan.traverse_mm", "moves x to 17 mm, beyond the soft limits [0, 16]"),
-    (StageLimits(x_mm=(0.0, 13.5), max_feed_mm_min=1e4), "plates.origin_x_mm[1]", "moves x to 14 mm"),
-    (StageLimits(z_mm=(19.96, 50.0), max_feed_mm_min=1e4), "scan.press_mm", "moves z to 19.95 mm"),
-    (StageLimits(z_mm=(0.0, 20.1), max_feed_mm_min=1e4), "scan.clearance_mm", "moves z to 20.2 mm"),
-    (StageLimits(y_mm=(20.0, 30.0), max_feed_mm_min=1e4), "plates.y_mm", "moves y to 10 mm"),
-    (StageLimits(max_feed_mm_min=5000.0), "scan.move_feed_mm_min", "feed 6000 mm/min is above the ceiling 5000"),
-    (StageLimits(max_feed_mm_min=500.0, z_mm=(0.0, 50.0)), "scan.move_feed_mm_min", "above the ceiling 500"),
+    (StageLimits(x_mm=(-200.0, -14.0), **FAST), "scan.traverse_mm", "moves x to -13 mm, beyond the soft limits [-200, -14]"),
+    (StageLimits(x_mm=(-200.0, -16.5), **FAST), "plates.origin_x_mm[1]", "moves x to -16 mm"),
+    (StageLimits(z_mm=(-20.04, 0.0), **FAST), "scan.press_mm", "moves z to -20.05 mm"),
+    (StageLimits(z_mm=(-200.0, -19.9), **FAST), "scan.clearance_mm", "moves z to -19.8 mm"),
+    (StageLimits(y_mm=(-5.0, 0.0), **FAST), "plates.y_mm", "moves y to -10 mm"),
+    (StageLimits(max_rate_mm_min=(5000.0, 1e4, 1e4)), "scan.move_feed_mm_min",
+     "6000 mm/min is above the ceiling of 5000 mm/min of /dev/pts/9 for this move ($110, the x axis' maximum rate, is "
+     "5000 mm/min): lower scan.move_feed_mm_min or raise $110"),
+    (StageLimits(max_rate_mm_min=(1e4, 1e4, 2000.0)), "scan.press_feed_mm_min", "3000 mm/min is above"),
 ])
 def test_moves_beyond_the_stage_are_refused_naming_the_plan_key(limits, key, words):
     with pytest.raises(SceneError) as err:
@@ -65,16 +72,21 @@ def test_moves_beyond_the_stage_are_refused_naming_the_plan_key(limits, key, wor
 
 
 def test_traverse_feed_above_ceiling_names_the_speed(tmp_path):
+    """On a board with Grbl's defaults (500 mm/min per axis) a 10 mm/s traverse is refused
+    (Grbl would run it at 8.3 mm/s and every time stamp would be off)."""
     path = variant(tmp_path, **{"move_feed_mm_min = 6000.0": "move_feed_mm_min = 500.0",
                                 "press_feed_mm_min = 3000.0": "press_feed_mm_min = 500.0"})
-    with pytest.raises(SceneError, match=r"scan\.speed_mm_s: feed 600 mm/min"):
-        check_moves(load_plan(path), path, StageLimits(max_feed_mm_min=550.0), "stage")
+    with pytest.raises(SceneError) as err:
+        check_moves(load_plan(path), path, StageLimits(), "/dev/ttyUSB0")
+    assert str(err.value) == (f"{path}: scan.speed_mm_s: 10 mm/s (600 mm/min) is above the ceiling of "
+                              "500 mm/min of /dev/ttyUSB0 for this move ($110, the x axis' maximum rate, is "
+                              "500 mm/min): lower scan.speed_mm_s or raise $110")
 
 
 @pytest.mark.parametrize("replace, key", [
     ({"move_feed_mm_min = 6000.0": "move_feed_mm_min = 0.0"}, "scan.move_feed_mm_min"),
     ({"speed_mm_s = 10.0": "speed_mm_s = 0"}, "scan.speed_mm_s"),
-    ({"origin_x_mm = [10.0, 14.0]": "origin_x_mm = [10.0]"}, "plates.origin_x_mm"),
+    ({"origin_x_mm = [-20.0, -16.0]": "origin_x_mm = [-20.0]"}, "plates.origin_x_mm"),
     ({"traverse_mm = 3.0": "traverse_mm = 0.5"}, "scan.traverse_mm"),
     ({"sample_period_s = 0.1": "sample_period_s = 0.01", "traverse_mm = 3.0": "traverse_mm = 1000.0",
       "speed_mm_s = 10.0": "speed_mm_s = 0.001"}, "scan.sample_period_s"),
@@ -99,12 +111,12 @@ def test_emulation_needs_the_virtual_table(tmp_path):
 def test_tip_displacement_of_the_virtual_plate():
     plan = load_plan(TINY)
     v = plan.virtual
-    assert np.all(tip_displacement_mm(v, 20.0, 10.0, 0.2, (10.0, 10.0, 20.01)) == 0.0)   # lifted
-    before = tip_displacement_mm(v, 20.0, 10.0, 0.2, (10.0, 10.0, 19.95))            # before the step
-    after = tip_displacement_mm(v, 20.0, 10.0, 0.2, (13.0, 10.0, 19.95))             # past it (+1.5 mm)
-    np.testing.assert_allclose(before, [-0.3 * 0.05, 0.05, 0.0], rtol=1e-12)
-    np.testing.assert_allclose(after, [-0.3 * 0.25, 0.25, 0.0], rtol=1e-12)
-    mid = tip_displacement_mm(v, 20.0, 10.0, 0.2, (11.5, 10.0, 19.95))               # face centred on the edge
+    assert np.all(tip_displacement_mm(v, -20.0, -20.0, 0.2, (-20.0, -10.0, -19.99)) == 0.0)   # lifted
+    before = tip_displacement_mm(v, -20.0, -20.0, 0.2, (-20.0, -10.0, -20.05))             # before the step
+    after = tip_displacement_mm(v, -20.0, -20.0, 0.2, (-17.0, -10.0, -20.05))              # past it (+1.5 mm)
+    np.testing.assert_allclose(before, [-0.3 * 0.05, 0.05, 0.0], rtol=1e-9)
+    np.testing.assert_allclose(after, [-0.3 * 0.25, 0.25, 0.0], rtol=1e-9)
+    mid = tip_displacement_mm(v, -20.0, -20.0, 0.2, (-18.5, -10.0, -20.05))                # face centred on the edge
     assert mid[1] == pytest.approx(0.15)
 
 
@@ -113,7 +125,7 @@ def test_virtual_frame_reads_back_the_true_force():
 
     plan = load_plan(TINY)
     world = VirtualWorld.of_plan(plan, TINY)
-    stage = (13.0, 10.0, 19.95)
+    stage = (-13.0, -10.0, -20.05)
     frame = world.render(2, stage, np.random.default_rng(0))
     areas, problem = AreaExtractor(world.layout)(frame)
     assert problem is None

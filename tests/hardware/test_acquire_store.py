@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 from feeler.datasets import read_scans
 from feeler.errors import ArgumentError, DataFileError, OverwriteError
 from feeler.hardware.acquire import SAMPLE_COLUMNS, RunStore
+from feeler.hardware.acquire.lock import RunLocked
 
 PLAN = Path(__file__).parent / "data" / "tiny-plan.toml"
 
@@ -42,6 +44,9 @@ def test_complete_scans_form_a_dataset_and_the_summary_counts(tmp_path):
     assert (tmp_path / "run" / "scene.toml").read_bytes() == PLAN.read_bytes()
     assert summary == json.loads((tmp_path / "run" / "summary.json").read_text())
     assert (summary["scans_done"], summary["samples_written"], summary["bad_frames"], summary["runs"]) == (4, 12, 1, 1)
+    with pytest.raises(RunLocked, match=f"process {os.getpid()} is writing this run directory"):
+        RunStore.create(tmp_path / "run", PLAN, force=True)       # its writer is still at work
+    store.close()
     with pytest.raises(OverwriteError, match="--force"):
         RunStore.create(tmp_path / "run", PLAN)
     (tmp_path / "run" / "video").mkdir()
@@ -66,6 +71,7 @@ def test_resume_drops_the_cut_line_and_a_scan_not_journalled(tmp_path):
     # ... in the middle of the next sample's line
     with open(out / "samples.csv", "a") as f:
         f.write("1,0,0.0,10.0,0.3,1.2")
+    store.close()
     resumed = RunStore.resume(out, PLAN)
     assert resumed.done == {0} and resumed.attempts[1] == 1
     assert (out / "scans.csv").read_bytes() == kept
@@ -75,13 +81,15 @@ def test_resume_drops_the_cut_line_and_a_scan_not_journalled(tmp_path):
     summary = resumed.write_summary({})
     assert (summary["partial_lines_dropped"], summary["aborted_attempts"], summary["runs"]) == (1, 1, 2)
     np.testing.assert_array_equal(read_scans(out).scan_id, [0, 1])
+    resumed.close()
     again = RunStore.resume(out, PLAN)                # counts survive a second resume
     assert again.write_summary({})["partial_lines_dropped"] == 1 and again.done == {0, 1}
 
 
 def test_resume_refuses_another_plan_a_missing_file_and_a_bad_journal(tmp_path):
     out = tmp_path / "run"
-    write_scan(RunStore.create(out, PLAN), 0)
+    with RunStore.create(out, PLAN) as store:
+        write_scan(store, 0)
     other = tmp_path / "other.toml"
     other.write_text(PLAN.read_text().replace("seed = 7", "seed = 8"))
     with pytest.raises(ArgumentError, match="--plan"):

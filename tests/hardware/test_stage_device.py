@@ -1,14 +1,18 @@
-"""The stage driver against the Grbl emulator in a separate process, over a real pty."""
+"""The stage driver against the Grbl emulator in a separate process, over a real pty.
+
+Machine coordinates follow Grbl's convention (soft limits on [-travel, 0]).
+"""
 import logging
+import time
 
 import pytest
 
 from feeler.errors import ArgumentError
 from feeler.hardware.emulators import Fault, GrblConfig, emulator_process
-from feeler.hardware.stage import Stage, StageAlarm, StageDisconnected, StageLimits, StageTimeout
+from feeler.hardware.stage import (ProtocolError, Stage, StageAlarm, StageDisconnected, StageLimits, StageLocked,
+                                   StageTimeout)
 
-FAST = GrblConfig(max_rate_mm_min=(60000.0,) * 3, accel_mm_s2=(20000.0,) * 3,
-                  start_mm=(0.0, 0.0, 20.0))
+FAST = GrblConfig(max_rate_mm_min=(60000.0,) * 3, accel_mm_s2=(20000.0,) * 3, start_mm=(0.0, 0.0, -20.0))
 
 
 @pytest.fixture(scope="module")
@@ -21,40 +25,43 @@ def open_stage(path, **kw):
     return Stage.open(path, reply_timeout_s=kw.pop("reply_timeout_s", 0.5), poll_s=0.005, **kw)
 
 
-def test_open_reads_soft_limits_from_settings(emu):
+def test_open_reads_soft_limits_from_settings_in_grbls_convention(emu):
     with open_stage(emu.path) as stage:
-        assert stage.limits == StageLimits((0.0, 200.0), (0.0, 200.0), (0.0, 50.0), 60000.0)
-        assert stage.status().state == "Idle"
+        assert stage.limits == StageLimits((-200.0, 0.0), (-200.0, 0.0), (-200.0, 0.0), (60000.0,) * 3,
+                                           (20000.0,) * 3)
+        assert stage.status().state == "Idle" and not stage.locked
 
 
 def test_move_press_and_traverse_while_sampling_position(emu):
     with open_stage(emu.path) as stage:
-        stage.move_to(x_mm=10.0, y_mm=5.0, z_mm=20.0, feed_mm_min=30000.0)
-        assert stage.wait_idle(5.0).mpos_mm == (10.0, 5.0, 20.0)
-        assert stage.press(1.5, 6000.0) == (10.0, 5.0, 18.5)
-        assert stage.position_mm() == (10.0, 5.0, 18.5)
-        assert stage.traverse(20.0, 200.0) == (30.0, 5.0, 18.5)
-        samples = list(stage.track(5.0))
+        stage.move_to(x_mm=-30.0, y_mm=-5.0, z_mm=-20.0, feed_mm_min=30000.0)
+        assert stage.wait_idle().mpos_mm == (-30.0, -5.0, -20.0)
+        assert stage.press(1.5, 6000.0) == (-30.0, -5.0, -21.5)
+        assert stage.position_mm() == (-30.0, -5.0, -21.5)
+        assert stage.traverse(20.0, 200.0) == (-10.0, -5.0, -21.5)
+        samples = list(stage.track())
         xs = [s.mpos_mm[0] for s in samples]
-        assert samples[-1].state == "Idle" and xs[-1] == 30.0
+        assert samples[-1].state == "Idle" and xs[-1] == -10.0
         assert sum(s.state == "Run" for s in samples) >= 5 and xs == sorted(xs)
         assert max(s.feed_mm_min for s in samples) == pytest.approx(12000.0, abs=1.0)
 
 
 def test_streamed_lines_use_flow_control_over_the_pty(emu):
     with open_stage(emu.path) as stage:
-        stage.move_to(x_mm=0.0, y_mm=0.0, z_mm=0.0, feed_mm_min=60000.0)
+        stage.move_to(x_mm=-40.0, y_mm=-10.0, z_mm=0.0, feed_mm_min=60000.0)
         lines = ["G91 G1 F60000"] + [f"X0.5 Y{0.25 * (i % 2):.2f}" for i in range(80)] + ["G90"]
         replies = stage.protocol.stream(lines)
         assert len(replies) == len(lines)
-        assert stage.wait_idle(10.0).mpos_mm == (40.0, 10.0, 0.0)
+        stage.target_mm = (0.0, 0.0, 0.0)
+        assert stage.wait_idle().mpos_mm == (0.0, 0.0, 0.0)
 
 
 @pytest.mark.parametrize("kwargs, fragment", [
-    ({"x_mm": 250.0, "feed_mm_min": 100.0}, "argument x_mm=250.0: within the soft limits [0, 200] mm of /dev/"),
-    ({"z_mm": -1.0, "feed_mm_min": 100.0}, "argument z_mm=-1.0: within the soft limits [0, 50] mm"),
-    ({"x_mm": 1.0, "feed_mm_min": 0.0}, "argument feed_mm_min=0.0: > 0 and <= 60000 mm/min on /dev/"),
-    ({"x_mm": 1.0, "feed_mm_min": 1e9}, "argument feed_mm_min=1000000000.0"),
+    ({"x_mm": 5.0, "feed_mm_min": 100.0}, "argument x_mm=5.0: within the soft limits [-200, 0] mm of /dev/"),
+    ({"z_mm": -201.0, "feed_mm_min": 100.0}, "argument z_mm=-201.0: within the soft limits [-200, 0] mm"),
+    ({"x_mm": -1.0, "feed_mm_min": 0.0}, "argument feed_mm_min=0.0: a feed > 0 mm/min on /dev/"),
+    ({"x_mm": -1.0, "feed_mm_min": 1e9}, "argument feed_mm_min=1000000000.0: <= 60000 mm/min for this move on "
+                                         "/dev/"),
     ({"x_mm": float("nan"), "feed_mm_min": 100.0}, "argument x_mm=nan"),
 ])
 def test_impossible_moves_are_refused_before_sending(emu, kwargs, fragment):
@@ -66,9 +73,17 @@ def test_impossible_moves_are_refused_before_sending(emu, kwargs, fragment):
         assert stage.position_mm() == before and not stage.protocol.in_flight
 
 
+def test_feed_ceiling_names_the_axis_setting():
+    with emulator_process(GrblConfig(max_rate_mm_min=(3000.0, 500.0, 500.0))) as emu, open_stage(emu.path) as stage:
+        stage.move_to(x_mm=-10.0, feed_mm_min=3000.0)                  # x alone may go at 3000
+        with pytest.raises(ArgumentError, match=r"<= 500 mm/min for this move on .* \(\$111, the y axis' "
+                                                r"maximum rate, is 500 mm/min\)"):
+            stage.move_to(y_mm=-10.0, feed_mm_min=3000.0)
+
+
 @pytest.mark.parametrize("call, name", [
     (lambda s: s.traverse(0.0, 10.0), "dx_mm"), (lambda s: s.traverse(1.0, 0.0), "speed_mm_s"),
-    (lambda s: s.press(0.0, 100.0), "depth_mm"), (lambda s: s.press(100.0, 100.0), "z_mm"),
+    (lambda s: s.press(0.0, 100.0), "depth_mm"), (lambda s: s.press(500.0, 100.0), "z_mm"),
     (lambda s: s.traverse(1000.0, 10.0), "x_mm"),
 ])
 def test_bad_relative_moves_name_the_argument(emu, call, name):
@@ -78,31 +93,87 @@ def test_bad_relative_moves_name_the_argument(emu, call, name):
         assert info.value.name == name
 
 
+def test_axes_that_do_not_move_are_not_checked():
+    """At (1, 1, 1), outside [-200, 0] (a board without soft limits may stand anywhere), a
+    move of z alone is fine; so is one to a negative z after homing at -$27."""
+    with emulator_process(GrblConfig(start_mm=(1.0, 1.0, 1.0), max_rate_mm_min=(6000.0,) * 3,
+                                     accel_mm_s2=(1000.0,) * 3)) as emu, open_stage(emu.path) as stage:
+        stage.move_to(z_mm=-2.0, feed_mm_min=3000.0)
+        assert stage.wait_idle().mpos_mm == (1.0, 1.0, -2.0)
+
+
 def test_feed_hold_and_resume(emu):
     with open_stage(emu.path) as stage:
-        stage.move_to(x_mm=0.0, feed_mm_min=60000.0)
-        stage.wait_idle(5.0)
+        stage.move_to(x_mm=-60.0, feed_mm_min=60000.0)
+        stage.wait_idle()
         stage.traverse(30.0, 50.0)
         # hold once the move is under way (a loaded machine may answer before it starts)
-        next(s for s in stage.track(5.0) if s.state == "Run" and s.mpos_mm[0] > 0.0)
+        next(s for s in stage.track() if s.state == "Run" and s.mpos_mm[0] > -60.0)
         stage.hold()
-        held = next(s for s in stage.track(5.0) if s.state == "Hold" and s.substate == 0)
-        assert 0.0 < held.mpos_mm[0] < 30.0 and stage.status().mpos_mm == held.mpos_mm
-        stage.resume()
-        assert stage.wait_idle(5.0).mpos_mm[0] == 30.0
+        stage.resume()                       # waits for Hold:0 (Grbl ignores ~ during Hold:1)
+        assert stage.wait_idle().mpos_mm[0] == -30.0
+
+
+def test_work_positions_are_turned_into_machine_positions():
+    config = GrblConfig(settings=((10, 0),), max_rate_mm_min=(6000.0,) * 3, accel_mm_s2=(1000.0,) * 3)
+    with emulator_process(config) as emu, open_stage(emu.path) as stage:
+        stage.protocol.send("G10 L20 P1 X5 Y5 Z5")                     # work offsets: reports differ
+        stage.move_to(x_mm=-3.0, feed_mm_min=3000.0)
+        status = stage.wait_idle()
+        assert status.mpos_mm == (-3.0, 0.0, 0.0) and status.wpos_mm == (2.0, 5.0, 5.0)
+        assert [stage.position_mm() for _ in range(12)] == [(-3.0, 0.0, 0.0)] * 12
+
+
+def test_a_locked_board_is_refused_unless_unlocked_or_homed():
+    with emulator_process(GrblConfig(settings=((22, 1), (24, 600.0), (25, 3000.0)))) as emu:
+        with pytest.raises(StageLocked, match="is locked .*homing is enabled .*: home it .* or unlock it"):
+            open_stage(emu.path)
+        with open_stage(emu.path, unlock=True) as stage:
+            assert stage.status().state == "Idle" and not stage.locked
+        with open_stage(emu.path, home=True, reply_timeout_s=1.0) as stage:
+            assert stage.position_mm() == (-1.0, -1.0, -1.0)
+            stage.move_to(z_mm=-2.0, feed_mm_min=300.0)              # the issue's case 3
+            assert stage.wait_idle().mpos_mm == (-1.0, -1.0, -2.0)
+
+
+def test_dwell_longer_than_the_reply_timeout():
+    with emulator_process(FAST) as emu, open_stage(emu.path, reply_timeout_s=0.2) as stage:
+        start = time.monotonic()
+        stage.protocol.send("G4 P1.2")
+        assert time.monotonic() - start >= 1.2
+
+
+def test_a_full_planner_is_waited_for_never_re_sent(caplog):
+    """Sixteen 0.3 s moves against a 0.2 s reply timeout: the oks follow the planner."""
+    slow = GrblConfig(max_rate_mm_min=(600.0,) * 3, accel_mm_s2=(10000.0,) * 3)
+    with emulator_process(slow) as emu, open_stage(emu.path, reply_timeout_s=0.2) as stage:
+        with caplog.at_level(logging.WARNING, logger="feeler.hardware.stage"):
+            for i in range(1, 21):
+                stage.move_to(x_mm=-3.0 * i, feed_mm_min=600.0)
+        assert caplog.text == "" and not [k for k in stage.recovered if not k.startswith("status_")]
+        assert stage.wait_idle().mpos_mm == (-60.0, 0.0, 0.0)
 
 
 @pytest.mark.parametrize("fault", [
-    Fault("drop", reply="ok", nth=3), Fault("garble", reply="ok", nth=3),
-    Fault("truncate", reply="ok", nth=3),
+    Fault("drop", reply="ok", nth=4), Fault("garble", reply="ok", nth=4), Fault("truncate", reply="ok", nth=4),
 ], ids=["dropped ok", "garbled ok", "truncated ok"])
-def test_lost_acknowledgement_of_a_move_is_resent(fault, caplog):
+def test_a_move_whose_reply_was_lost_is_not_sent_again(fault, caplog):
     with emulator_process(FAST, faults=(fault,)) as emu, open_stage(emu.path, reply_timeout_s=0.3) as stage:
-        # open used ok #1 ($$) and ok #2 (G21 G90): the move's ok is the third
+        # open used ok #1 ($$), #2 ($I), #3 (G21 G90): the move's ok is the fourth
         with caplog.at_level(logging.WARNING, logger="feeler.hardware.stage"):
-            stage.move_to(x_mm=7.0, feed_mm_min=30000.0)
-        assert "re-sending 'G90 G1 X7.0000 F30000.0'" in caplog.text
-        assert stage.wait_idle(5.0).mpos_mm == (7.0, 0.0, 20.0)
+            stage.move_to(x_mm=-7.0, feed_mm_min=30000.0)
+        assert "waiting for the stage to settle" in caplog.text and "sending it again" not in caplog.text
+        assert stage.wait_idle().mpos_mm == (-7.0, 0.0, -20.0)
+
+
+def test_a_move_that_never_arrived_is_sent_again(caplog):
+    with emulator_process(FAST, faults=(Fault("lose", nth=4),)) as emu, \
+            open_stage(emu.path, reply_timeout_s=0.3) as stage:
+        with caplog.at_level(logging.WARNING, logger="feeler.hardware.stage"):
+            stage.move_to(x_mm=-7.0, feed_mm_min=30000.0)
+        assert "never received 'G53 G1 X-7.0000 F30000.0'; sending it again" in caplog.text
+        assert stage.wait_idle().mpos_mm == (-7.0, 0.0, -20.0)
+        assert stage.recovered == {"ok_lost": 1}
 
 
 @pytest.mark.parametrize("fault", [
@@ -112,7 +183,7 @@ def test_lost_acknowledgement_of_a_move_is_resent(fault, caplog):
 def test_damaged_status_report_is_retried(fault):
     with emulator_process(FAST, faults=(fault,)) as emu, open_stage(emu.path, reply_timeout_s=0.3) as stage:
         for _ in range(3):  # the first report was read by open
-            assert stage.position_mm() == (0.0, 0.0, 20.0)
+            assert stage.position_mm() == (0.0, 0.0, -20.0)
 
 
 def test_status_never_answered_is_a_timeout():
@@ -121,23 +192,47 @@ def test_status_never_answered_is_a_timeout():
             open_stage(emu.path, reply_timeout_s=0.1)
 
 
-def test_alarm_at_a_position_then_recover_and_continue():
-    with emulator_process(FAST, faults=(Fault("alarm", code=1, x_mm=5.0),)) as emu, \
+@pytest.mark.parametrize("code", [1, 2])
+def test_critical_alarm_then_recover_at_once_and_continue(code):
+    with emulator_process(FAST, faults=(Fault("alarm", code=code, x_mm=-5.0),)) as emu, \
             open_stage(emu.path) as stage:
-        stage.move_to(x_mm=10.0, feed_mm_min=30000.0)
+        stage.move_to(x_mm=-10.0, feed_mm_min=30000.0)
         with pytest.raises(StageAlarm) as info:
-            stage.wait_idle(5.0)
-        assert info.value.code == 1
-        assert stage.recover().state == "Idle"
-        assert stage.position_mm() == (5.0, 0.0, 20.0)
-        stage.move_to(x_mm=10.0, feed_mm_min=30000.0)
-        assert stage.wait_idle(5.0).mpos_mm == (10.0, 0.0, 20.0)
+            stage.wait_idle()
+        assert info.value.code == code
+        assert stage.recover().state == "Idle"             # straight away: in the 0.5 s silence
+        assert stage.position_mm() == (-5.0, 0.0, -20.0)
+        stage.move_to(x_mm=-10.0, feed_mm_min=30000.0)
+        assert stage.wait_idle().mpos_mm == (-10.0, 0.0, -20.0)
+
+
+def test_soft_limit_alarm_of_the_firmware_then_recover():
+    config = GrblConfig(settings=((22, 1), (20, 1)), max_rate_mm_min=(6000.0,) * 3, accel_mm_s2=(1000.0,) * 3)
+    limits = StageLimits((-200.0, 50.0), (-200.0, 0.0), (-200.0, 0.0), (6000.0,) * 3, (1000.0,) * 3)
+    with emulator_process(config) as emu, open_stage(emu.path, unlock=True, limits=limits) as stage:
+        with pytest.raises(StageAlarm, match="ALARM:2"):
+            stage.move_to(x_mm=5.0, feed_mm_min=3000.0)      # the driver was told wrong limits
+        status = stage.recover()
+        assert status.state == "Idle" and status.mpos_mm == (0.0, 0.0, 0.0)
+
+
+def test_jog_and_jog_cancel(emu):
+    with open_stage(emu.path) as stage:
+        stage.move_to(x_mm=0.0, feed_mm_min=60000.0)
+        stage.wait_idle()
+        stage.jog_to(x_mm=-50.0, feed_mm_min=600.0)
+        assert next(s for s in stage.track() if s.mpos_mm[0] < -0.5).state == "Jog"
+        with pytest.raises(ProtocolError, match="error:9"):
+            stage.protocol.send("G4 P0")                   # G-code is locked out while jogging
+        status = stage.jog_cancel()
+        assert status.state == "Idle" and -50.0 < status.mpos_mm[0] < -0.5
+        assert stage.target_mm == status.mpos_mm
 
 
 def test_vanished_port_is_disconnected():
     with emulator_process(FAST, faults=(Fault("vanish", reply="status", nth=4),)) as emu, \
             open_stage(emu.path) as stage:
-        stage.position_mm()  # open read reports 1 and 2; this is 3, the 4th vanishes
+        stage.position_mm(), stage.position_mm()  # open read report 1; these are 2 and 3; the 4th vanishes
         with pytest.raises(StageDisconnected, match=f"port {emu.path} disconnected"):
             stage.position_mm()
         emu.process.join(5.0)

@@ -77,15 +77,15 @@ def test_not_a_serial_device_and_bad_url(tmp_path):
 
 
 def test_emulate_stage_command_serves_until_sigterm():
-    proc = subprocess.Popen([sys.executable, "-m", "feeler", "emulate", "stage", "--start-mm", "5", "6", "7",
-                             "--max-rate-mm-min", "60000", "60000", "60000"],
+    proc = subprocess.Popen([sys.executable, "-m", "feeler", "emulate", "stage", "--start-mm", "-5", "-6", "-7",
+                             "--max-rate-mm-min", "60000", "60000", "3000", "--setting", "10=0"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         path = proc.stdout.readline().strip()
         assert path.startswith("/dev/")
         with Stage.open(path, reply_timeout_s=1.0) as stage:
-            assert stage.position_mm() == (5.0, 6.0, 7.0)
-            assert stage.limits.max_feed_mm_min == 60000.0
+            assert stage.position_mm() == (-5.0, -6.0, -7.0)            # from WPos + WCO ($10=0)
+            assert stage.limits.max_rate_mm_min == (60000.0, 60000.0, 3000.0)
     finally:
         proc.terminate()
         assert proc.wait(10) == 0
@@ -96,7 +96,8 @@ def test_emulate_stage_command_serves_until_sigterm():
     (["--fault", "drop:nth=0"], "argument --fault='drop:nth=0': fault nth an integer >= 1 or none"),
     (["--fault", "alarm:code=1"], "an alarm needs after_s or one of x_mm, y_mm, z_mm"),
     (["--travel-mm", "0", "1", "1"], "argument --travel-mm=[0.0, 1.0, 1.0]: three numbers > 0"),
-    (["--start-mm", "0", "0", "90"], "argument --start-mm=[0.0, 0.0, 90.0]: inside [0, travel]"),
+    (["--setting", "22"], "argument --setting='22': N=VALUE, e.g. 22=1"),
+    (["--setting", "99=1"], "argument --setting='99=1': a Grbl 1.1h setting (0, 1,"),
 ])
 def test_emulate_stage_rejects_bad_options(args, message, capsys):
     assert main(["emulate", "stage", *args]) == 2

@@ -15,6 +15,8 @@ from feeler.hardware.stage.transport import Transport
 
 IDLE = b"<Idle|MPos:1.000,2.000,3.000|FS:0,0>\r\n"
 IDLE_STATUS = Status("Idle", None, (1.0, 2.0, 3.0), None, 0.0, 0.0)
+RUN = b"<Run|MPos:1.500,2.000,3.000|FS:100,0>\r\n"
+HELD = b"<Hold:0|MPos:1.500,2.000,3.000|FS:0,0>\r\n"
 BANNER = b"\r\nGrbl 1.1h ['$' for help]\r\n"
 
 
@@ -43,6 +45,18 @@ EXCHANGES = [
      (None, None)),
     ("ok of a streamed line during a status query", lambda p: (p.send("G0 X5", wait=False), p.status(), list(p.in_flight)),
      [W(b"G0 X5\n"), W(b"?"), R(b"ok\r\n" + IDLE)], ([], IDLE_STATUS, [])),
+    ("status lost with a line in flight: asked again (nothing came back, no ok was lost)",
+     lambda p: (p.send("G0 X5", wait=False), p.status(), [s.line for s in p.in_flight]),
+     [W(b"G0 X5\n"), W(b"?"), W(b"?"), R(IDLE)], ([], IDLE_STATUS, ["G0 X5"])),
+    ("ok waits while the planner is busy", lambda p: p.send("G1 X2 F100"),
+     [W(b"G1 X2 F100\n"), W(b"?"), R(RUN), W(b"?"), R(RUN), W(b"?"), R(RUN + b"ok\r\n")], [Ok()]),
+    ("ok that arrives during the status query", lambda p: p.send("G1 X2 F100"),
+     [W(b"G1 X2 F100\n"), W(b"?"), R(b"ok\r\n" + RUN)], [Ok()]),
+    ("build info", lambda p: p.build_info(), [W(b"$I\n"), R(b"[VER:1.1h.20190830:]\r\n[OPT:V,15,128]\r\nok\r\n")],
+     {"VER": "1.1h.20190830:", "OPT": "V,15,128"}),
+    ("reset after a soft limit: the early Ctrl-X is discarded, sent again on the message", lambda p: p.soft_reset(),
+     [W(b"\x18"), R(b"[MSG:Reset to continue]\r\n"), W(b"\x18"), R(b"ok\r\n" + BANNER + b"[MSG:'$H'|'$X' to unlock]\r\n")],
+     Banner("1.1h")),
 ]
 
 
@@ -59,7 +73,13 @@ FAILURES = [
      ProtocolError, {"code": 22, "sent": "G1 X1"}),
     ("alarm while waiting", lambda p: p.send("G1 X900 F100"),
      [W(b"G1 X900 F100\n"), R(b"ALARM:2\r\n[MSG:Reset to continue]\r\n")], StageAlarm, {"code": 2}),
-    ("dropped ok", lambda p: p.send("G1 X1 F100"), [W(b"G1 X1 F100\n")], StageTimeout, {"partial": b""}),
+    ("dropped ok", lambda p: p.send("G1 X1 F100"), [W(b"G1 X1 F100\n"), W(b"?"), R(IDLE), W(b"?"), R(IDLE)],
+     StageTimeout, {"partial": b"", "what": "reply to 'G1 X1 F100' (controller Idle)"}),
+    ("ok lost while a hold stops the planner", lambda p: p.send("G1 X1 F100"),
+     [W(b"G1 X1 F100\n"), W(b"?"), R(HELD), W(b"?"), R(HELD)], StageTimeout,
+     {"what": "reply to 'G1 X1 F100' (controller Hold:0)"}),
+    ("banner: the controller reset and dropped the line", lambda p: p.send("G1 X1 F100"),
+     [W(b"G1 X1 F100\n"), R(BANNER)], ProtocolError, {"code": None, "sent": "G1 X1 F100"}),
     ("truncated ok", lambda p: p.send("G1 X1 F100"), [W(b"G1 X1 F100\n"), R(b"o")],
      StageTimeout, {"partial": b"o"}),
     ("garbled ok", lambda p: p.send("G1 X1 F100"), [W(b"G1 X1 F100\n"), R(b"o\x9bk\r\n")],

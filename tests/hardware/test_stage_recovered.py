@@ -10,7 +10,7 @@ from feeler.hardware.emulators import Fault, GrblConfig, emulator_process
 from feeler.hardware.stage import ProtocolError, Stage, StageTimeout
 from feeler.hardware.stage.protocol import damage_of
 
-FAST = GrblConfig(max_rate_mm_min=(60000.0,) * 3, accel_mm_s2=(20000.0,) * 3, start_mm=(0.0, 0.0, 20.0))
+FAST = GrblConfig(max_rate_mm_min=(60000.0,) * 3, accel_mm_s2=(20000.0,) * 3, start_mm=(0.0, 0.0, -20.0))
 TINY = Path(__file__).parent / "data" / "tiny-plan.toml"
 
 
@@ -24,9 +24,9 @@ def test_damage_of_each_kind_and_a_real_error_is_no_damage():
 
 @pytest.mark.parametrize("fault, counted", [
     (None, {}),
-    (Fault("drop", reply="ok", nth=3), {"ok_lost": 1}),            # open used ok #1 ($$), #2 (G21 G90)
-    (Fault("garble", reply="ok", nth=3), {"ok_malformed": 1}),
-    (Fault("truncate", reply="ok", nth=3), {"ok_short_read": 1}),
+    (Fault("drop", reply="ok", nth=4), {"ok_lost": 1}),            # open used ok #1 ($$), #2 ($I), #3 (G21 G90)
+    (Fault("garble", reply="ok", nth=4), {"ok_malformed": 1}),
+    (Fault("truncate", reply="ok", nth=4), {"ok_short_read": 1}),
     (Fault("drop", reply="status", nth=2), {"status_lost": 1}),    # open read status #1
     (Fault("garble", reply="status", nth=2), {"status_malformed": 1}),
     (Fault("truncate", reply="status", nth=2), {"status_short_read": 1}),
@@ -36,10 +36,10 @@ def test_damage_of_each_kind_and_a_real_error_is_no_damage():
 def test_each_recovered_reply_is_counted_once(fault, counted):
     with emulator_process(FAST, faults=() if fault is None else (fault,)) as emu, \
             Stage.open(emu.path, reply_timeout_s=0.3, poll_s=0.005) as stage:
-        stage.move_to(x_mm=7.0, feed_mm_min=30000.0)
-        assert stage.wait_idle(5.0).mpos_mm == (7.0, 0.0, 20.0)
+        stage.move_to(x_mm=-7.0, feed_mm_min=30000.0)
+        assert stage.wait_idle().mpos_mm == (-7.0, 0.0, -20.0)
         for _ in range(3):
-            assert stage.position_mm() == (7.0, 0.0, 20.0)
+            assert stage.position_mm() == (-7.0, 0.0, -20.0)
         assert stage.recovered == counted
         with pytest.raises(ProtocolError):
             stage.protocol.send("G4 P-1")                          # error:4 is an answer, not damage
@@ -49,10 +49,10 @@ def test_each_recovered_reply_is_counted_once(fault, counted):
 def test_driver_recoveries_are_bad_lines_in_the_campaign_summary(tmp_path, capsys):
     plan = tmp_path / "one.toml"
     plan.write_text(TINY.read_text().replace("heights_mm = [0.0, 0.2]", "heights_mm = [0.0]")
-                    .replace("origin_x_mm = [10.0, 14.0]", "origin_x_mm = [10.0]")
+                    .replace("origin_x_mm = [-20.0, -16.0]", "origin_x_mm = [-20.0]")
                     .replace("scans_per_plate = 2", "scans_per_plate = 1"))
     run = tmp_path / "run"
-    faults = ["garble:reply=ok,nth=4", "garble:reply=status,nth=6", "truncate:reply=status,nth=12"]
+    faults = ["garble:reply=ok,nth=5", "garble:reply=status,nth=6", "truncate:reply=status,nth=12"]
     assert main(["acquire", "--emulate", "--plan", str(plan), "--out", str(run)]
                 + [a for f in faults for a in ("--fault", f)]) == 0
     assert "1 of 1 scans (complete)" in capsys.readouterr().out

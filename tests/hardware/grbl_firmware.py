@@ -1,0 +1,177 @@
+"""The real Grbl 1.1h firmware (grbl-sim, ``../shared/grbl-sim``) for hardware-in-the-loop tests.
+
+:func:`firmware_exe` builds it once into ``.cache/grbl-sim/<hash of the sources>/`` under a
+file lock (parallel test processes wait for one build), or skips the calling test with the
+reason when the sources, ``make`` or a C compiler are missing. :class:`Firmware` serves one
+instance on a pseudo-terminal: the program's stdin and stdout are the pty's master, so the
+driver opens the slave's device path exactly as it would open ``/dev/ttyUSB0``. Each
+instance runs in its own working directory (it keeps ``EEPROM.DAT`` there), dies with this
+process (``PR_SET_PDEATHSIG``, and end-of-file on its stdin when the slave closes) and is
+stopped by its PID.
+
+What the firmware does that a test must allow for (``../shared/grbl-sim/README.md``): it
+reads no input during its first simulated second; it moves in approximately real time and
+several times slower on a loaded machine; every input pin reads active (``Pn:PXYZRHS``), so
+``$H`` ends in ``ALARM:8``; the bytes 0xFF and 0x06 stop it.
+"""
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import fcntl
+import hashlib
+import os
+import select
+import shutil
+import signal
+import subprocess
+import time
+import tty
+from pathlib import Path
+
+import pytest
+
+__all__ = ["ROOT", "SOURCES", "firmware_exe", "Firmware", "read_until", "BANNER_END", "UNLOCK"]
+
+ROOT = Path(__file__).resolve().parents[2]
+SOURCES = Path(os.environ.get("FEELER_GRBL_SIM", ROOT.parent / "shared" / "grbl-sim"))
+_BUILT: dict[Path, Path] = {}
+BANNER_END = b"['$' for help]\r\n"
+UNLOCK = b"[MSG:'$H'|'$X' to unlock]\r\n"
+
+
+def _sources_hash(src: Path) -> str:
+    digest = hashlib.sha256()
+    for path in sorted(p for p in src.rglob("*") if p.is_file()):
+        digest.update(str(path.relative_to(src)).encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()[:16]
+
+
+def firmware_exe(src: Path = SOURCES) -> Path:
+    """Path of ``grbl_sim.exe``, built on first use (skips the test if it cannot be built)."""
+    if src in _BUILT:
+        return _BUILT[src]
+    if not (src / "build.sh").is_file():
+        pytest.skip(f"real-firmware test: grbl-sim sources not found at {src} (set FEELER_GRBL_SIM)")
+    missing = [tool for tool in ("make", "bash") if shutil.which(tool) is None]
+    if shutil.which("gcc") is None and shutil.which("cc") is None:
+        missing.append("a C compiler (gcc)")
+    if missing:
+        pytest.skip(f"real-firmware test: cannot build grbl-sim without {', '.join(missing)}")
+    cache = ROOT / ".cache" / "grbl-sim"
+    cache.mkdir(parents=True, exist_ok=True)
+    out = cache / _sources_hash(src)
+    with open(cache / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)            # one build; the others wait, then reuse it
+        done = subprocess.run(["bash", str(src / "build.sh"), str(out)], capture_output=True, text=True)
+    if done.returncode != 0:
+        pytest.fail(f"grbl-sim build failed in {out}: {done.stderr.strip()[-800:]}")
+    _BUILT[src] = Path(done.stdout.strip().splitlines()[-1])
+    return _BUILT[src]
+
+
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
+
+
+def read_until(fd: int, done, timeout_s: float) -> bytes:
+    """Bytes read from ``fd`` until ``done(data)`` is true or ``timeout_s`` passes."""
+    data = b""
+    deadline = time.monotonic() + timeout_s
+    while not done(data) and (left := deadline - time.monotonic()) > 0:
+        if select.select([fd], [], [], min(left, 0.05))[0]:
+            data += os.read(fd, 4096)
+    return data
+
+
+class Firmware:
+    """One running grbl-sim on a pty: ``path`` is its device, ``pid`` its process.
+
+    Args:
+        workdir (Path): a fresh directory (its ``EEPROM.DAT`` holds the settings).
+        exe (Path): the built program (default: :func:`firmware_exe`).
+        ready_timeout_s (float): how long the first status report may take (the firmware
+            reads nothing during its first simulated second, slower on a loaded machine).
+    """
+
+    def __init__(self, workdir: Path, exe: Path | None = None, ready_timeout_s: float = 60.0):
+        self.workdir, self.exe, self.ready_timeout_s = Path(workdir), exe, ready_timeout_s
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self._start()
+
+    def _start(self) -> None:
+        exe, ready_timeout_s = self.exe, self.ready_timeout_s
+        master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        self.path = os.ttyname(self._slave)
+        self.process = subprocess.Popen(
+            [str(exe or firmware_exe()), "-n", "-s", "/dev/null", "-b", "/dev/null"],
+            stdin=master, stdout=master, stderr=subprocess.DEVNULL, cwd=self.workdir,
+            preexec_fn=_die_with_parent)
+        os.close(master)
+        self.pid = self.process.pid
+        self.boot = b""
+        try:
+            self._wait_ready(ready_timeout_s)
+        except BaseException:
+            self.stop()
+            raise
+
+    def _wait_ready(self, timeout_s: float) -> None:
+        """Read the boot output, then wait until a ``?`` is answered and the line is quiet."""
+        fd = self._slave
+        boot = read_until(fd, lambda d: b"['$' for help]\r\n" in d, timeout_s)
+        os.write(fd, b"?")
+        boot += read_until(fd, lambda d: d.endswith(b">\r\n"), timeout_s)
+        if not boot.endswith(b">\r\n"):
+            raise RuntimeError(f"grbl-sim {self.pid} did not answer '?' within {timeout_s} s: {boot!r}")
+        self.boot = boot[: boot.rindex(b"<")]          # everything it sent before the report
+        read_until(fd, lambda d: False, 0.05)
+
+    @property
+    def fd(self) -> int:
+        """This process's own descriptor of the device (not to be used while a driver is)."""
+        return self._slave
+
+    def prepare(self, timeout_s: float = 60.0) -> None:
+        """Back at machine zero, Grbl's defaults, idle, report counters at zero (replies dropped)."""
+        fd = self._slave
+        home = [(b"$%d=%d\n" % (n, v), b"ok\r\n") for n, v in ((110, 3000), (111, 3000), (112, 3000),
+                                                              (120, 1000), (121, 1000), (122, 1000))]
+        home += [(b"G53 G0 X0 Y0 Z0\n", b"ok\r\n"), (b"G4 P0\n", b"ok\r\n")]
+        wipe = [(b"$RST=*\n", BANNER_END), (b"$X\n", b"ok\r\n")]
+        read_until(fd, lambda d: False, 0.05)
+        for send, end in [(b"\x18", BANNER_END), *wipe, *home, *wipe, (b"\x18", BANNER_END)]:
+            os.write(fd, send)
+            got = read_until(fd, lambda d: d.endswith(end) or d.endswith(end + UNLOCK), timeout_s)
+            if end not in got:
+                raise RuntimeError(f"grbl-sim {self.pid}: no {end!r} after {send!r}: {got!r}")
+        read_until(fd, lambda d: False, 0.3)
+
+    def power_cycle(self) -> None:
+        """Stop the program and start it again in the same directory (its EEPROM kept).
+
+        The simulator writes EEPROM.DAT through a buffered stream: it is stopped with
+        Ctrl-F (0x06), on which it exits and flushes, so the last setting written survives.
+        """
+        with contextlib.suppress(OSError):
+            os.write(self._slave, b"\x06")
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self.process.wait(30)
+        self.stop()
+        self._start()
+
+    def stop(self) -> None:
+        """Stop the program (by its PID) and release the pty."""
+        if self.process.poll() is None:
+            self.process.kill()
+        self.process.wait()
+        with contextlib.suppress(OSError):
+            os.close(self._slave)
+
+    def __enter__(self) -> "Firmware":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()

@@ -1,0 +1,220 @@
+"""The stage driver and ``feeler acquire`` against the real Grbl 1.1h firmware (grbl-sim).
+
+The firmware runs on a pty (``conftest.firmware``), in approximately real time and several
+times slower on a loaded machine: no test here waits a fixed time for the firmware; every
+wait follows the motion (the driver's own), with generous overall caps. Positions are
+exact in whole motor steps (1/250 mm with Grbl's defaults).
+"""
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from grbl_firmware import read_until
+
+from feeler.cli import main
+from feeler.errors import ArgumentError
+from feeler.hardware.stage import ProtocolError, Stage, StageAlarm, StageLimits, StageLocked
+
+DATA = Path(__file__).parent / "data"
+
+
+def settings(fw, **values) -> None:
+    """Write ``$N=value`` settings through the firmware's own descriptor (no driver open)."""
+    for number, value in values.items():
+        os.write(fw.fd, f"${number[1:]}={value}\n".encode())
+        got = read_until(fw.fd, lambda d: d.endswith(b"ok\r\n") or b"error" in d, 60)
+        assert got.endswith(b"ok\r\n"), (number, value, got)
+
+
+FAST = {"_110": 3000, "_111": 3000, "_112": 3000, "_120": 1000, "_121": 1000, "_122": 1000}
+
+
+def open_stage(fw, **kw) -> Stage:
+    return Stage.open(fw.path, reply_timeout_s=kw.pop("reply_timeout_s", 1.0), poll_s=0.01, **kw)
+
+
+def test_open_moves_jog_and_errors(firmware):
+    settings(firmware, **FAST)
+    with open_stage(firmware) as stage:
+        assert stage.limits == StageLimits((-200.0, 0.0), (-200.0, 0.0), (-200.0, 0.0), (3000.0,) * 3, (1000.0,) * 3)
+        assert stage.protocol.rx_buffer_bytes == 128 and dict(stage.status().extra)["Pn"] == "PXYZRHS"
+        stage.move_to(x_mm=-3.001, y_mm=-1.5, z_mm=-2.0, feed_mm_min=3000.0)
+        assert stage.wait_idle().mpos_mm == (-3.0, -1.5, -2.0)              # 3.001 mm: 750.25 steps
+        assert stage.press(0.25, 600.0) == (-3.001, -1.5, -2.25)
+        stage.traverse(1.0, 20.0)
+        xs = [s.mpos_mm[0] for s in stage.track()]
+        assert xs[-1] == -2.0 and xs == sorted(xs) and len(set(xs)) > 2
+        stage.jog_to(x_mm=-10.0, feed_mm_min=300.0)
+        assert next(s for s in stage.track() if s.mpos_mm[0] < -2.1).state == "Jog"
+        with pytest.raises(ProtocolError) as info:
+            stage.protocol.send("G4 P0")                                     # G-code locked out: jogging
+        assert info.value.code == 9
+        status = stage.jog_cancel()
+        assert status.state == "Idle" and -10.0 < status.mpos_mm[0] < -2.0 and stage.target_mm == status.mpos_mm
+        with pytest.raises(ProtocolError) as info:
+            stage.protocol.send("G0 G1 X-1")
+        assert (info.value.code, info.value.sent) == (24, "G0 G1 X-1") and "error:24" in str(info.value)
+        with pytest.raises(ArgumentError, match=r"argument x_mm=1.0: within the soft limits \[-200, 0\]"):
+            stage.move_to(x_mm=1.0, feed_mm_min=100.0)
+
+
+def test_streaming_over_the_buffer_with_the_planner_full_and_a_long_dwell(firmware):
+    """A 1 s move, then 20 tiny ones (over 127 bytes in all): with the planner full the
+    16th ok waits for the long move to end, beyond the 0.5 s reply timeout; a dwell of
+    1.5 s is answered after it; nothing times out, no line is sent twice (on a loaded host a
+    status report may come later than the timeout: it is asked for again, and counted)."""
+    settings(firmware, **FAST)
+    with open_stage(firmware, reply_timeout_s=0.5) as stage:
+        lines = ["G91 G1 F60", "X-1"] + ["X-0.01"] * 20 + ["G90"]
+        assert sum(len(line) + 1 for line in lines) > 127
+        start = time.monotonic()
+        assert len(stage.protocol.stream(lines)) == len(lines)
+        assert not [k for k in stage.recovered if not k.startswith("status_")]     # slow reports only
+        assert time.monotonic() - start > 0.5                              # the oks did wait
+        stage.target_mm = (-1.2, 0.0, 0.0)
+        assert stage.wait_idle().mpos_mm == (-1.2, 0.0, 0.0)
+        start = time.monotonic()
+        stage.protocol.send("G4 P1.5")
+        assert time.monotonic() - start >= 1.5
+
+
+def test_feed_hold_then_resume_waits_for_the_hold_to_complete(firmware):
+    settings(firmware, **{**FAST, "_120": 100})                            # a visible Hold:1
+    with open_stage(firmware) as stage:
+        stage.move_to(x_mm=-1.0, feed_mm_min=60.0)
+        next(s for s in stage.track() if s.mpos_mm[0] < -0.2)
+        stage.hold()
+        held = stage.resume()                  # Grbl ignores ~ during Hold:1; resume() waits for Hold:0
+        assert held.state in ("Run", "Idle")
+        assert stage.wait_idle().mpos_mm == (-1.0, 0.0, 0.0)
+
+
+def test_reset_in_motion_and_a_soft_limit_alarm_then_recover_at_once(firmware):
+    settings(firmware, **FAST, _22=1, _20=1)
+    wrong = StageLimits((-200.0, 10.0), (-200.0, 0.0), (-200.0, 0.0), (3000.0,) * 3, (1000.0,) * 3)
+    with open_stage(firmware, limits=wrong) as stage:
+        stage.move_to(x_mm=-20.0, feed_mm_min=600.0)
+        next(s for s in stage.track() if s.mpos_mm[0] < -0.5)
+        stage.protocol.soft_reset()                                          # Ctrl-X in motion: ALARM:3
+        assert stage.protocol.last_alarm == 3
+        assert stage.recover().state == "Idle"
+        with pytest.raises(StageAlarm) as info:
+            stage.move_to(x_mm=1.0, feed_mm_min=600.0)                       # beyond Grbl's [-200, 0]
+        assert info.value.code == 2
+        status = stage.recover()                 # straight away: Grbl ignores a reset for 0.5 s
+        assert status.state == "Idle" and stage.protocol.last_alarm == 2
+        stage.move_to(x_mm=-1.0, feed_mm_min=600.0)
+        assert stage.wait_idle().mpos_mm[0] == -1.0
+
+
+def test_work_positions_in_inches_are_machine_millimetres(firmware):
+    settings(firmware, **FAST, _10=0, _13=1)
+    with open_stage(firmware) as stage:
+        stage.protocol.send("G10 L20 P1 X5 Y5 Z5")                            # work offsets
+        stage.move_to(x_mm=-2.54, feed_mm_min=1000.0)
+        status = stage.wait_idle()                                           # reported to 0.0001 inch
+        assert status.mpos_mm == pytest.approx((-2.54, 0.0, 0.0), abs=0.0013)
+        assert status.wpos_mm == pytest.approx((2.46, 5.0, 5.0), abs=0.0013)
+
+
+def test_a_board_that_boots_locked(firmware, tmp_path, capsys):
+    """Homing enabled at power-up: refused unless homed or unlocked (the simulator's homing
+    ends in ALARM:8: it reads every limit switch pressed), also by ``feeler acquire``."""
+    settings(firmware, _22=1, _24=600, _25=3000, _26=10, _27=0.2)          # a quick homing cycle
+    firmware.power_cycle()
+    with pytest.raises(StageLocked, match="homing is enabled"):
+        open_stage(firmware)
+    plan = tmp_path / "plan.toml"
+    plan.write_text(campaign_plan())
+    video = replayed_video(plan, tmp_path / "camera.avi", 4)
+    argv = ["acquire", "--stage", firmware.path, "--camera", str(video), "--plan", str(plan),
+            "--out", str(tmp_path / "run")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is locked" in err[0] and "pass --home to home it ($H), or --unlock" in err[0]
+    assert not (tmp_path / "run").exists()
+    with pytest.raises(StageAlarm) as info:
+        open_stage(firmware, home=True)
+    assert info.value.code == 8
+    with open_stage(firmware, unlock=True) as stage:                        # still locked after ALARM:8
+        assert stage.status().state == "Idle" and not stage.locked
+
+
+def campaign_plan(speed_mm_s: float = 2.0, move_feed: float = 500.0) -> str:
+    return f"""[scene]
+kind = "scan-plan"
+name = "firmware-plan"
+seed = 3
+
+[plates]
+heights_mm = [0.1]
+origin_x_mm = [-1.0]
+surface_z_mm = -0.5
+y_mm = -0.5
+
+[scan]
+speed_mm_s = {speed_mm_s}
+traverse_mm = 0.6
+sample_period_s = 0.1
+press_mm = 0.05
+clearance_mm = 0.2
+move_feed_mm_min = {move_feed}
+press_feed_mm_min = 300.0
+
+[repeats]
+scans_per_plate = 1
+
+[neuron]
+length_mm = 3.0
+
+[optics]
+element = 5
+
+[virtual]
+step_position_mm = 0.3
+pad_width_mm = 0.2
+"""
+
+
+def replayed_video(plan_path: Path, out: Path, n: int) -> Path:
+    """A recorded camera: the virtual sensor's frames along the plan's traverse."""
+    from feeler.hardware.acquire import load_plan
+    from feeler.hardware.acquire.world import VirtualWorld
+    from feeler.hardware.camera import write_video
+
+    world = VirtualWorld.of_plan(load_plan(plan_path), plan_path)
+    rng = np.random.default_rng(0)
+    frames = [world.render(0, (-1.0 + 0.15 * k, -0.5, -0.55), rng) for k in range(n)]
+    return write_video(np.array(frames), out)
+
+
+def test_acquire_on_the_real_firmware_with_a_replayed_camera(firmware, tmp_path, capsys):
+    """On Grbl's default settings a plan faster than the board is refused, naming the plan
+    key, its value and the board's ceiling; with faster settings a short campaign runs end
+    to end, every sample read from the firmware while it moved."""
+    plan = tmp_path / "plan.toml"
+    plan.write_text(campaign_plan(move_feed=600.0))
+    video = replayed_video(plan, tmp_path / "camera.avi", 4)
+    run = tmp_path / "run"
+    argv = ["acquire", "--stage", firmware.path, "--camera", str(video), "--plan", str(plan), "--out", str(run)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "scan.move_feed_mm_min: 600 mm/min is above the ceiling of 500 mm/min of" in err[0]
+    assert not run.exists()
+    settings(firmware, **FAST)
+    plan.write_text(campaign_plan(move_feed=3000.0))
+    assert main(argv + ["--no-progress"]) == 0
+    assert "1 of 1 scans (complete), 4 samples, 0 bad frames, 0 bad lines" in capsys.readouterr().out
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["complete"] and summary["stage"] == firmware.path
+    import pandas as pd
+
+    rows = pd.read_csv(run / "scans.csv")
+    assert list(rows.t_sched_s) == pytest.approx([0.0, 0.1, 0.2, 0.3], abs=1e-12)
+    assert np.all(np.diff(rows.t_s) > 0) and np.all(np.diff(rows.stage_x_mm) >= 0)
+    assert np.all((rows.stage_x_mm >= -1.0) & (rows.stage_x_mm <= -0.4))
+    assert np.all(rows.stage_z_mm == -0.552)                 # -0.55 mm is -137.5 steps: Grbl rounds to -138
+    assert np.all(np.isclose(rows.stage_x_mm * 250, np.round(rows.stage_x_mm * 250)))
