@@ -71,15 +71,13 @@ def nuts_fit(cells: Cells, priors: Priors, *, hierarchical: bool, overdispersion
         (chain, draw, condition), ``lapse_all`` (chain, draw), the hyper-parameters
         of the hierarchical model and ``phi``; ``sample_stats`` has ``diverging``.
     """
-    import pymc as pm
+    from feeler.calib.nuts import sample_model, stats_of
 
     fit_cells = cells if hierarchical else _with_pooled(cells)
     model = _build(fit_cells, priors, hierarchical=hierarchical, overdispersion=overdispersion)
     seed = int(rng.integers(2**31 - 1))
-    with model:
-        idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=1, random_seed=seed,
-                          target_accept=target_accept, progressbar=progressbar,
-                          compute_convergence_checks=False)
+    idata = sample_model(model, draws=draws, tune=tune, chains=chains, seed=seed,
+                         target_accept=target_accept, progress=progressbar, adaptation="draw_diag")
     post = idata["posterior"]
 
     def get(name):
@@ -98,7 +96,7 @@ def nuts_fit(cells: Cells, priors: Priors, *, hierarchical: bool, overdispersion
             out[name] = out[name][:, :, :-1]
     if overdispersion:
         out["phi"] = get("phi")
-    stats = {"diverging": np.asarray(idata["sample_stats"]["diverging"].values)}
+    stats = stats_of(idata, ("diverging",))
     return out, stats
 
 
