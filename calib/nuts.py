@@ -256,7 +256,8 @@ def _sample_pymc(model, *, draws, tune, chains, seed, target_accept, progress, v
     t0 = time.perf_counter()
     tree = pm.sample(draws=draws, tune=tune, chains=chains, cores=1, random_seed=seed,
                      progressbar=show_progress(progress), target_accept=target_accept,
-                     compute_convergence_checks=False, model=model, var_names=var_names)
+                     compute_convergence_checks=False, model=model, var_names=var_names,
+                     nuts_sampler="pymc")
     tree["sample_stats"].attrs.update({"compile_seconds": float("nan"),
                                        "sampling_seconds": time.perf_counter() - t0,
                                        "compile_cache": "off", "sampler": f"pymc {pm.__version__}"})
