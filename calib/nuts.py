@@ -27,7 +27,8 @@ the choice of copy not depend on load order (:func:`_entry_points`).
 The timings go in ``tree["sample_stats"].attrs``: ``compile_seconds`` (graph to machine
 code, or its cache load), ``sampling_seconds``, ``compile_cache`` ("hit", "miss" or
 "off"), ``sampler`` — and :func:`stats_of` carries them to a backend's sample-stats
-dict. Without nutpie installed, PyMC's sampler runs (``sampler`` "pymc").
+dict. Without nutpie installed, PyMC's own sampler runs (``sampler`` "pymc"; PyMC 6's
+``pm.sample`` picks nutpie by itself when it is installed, compiling it afresh each time).
 """
 from __future__ import annotations
 
