@@ -14,10 +14,10 @@ export UV_COMPILE_BYTECODE := 1
 export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
 export MPLBACKEND := Agg
 
-.PHONY: env demo test test-load bench browser clean help
+.PHONY: env demo test test-load bench bench-load browser clean help
 
 help:  ## list the targets
-	@grep -E '^[a-z]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
+	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
 
 $(VENV)/.synced: pyproject.toml uv.lock
 	@$(UV) --version >/dev/null 2>&1 || $(PYTHON) -m pip install --quiet uv
@@ -38,9 +38,14 @@ test: env browser  ## run the whole test suite (slow suites at a small size)
 test-load: env browser  ## the whole test suite with two busy-loop processes competing for the cores
 	.ci/with-load -n 2 $(BIN)/python -m pytest
 
-bench: env  ## run the benchmarks (pytest-benchmark); ratios printed at the end and kept in runs/benchmarks/
+bench: env  ## run the benchmarks: medians with spread, idle and under two busy loops; tables in runs/benchmarks/
 	@mkdir -p runs/benchmarks
 	$(BIN)/python -m pytest benchmarks -p no:cacheprovider --benchmark-json runs/benchmarks/benchmarks.json
+
+bench-load: env  ## every benchmark with two busy-loop processes on the cores (.ci/with-load); tables in runs/benchmarks/load/
+	@mkdir -p runs/benchmarks/load
+	FEELER_BENCH_UNDER_LOAD=1 .ci/with-load -n 2 $(BIN)/python -m pytest benchmarks -p no:cacheprovider \
+		--benchmark-json runs/benchmarks/load/benchmarks.json
 
 clean:  ## remove the environment, caches and generated runs
 	rm -rf $(VENV) .cache runs .pytest_cache .benchmarks

@@ -32,7 +32,8 @@ def posterior_from_draws(draws: Mapping[str, np.ndarray], *,
         draws (dict[str, ndarray[chain, draw, *shape]]): posterior draws per variable.
         dims (dict[str, list[str]]): names of the non-sample dimensions per variable,
             e.g. ``{"C": ["disp_axis", "force_axis"]}``.
-        sample_stats (dict[str, ndarray[chain, draw]]): e.g. ``diverging``, ``lp``.
+        sample_stats (dict[str, ndarray[chain, draw]]): e.g. ``diverging``, ``lp``; its
+            ``attrs``, if any (:class:`feeler.calib.nuts.SampleStats`), go on the group.
         observed (dict[str, ndarray]): the data the fit saw (no chain/draw dims).
         extra_groups (dict[str, dict]): more groups with (chain, draw) leading dims,
             e.g. ``posterior_predictive``.
@@ -55,6 +56,8 @@ def posterior_from_draws(draws: Mapping[str, np.ndarray], *,
                      pred_dims={k: list(v) for k, v in (dims or {}).items()})
     if attrs:
         tree["posterior"].attrs.update({k: v for k, v in attrs.items()})
+    if getattr(sample_stats, "attrs", None):      # the NUTS runner's timings (calib.nuts)
+        tree["sample_stats"].attrs.update(sample_stats.attrs)
     return tree
 
 

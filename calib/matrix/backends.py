@@ -25,6 +25,8 @@ def sample_nuts(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise: 
     """PyMC NUTS; returns (draws dict, sample_stats dict) as numpy arrays."""
     import pymc as pm
 
+    from feeler.calib.nuts import sample_model, stats_of
+
     n, p = y.shape
     with pm.Model() as model:
         B = pm.Normal("B", mu=prior.b0, sigma=prior.sd, shape=(p, 3))
@@ -41,16 +43,13 @@ def sample_nuts(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise: 
             pm.StudentT("y", nu=nu, mu=mu, sigma=sigma, observed=y)
         else:
             pm.Normal("y", mu=mu, sigma=sigma, observed=y)
-        tree = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores, random_seed=seed,
-                         progressbar=show_progress(progress), target_accept=0.9,
-                         compute_convergence_checks=False, model=model, var_names=["B", "sigma"])
+        tree = sample_model(model, draws=draws, tune=tune, chains=chains, seed=seed,
+                            progress=progress, target_accept=0.9, var_names=["B", "sigma"])
     post = tree["posterior"]
     out = {"B": np.asarray(post["B"].transpose("chain", "draw", ...).values),
            "sigma": np.broadcast_to(np.asarray(post["sigma"].transpose("chain", "draw", ...).values),
                                     (chains, draws, p)).copy()}
-    stats = tree["sample_stats"]
-    sample_stats = {"diverging": np.asarray(stats["diverging"].transpose("chain", "draw").values),
-                    "lp": np.asarray(stats["lp"].transpose("chain", "draw").values)}
+    sample_stats = stats_of(tree)
     return out, sample_stats
 
 

@@ -78,6 +78,8 @@ def sample_nuts(table: PeakTable, delta_mm, pri: Priors, *, chains: int, draws: 
     import pymc as pm
     import pytensor.tensor as pt
 
+    from feeler.calib.nuts import sample_model, stats_of
+
     d = np.asarray(delta_mm, float)
     x, log_w, p_nodes = tau_nodes(table)
     p_c, lw_c = pt.constant(np.ascontiguousarray(p_nodes)), pt.constant(log_w)
@@ -89,17 +91,14 @@ def sample_nuts(table: PeakTable, delta_mm, pri: Priors, *, chains: int, draws: 
         mu = pt.maximum(a * p_c - h, 0.0)                                      # (m, scans)
         ll = -d.size * pt.log(sigma) - 0.5 * pt.sum((d - mu) ** 2, axis=1) / sigma ** 2
         pm.Potential("lik_tau_integrated", pt.logsumexp(ll + lw_c))
-        tree = pm.sample(draws=draws, tune=tune, chains=chains, cores=cores, random_seed=seed,
-                         progressbar=show_progress(progress), target_accept=target_accept,
-                         compute_convergence_checks=False, model=model)
+        tree = sample_model(model, draws=draws, tune=tune, chains=chains, seed=seed,
+                            progress=progress, target_accept=target_accept)
     post = tree["posterior"]
     out = {k: np.asarray(post[k].transpose("chain", "draw").values) for k in ("a", "h", "sigma_mm")}
     rng = np.random.default_rng([int(seed), 2])
     lt = draw_tau(x, log_w, p_nodes, d, out["a"].ravel(), out["h"].ravel(), out["sigma_mm"].ravel(), rng)
     out["tau_s"] = np.exp(lt).reshape(out["a"].shape)
-    stats = tree["sample_stats"]
-    sample_stats = {"diverging": np.asarray(stats["diverging"].transpose("chain", "draw").values),
-                    "lp": np.asarray(stats["lp"].transpose("chain", "draw").values)}
+    sample_stats = stats_of(tree)
     return {k: out[k] for k in ("a", "tau_s", "h", "sigma_mm")}, sample_stats
 
 

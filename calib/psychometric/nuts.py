@@ -95,15 +95,13 @@ def nuts_fit(cells: Cells, priors: Resolved, *, hierarchical: bool, pooled: bool
         the hyper-parameters of the hierarchical model and ``phi``/``phi_all``;
         ``sample_stats`` has ``diverging``.
     """
-    import pymc as pm
+    from feeler.calib.nuts import sample_model, stats_of
 
     model = _build(cells, priors, hierarchical=hierarchical, pooled=pooled, lapse_per=lapse_per,
                    overdispersion=overdispersion)
     seed = int(rng.integers(2**31 - 1))
-    with model:
-        idata = pm.sample(draws=draws, tune=tune, chains=chains, cores=1, random_seed=seed,
-                          target_accept=target_accept, progressbar=progressbar,
-                          compute_convergence_checks=False)
+    idata = sample_model(model, draws=draws, tune=tune, chains=chains, seed=seed,
+                         target_accept=target_accept, progress=progressbar, adaptation="draw_diag")
     post = idata["posterior"]
 
     def get(name):
@@ -123,5 +121,5 @@ def nuts_fit(cells: Cells, priors: Resolved, *, hierarchical: bool, pooled: bool
     elif hierarchical:
         out |= {"pse_all": out["mu_pse"], "sigma_all": np.exp(out["mu_log_sigma"]),
                 "lapse_all": out["lapse"].mean(axis=2)}
-    stats = {"diverging": np.asarray(idata["sample_stats"]["diverging"].values)}
+    stats = stats_of(idata, ("diverging",))
     return out, stats

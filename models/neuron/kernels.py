@@ -26,9 +26,12 @@ its compensation.
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numba as nb
 import numpy as np
+
+from feeler.models.neuron.threads import run_parallel, threads_for
 
 
 __all__ = ["Carry", "boxcar", "exponential", "finite", "pick"]
@@ -108,10 +111,10 @@ def _boxcar_row(r, x, w, tv, prev, have_prev, cv, H, s, comp, lo, tau, a, h, cla
     s[r], comp[r], lo_out[r] = _window(cv[r], tv, H, s[r], comp[r], lo, tau, a, h, clamp, out[r])
 
 
-# Rows in parallel on all cores; one row (or little work) runs serially, where the
-# parallel region's start-up would cost more than it saves. The two loops are separate
-# functions: numba's cache is keyed on the Python function, so one function compiled
-# twice (parallel and serial) would load one build for both.
+# Rows in parallel on the cores that are free now (models/neuron/threads.py); one row,
+# little work or a busy machine runs serially. The two loops are separate functions:
+# numba's cache is keyed on the Python function, so one function compiled twice
+# (parallel and serial) would load one build for both.
 @nb.njit(cache=True, parallel=True)
 def _boxcar_rows_par(*args):
     for r in nb.prange(args[0].shape[0]):
@@ -122,12 +125,13 @@ def _boxcar_rows_par(*args):
 def _boxcar_rows_ser(*args):
     for r in range(args[0].shape[0]):
         _boxcar_row(r, *args)
-_PARALLEL_MIN_SAMPLES = 1 << 16
 
 
 def pick(par, ser, rows: int, n: int):
-    """The parallel or the serial compiled loop for ``rows`` × ``n`` samples."""
-    return par if rows > 1 and rows * n >= _PARALLEL_MIN_SAMPLES else ser
+    """The loop to run for ``rows`` × ``n`` samples: ``ser``, or ``par`` on the threads
+    :func:`~feeler.models.neuron.threads.threads_for` gives now."""
+    k = threads_for(rows * n, rows)
+    return ser if k == 1 else partial(run_parallel, par, k)
 
 
 def boxcar(x: np.ndarray, w: np.ndarray, t: np.ndarray, tau: float, carry: Carry, *,

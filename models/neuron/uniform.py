@@ -28,6 +28,7 @@ import numba as nb
 import numpy as np
 
 from feeler.models.neuron import kernels
+from feeler.models.neuron.threads import run_parallel, threads_for
 
 __all__ = ["boxcar_uniform", "steps_off_grid", "split_parts", "split_row", "window_shape", "UniformStream"]
 
@@ -379,10 +380,11 @@ def window_shape(dt: float, tau: float, n: int) -> tuple[int, float]:
 
 
 def split_parts(x: np.ndarray, n_out: int, mm: int) -> int:
-    """Threads to cut a single-receptor record across (0: do not cut)."""
+    """Threads to cut a single-receptor record across, by its length and the cores free
+    now (0: do not cut). Run :func:`split_row` on that many threads (``run_parallel``)."""
     if x.shape[0] != 1 or x.shape[1] != 1 or n_out < _SPLIT_MIN_SAMPLES:
         return 0
-    threads = nb.get_num_threads()
+    threads = threads_for(n_out)
     return threads if threads > 1 and mm < n_out // (8 * threads) else 0
 
 
@@ -405,8 +407,8 @@ def boxcar_uniform(x: np.ndarray, w: np.ndarray, dt: float, tau: float, final: n
         out = np.empty((rows, n))
     parts = split_parts(x, n - start, mm)
     if parts:
-        final[0], _ = split_row(x[0, 0], _NO_T, 0.0, 0.0, float(w[0]), mm, frac, float(a), float(h),
-                                clamp, out[0], start, parts)
+        final[0], _ = run_parallel(split_row, parts, x[0, 0], _NO_T, 0.0, 0.0, float(w[0]), mm, frac,
+                                   float(a), float(h), clamp, out[0], start, parts)
         return out
     run = kernels.pick(_uniform_rows_par, _uniform_rows_ser, rows, n)
     run(x, w, mm, frac, float(a), float(h), clamp, out, final, start)

@@ -7,6 +7,7 @@ import numpy as np
 
 from feeler.errors import ArgumentError
 from feeler.models.neuron import kernels
+from feeler.models.neuron.threads import run_parallel
 from feeler.models.neuron.uniform import (UniformStream, boxcar_uniform, split_parts, split_row,
                                           window_shape)
 from feeler.models.neuron.validate import (check_signal, check_times_uniform, check_weights,
@@ -103,8 +104,8 @@ def boxcar_record(x: np.ndarray, w: np.ndarray, t: np.ndarray, tau: float, final
         parts = split_parts(x, n, mm)
         if parts:
             out = np.empty((1, n))
-            fin, far = split_row(x[0, 0], t, grid[0], grid[1], float(w[0]), mm, frac,
-                                 float(a), float(h), clamp, out[0], 0, parts)
+            fin, far = run_parallel(split_row, parts, x[0, 0], t, grid[0], grid[1], float(w[0]), mm,
+                                    frac, float(a), float(h), clamp, out[0], 0, parts)
             if not far:
                 final[0] = fin
                 return out
