@@ -22,27 +22,27 @@ FIT_TITLES = {"m1": "M1: sensor force→displacement matrix", "m2": "M2: neuron 
               "m4": "M4: human psychometric functions", "finger-route": "Finger route: τ and decision noise σ_d"}
 _FIT_ORDER = ("m1", "m2", "m4", "finger-route", "")
 
-#: (title, kinds of which any one fills it, what it would need); DIR is the run directory
+#: (title, kinds of which any one fills it, what it would need); {run} is the run directory
 EXPECTED: tuple[tuple[str, tuple[str, ...], str], ...] = (
     ("Robot scans over the plates (paper Figs 7–9)", ("robot", "acquisition"),
      "a directory with scans.csv and scene.toml: `feeler simulate datasets-synthetic/four-plates.toml "
-     "--out DIR/four-plates` or `feeler acquire ... --out DIR/acquired`"),
-    (FIT_TITLES["m1"], ("fit:m1",), "`feeler calibrate sensor DATASET --out DIR/m1` "
+     "--out {run}/four-plates` or `feeler acquire ... --out {run}/acquired`"),
+    (FIT_TITLES["m1"], ("fit:m1",), "`feeler calibrate sensor DATASET --out {run}/m1` "
      "(DATASET from `feeler simulate datasets-synthetic/sensor-calibration.toml`)"),
-    (FIT_TITLES["m2"], ("fit:m2",), "`feeler calibrate neuron SCANS_DIR --out DIR/m2`"),
-    ("Classification of held-out scans", ("classify",), "`feeler classify DIR/m2 SCANS_DIR --out DIR/classify`"),
-    ("The robot's difference threshold", ("discriminate",), "`feeler discriminate DIR/m2 --out DIR/discriminate`"),
+    (FIT_TITLES["m2"], ("fit:m2",), "`feeler calibrate neuron SCANS_DIR --out {run}/m2`"),
+    ("Classification of held-out scans", ("classify",), "`feeler classify {run}/m2 SCANS_DIR --out {run}/classify`"),
+    ("The robot's difference threshold", ("discriminate",), "`feeler discriminate {run}/m2 --out {run}/discriminate`"),
     ("Human 2AFC trials", ("psychophysics",), "trials.csv: `feeler simulate datasets-synthetic/"
-     "psychophysics-2afc.toml --out DIR/psychophysics` or a lab's 2AFC CSV"),
-    (FIT_TITLES["m4"], ("thresholds",), "`feeler fit psychophysics TRIALS.csv --out DIR/m4`"),
-    (FIT_TITLES["finger-route"], ("tau-report",), "`feeler fit finger-route TRIALS.csv --out DIR/finger-route`"),
+     "psychophysics-2afc.toml --out {run}/psychophysics` or a lab's 2AFC CSV"),
+    (FIT_TITLES["m4"], ("thresholds",), "`feeler fit psychophysics TRIALS.csv --out {run}/m4`"),
+    (FIT_TITLES["finger-route"], ("tau-report",), "`feeler fit finger-route TRIALS.csv --out {run}/finger-route`"),
     ("Finger strain histories (paper Figs 3–6)", ("finger", "skin-figures"),
-     "`feeler simulate datasets-synthetic/finger-steps.toml --out DIR/finger`"),
-    ("Skin fidelity ladder", ("ladder",), "`feeler skin ladder --out DIR/skin-ladder` (or `feeler demo`)"),
+     "`feeler simulate datasets-synthetic/finger-steps.toml --out {run}/finger`"),
+    ("Skin fidelity ladder", ("ladder",), "`feeler skin ladder --out {run}/skin-ladder` (or `feeler demo`)"),
     ("Speed/accuracy tables", ("benchmarks", "speed"), "`make bench` before `feeler demo`, or `feeler demo` "
      "(measures a small version)"),
     ("Live decoder: decision latency against accuracy", ("decoder",),
-     "a decoder.csv trade table (columns option, latency_s, accuracy) in DIR/benchmarks or DIR/speed"),
+     "a decoder.csv trade table (columns option, latency_s, accuracy) in {run}/benchmarks or {run}/speed"),
 )
 
 
@@ -175,7 +175,7 @@ def discover(run_dir: str | Path) -> Inventory:
     kinds = _kinds(parts)
     if any((run_dir / p.path("decoder.csv")).is_file() for p in parts if p.kind in ("benchmarks", "speed")):
         kinds.add("decoder")
-    missing = tuple(Missing(title, needs.replace("DIR", str(run_dir))) for title, any_of, needs in EXPECTED
+    missing = tuple(Missing(title, needs.replace("{run}", str(run_dir))) for title, any_of, needs in EXPECTED
                     if not kinds & set(any_of))
     return Inventory(run_dir=run_dir, parts=tuple(parts), present=tuple(_sections(run_dir, parts)),
                      missing=missing)

@@ -45,8 +45,23 @@ def conditions_of(attrs) -> list[str]:
     return out
 
 
+def _m1_label(name: str) -> str:
+    base, _, idx = name.partition("[")
+    ij = [int(i) for i in idx.rstrip("]").split(",") if i.strip().isdigit()]
+    if base == "C" and len(ij) == 2:
+        return f"C[{ij[0]},{ij[1]}]  U_{'xyz'[ij[0]]} ← F_{'xyz'[ij[1]]} (mm/N)"
+    if base == "K" and len(ij) == 2:
+        return f"K[{ij[0]},{ij[1]}]  F_{'xyz'[ij[0]]} ← U_{'xyz'[ij[1]]} (N/mm)"
+    if base == "sigma_n" and len(ij) == 1:
+        return f"σ_{'xyz'[ij[0]]} (N)"
+    return _UNITS.get(name, name)
+
+
 def labels_of(model: str, attrs, names) -> dict:
-    """Readable names of summary entries (M4 indices become subjects and conditions)."""
+    """Readable names of summary entries (M1 entries by axis, M4 indices as subjects and
+    conditions, units where the model states them)."""
+    if model == "m1":
+        return {n: _m1_label(n) for n in names}
     if model != "m4":
         return {n: _UNITS.get(n, n) for n in names}
     subjects, conds = _json(attrs.get("subjects"), []), conditions_of(attrs)
@@ -142,7 +157,7 @@ def _m1(inv, result, draws, sampler, src) -> list:
     out = [make_figure("The matrix C", fig, src + ((truth_rel,) if truth_rel else ()),
                        "Posterior mean and 95 % interval of every entry" +
                        ("; ×: the simulated sensor's true C." if truth is not None else "."))]
-    labels = {n: n for n in names} | {f"sigma_n[{j}]": f"σ_{'xyz'[j]} (N)" for j in range(3)} | _UNITS
+    labels = {n: n for n in names} | {f"sigma_n[{j}]": f"σ_{'xyz'[j]} (N)" for j in range(3)} | {"cond_C": "cond(C)"}
     out.append(_marginals(draws, names[:6], labels, per_chain=sampler, title="Marginals of C, rows x and y", src=src))
     rest = names[6:] + [n for n in ("sigma_n[0]", "sigma_n[1]", "sigma_n[2]", "cond_C") if n in draws]
     out.append(_marginals(draws, rest, labels, per_chain=sampler, title="Marginals of C row z, σ and cond(C)",

@@ -98,9 +98,9 @@ def _heights(frame, step, src) -> Figure:
     inside = (step[order] >= lo[order]) & (step[order] <= hi[order])
     for ok, color, label in ((True, "C0", "label inside the 90 % interval"), (False, "C3", "label outside")):
         m = inside == ok
-        if m.any():
-            ax.errorbar(x[m], mid[order][m], yerr=[mid[order][m] - lo[order][m], hi[order][m] - mid[order][m]],
-                        fmt=".", ms=3, lw=0.6, color=color, label=label)
+        if m.any():                  # intervals as lines: an estimate may lie outside its interval
+            ax.vlines(x[m], lo[order][m], hi[order][m], lw=0.6, color=color)
+            ax.plot(x[m], mid[order][m], ".", ms=3, color=color, label=label)
     ax.plot(x, step[order], "k_", ms=4, label="labelled step")
     ax.set(xlabel="scan (sorted by labelled step, then estimate)", ylabel="step height (mm)",
            title="Decoded height with its 90 % interval")

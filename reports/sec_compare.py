@@ -120,6 +120,40 @@ def _draw(axes, disc, human) -> None:
                title="As Weber fractions" if weber else "In µm")
 
 
+def _human_data_figure(human):
+    """P("comparison higher") against the comparison height per condition, pooled over
+    subjects (Wilson 95 % intervals), with the pooled fit when there is one."""
+    from scipy.stats import norm
+
+    t = human.trials
+    fig, ax = subplots(width_in=5.2, height_in=2.8)
+    conds = t.groupby(["standard_speed_mm_s", "comparison_speed_mm_s"], sort=True)
+    for k, ((vs, vc), g) in enumerate(conds):
+        agg = g.groupby("comparison_um")[["n_comparison_higher", "n_trials"]].sum()
+        k_, n = agg["n_comparison_higher"].to_numpy(float), agg["n_trials"].to_numpy(float)
+        lo, hi = _wilson(k_, n)
+        words = condition_words(vs, vc)
+        ax.errorbar(agg.index, k_ / n, yerr=[k_ / n - lo, hi - k_ / n], fmt="o", ms=3, capsize=2, color=f"C{k}",
+                    label=f"data, {words}")
+        if human.pooled is not None:
+            rows = human.pooled[(human.pooled["standard_speed_mm_s"].astype(float) == vs)
+                                & (human.pooled["comparison_speed_mm_s"].astype(float) == vc)]
+            for _, r in rows.iterrows():
+                pse, dt = human.value(r, "pse_um").value, human.value(r, "dt_um").value
+                if np.isfinite(pse) and np.isfinite(dt) and dt > 0:
+                    x = np.linspace(agg.index.min() - 0.5, agg.index.max() + 0.5, 200)
+                    ax.plot(x, norm.cdf(Z75 * (x - pse) / dt), "-", color=f"C{k}", lw=1,
+                            label=f"fit: PSE {fmt(pse, 3)} µm, DT {fmt(dt, 3)} µm")
+    ax.axhline(0.5, color="0.6", lw=0.6, ls=":")
+    ax.set(xlabel="comparison height (µm)", ylabel="P(comparison judged higher)", ylim=(-0.02, 1.02),
+           title="Human 2AFC data, all subjects pooled")
+    ax.legend(fontsize=6, loc="upper left")
+    return make_figure("Human 2AFC data and the pooled psychometric functions", fig,
+                       tuple(p for p in (human.trials_rel, human.thresholds_rel) if p),
+                       "Dots: proportion of trials judging the comparison higher (Wilson 95 % intervals); lines: "
+                       "the pooled cumulative normal through the PSE and DT (lapse not drawn).")
+
+
 def _table(disc, human) -> Table:
     rows, src = [], []
     if disc is not None:
@@ -165,10 +199,11 @@ def compare_section(inv, spec) -> Section:
                         "its threshold is marked.")
         blocks.append(make_figure("Robot and human psychometric functions on one axis", fig, tuple(dict.fromkeys(src)),
                                   caption))
+    if human.trials is not None:
+        blocks.append(_human_data_figure(human))
     blocks.append(_table(disc, human))
     if disc is not None and len(disc.pairs):
-        pf = pairs_frame(disc)
-        rows = tuple((fmt(r[0]), fmt(r[1]), interval(r[2], r[3], r[4], 4)) for r in pf)
-        blocks.append(Table("Robot: 2AFC proportion correct of pairs of plates", ("lower mm", "higher mm",
-                            "P(correct) [95 %]"), rows, (disc.part.path("discrimination.json"),)))
+        pairs = "; ".join(f"{fmt(r[0])} vs {fmt(r[1])} mm: {interval(r[2], r[3], r[4], 4)}" for r in pairs_frame(disc))
+        blocks.append(Note(f"Robot, 2AFC P(correct) [95 %] of pairs of plates: {pairs}.",
+                           sources=(disc.part.path("discrimination.json"),)))
     return Section(spec.key, spec.title, tuple(blocks))

@@ -67,11 +67,17 @@ def _reporter(setting):
     if setting is False:
         return (lambda stage: None), (lambda: None)
     if show_progress(setting):
+        import shutil
+
         from tqdm.auto import tqdm
-        bar = tqdm(desc="report", file=sys.stderr, leave=False, dynamic_ncols=True, bar_format="{desc}: {postfix}")
+        # a terminal that reports no size (a bare pseudo-terminal) gets 100 x 20, not 0 x 0
+        # (tqdm draws nothing on a terminal of 0 rows)
+        size = shutil.get_terminal_size((100, 20))
+        bar = tqdm(desc="report", file=sys.stderr, leave=False, ncols=size.columns or 100, nrows=size.lines or 20,
+                   bar_format="{desc} [{elapsed}]")
 
         def step(stage: str) -> None:
-            bar.set_postfix_str(stage)
+            bar.set_description_str(f"report: {stage}")
         return step, bar.close
     return (lambda stage: print(f"report: {stage} ...", file=sys.stderr, flush=True)), (lambda: None)
 

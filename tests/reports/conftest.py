@@ -45,7 +45,9 @@ def run_dir(tmp_path_factory) -> Path:
 
     tmp = tmp_path_factory.mktemp("demo-run")
     robot, scenes = small_scenes(tmp)
-    run_demo(tmp / "run", scene_path=robot, scenes=scenes, discriminate_scans=80, echo=lambda s: None)
+    printed = []
+    run_demo(tmp / "run", scene_path=robot, scenes=scenes, discriminate_scans=80, echo=printed.append)
+    (tmp / "printed.txt").write_text("\n".join(printed), encoding="utf-8")      # what the demo said
     return tmp / "run"
 
 
