@@ -103,10 +103,11 @@ def _errors(events) -> list[str]:
 
 
 def open_page(url: str, *, width: int = 1200, max_height: int = 6000, timeout_s: float = 60.0,
-              evaluate: str | None = None):
+              evaluate: str | None = None, widths: tuple[int, ...] = ()):
     """Load ``url`` in a viewport ``width`` CSS pixels wide; returns (errors list[str],
     screenshot PNG bytes of the page's top part), plus the value of the JavaScript
-    expression ``evaluate`` (a string) when one is given."""
+    expression ``evaluate`` (a string) when one is given — a dict {width: value} over
+    ``widths`` (the viewport resized in turn, one browser) when those are given."""
     exe = chromium_path()
     with tempfile.TemporaryDirectory(prefix="feeler-chromium-") as profile:
         cmd = ["sh", "-c", 'exec "$0" "$@" 3<&0 4>&1 </dev/null >/dev/null', exe, *FLAGS,
@@ -130,8 +131,13 @@ def open_page(url: str, *, width: int = 1200, max_height: int = 6000, timeout_s:
                                                         "captureBeyondViewport": True}, session=sid)
             value = None
             if evaluate is not None:
-                value = pipe.call("Runtime.evaluate", {"expression": evaluate, "returnByValue": True},
-                                  session=sid)["result"].get("value")
+                value = {}
+                for w in widths or (width,):
+                    pipe.call("Emulation.setDeviceMetricsOverride", {"width": w, "height": 900, "deviceScaleFactor": 1,
+                                                                     "mobile": False}, session=sid)
+                    value[w] = pipe.call("Runtime.evaluate", {"expression": evaluate, "returnByValue": True},
+                                         session=sid)["result"].get("value")
+                value = value if widths else value[width]
             errors = _errors(pipe.events)
             try:
                 pipe.call("Browser.close", timeout_s=5)

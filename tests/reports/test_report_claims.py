@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from feeler.reports import discover
-from feeler.reports.claims import claim_finger_speed, claim_jump_ratio, claim_rate_vs_z, paper_claims
+from feeler.reports.claims import claim_jump_ratio, claim_rate_vs_z, paper_claims
 from feeler.reports.claims_human import claim_faster_felt_higher, claim_tau, claim_threshold
 from feeler.reports.discdata import estimate
 

@@ -58,10 +58,11 @@ def test_a_mix_under_other_names(run_dir, tmp_path):
     mix = tmp_path / "mix"
     shutil.copytree(run_dir / "m2", mix / "calibrations" / "neuron-2026")
     shutil.copytree(run_dir / "four-plates", mix / "scans" / "monday")
-    shutil.copytree(run_dir / "finger", mix / "skin")
     shutil.copytree(run_dir / "discriminate", mix / "robot-threshold")
+    shutil.copytree(run_dir / "skin-ladder", mix / "skin" / "ladder-2026")
     inv = discover(mix)
-    assert [s.key for s in inv.present] == ["robot:scans/monday", "fit:calibrations/neuron-2026", "compare", "finger"]
+    assert [s.key for s in inv.present] == ["robot:scans/monday", "fit:calibrations/neuron-2026", "compare", "finger",
+                                            "speed"]
     assert inv.first("fit", "m2").label == "calibrations/neuron-2026/"
     report = build_report(mix, tmp_path / "out", pdf=False)
     assert all(f["layout_problems"] == [] for f in report.figures)
