@@ -114,6 +114,12 @@ def claim_rate_vs_z(inv) -> Claim:
 _MIN_SPEED_EFFECT = 0.01     # "higher" means higher by at least 1 % (a visible difference on Fig. 5)
 
 
+def _pct(x: float) -> str:
+    """A fraction as a percentage with one decimal, no "-0.0"."""
+    v = 100.0 * x
+    return f"{0.0 if abs(v) < 0.05 else v:.1f} %"
+
+
 def claim_finger_linear(inv) -> Claim:
     """Fig. 5: the peak pulse density is proportional to the step height."""
     from feeler.reports.fingerdata import finger_data
@@ -126,7 +132,7 @@ def claim_finger_linear(inv) -> Claim:
     f = fd.figures
     top = f.peak_z[-1, :]
     ok = all(fit.r2 >= 0.98 and abs(fit.intercept) <= 0.1 * top[j] for j, fit in enumerate(f.fits))
-    fits = "; ".join(f"{fit.speed_mm_s:g} mm/s: R² {fit.r2:.4f}, intercept {100 * fit.intercept / top[j]:.1f} % "
+    fits = "; ".join(f"{fit.speed_mm_s:g} mm/s: R² {fit.r2:.4f}, intercept {_pct(fit.intercept / top[j])} "
                      "of the top peak" for j, fit in enumerate(f.fits))
     linear = " (L1 is linear in the step height by construction)" if fd.level == "l1" else ""
     run = f"{fits} (skin {fd.level.upper()}{linear}; deterministic simulation, no sampling interval)"

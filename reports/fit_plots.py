@@ -82,7 +82,7 @@ def _marginals(draws, names, labels, *, per_chain: bool, title: str, src) -> Fig
     from matplotlib.ticker import MaxNLocator
 
     n = len(names)
-    ncols = min(n, 3)
+    ncols = 4 if n == 4 else min(n, 3)
     fig, axes = subplots(ncols, nrows=-(-n // ncols), width_in=7.0 / ncols, height_in=1.45, squeeze=False)
     for ax in axes.ravel()[n:]:
         ax.set_visible(False)

@@ -162,7 +162,14 @@ def log_axis(ax, which: str = "x") -> None:
         (ax.set_xlim if which == "x" else ax.set_ylim)(mid / 3.5, mid * 3.5)
     axis.set_major_locator(LogLocator(base=10.0, numticks=8))
     axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-    axis.set_minor_formatter(NullFormatter())
+    lo, hi = (ax.get_xlim() if which == "x" else ax.get_ylim())
+    if hi / lo < 100.0:                        # under two decades: also label 2 and 5 of each decade
+        def two_five(v, _):
+            mantissa = v / 10.0 ** math.floor(math.log10(v)) if v > 0 else 0.0
+            return f"{v:g}" if any(abs(mantissa - m) < 1e-6 for m in (2.0, 5.0)) else ""
+        axis.set_minor_formatter(FuncFormatter(two_five))
+    else:
+        axis.set_minor_formatter(NullFormatter())
 
 
 def fmt(value, digits: int = 4) -> str:

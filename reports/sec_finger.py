@@ -102,10 +102,10 @@ def ladder_blocks(inv, part) -> list:
     info = read_json(inv.run_dir / part.path("ladder.json")) if inv.has(part.path("ladder.json")) else {}
     where = str(info.get("measured", "by `feeler skin ladder`" + (" --small" if info.get("small") else "")))
     rows = [(r.level, r.mesh, r.seconds_per_slide, r.rate_error) for r in trade.itertuples(index=False)]
-    blocks = [Note(f"Measured {where}; the reference is L2 on the finest mesh of the study. Seconds per slide "
-                   "exclude each level's one-off setup (its own column).", level="measured", sources=(rel,)),
-              make_figure("The skin fidelity ladder: seconds per slide against error", fp.ladder_trade(rows), (rel,),
+    blocks = [make_figure("The skin fidelity ladder: seconds per slide against error", fp.ladder_trade(rows), (rel,),
                           "Error of the peak strain rate against the reference (L2 on the finest mesh)."),
+              Note(f"Measured {where}; the reference is L2 on the finest mesh of the study. Seconds per slide "
+                   "exclude each level's one-off setup (its own column).", level="measured", sources=(rel,)),
               table_from_frame(trade, title="Trade table", sources=(rel,))]
     conv = part.path("convergence.csv")
     if inv.has(conv):

@@ -20,12 +20,12 @@ from feeler.reports.readers import read_json, read_table
 __all__ = ["speed_section", "trade_columns", "TIME_COLS", "ERROR_COLS", "ACCURACY_COLS"]
 
 TIME_COLS = ("latency_s", "decision_latency_s", "seconds_per_slide", "seconds", "fit_s", "min_s")
-ERROR_COLS = ("error", "rate_error", "max_abs_mean_err_sd", "error_sd", "max_error")
+ERROR_COLS = ("error_ref_sd", "error_sd", "error", "rate_error", "max_abs_mean_err_sd", "max_error")
 ACCURACY_COLS = ("accuracy", "pc", "proportion_correct")
 _TITLES = {"m1": "M1 backends", "fidelity": "Sensor fidelity (M1 on each level)", "backends": "Calibration backends",
            "decoder": "Live decoder: decision latency against accuracy", "skin": "Skin ladder (speed only)"}
-_AXIS = {"error": "error (reference sds)", "max_abs_mean_err_sd": "largest |mean error| (reference sds)",
-         "error_sd": "error (posterior sds)", "rate_error": "peak strain-rate error (relative)",
+_AXIS = {"error_ref_sd": "error (reference posterior sds)", "max_abs_mean_err_sd": "largest |mean error| (reference sds)",
+         "error_sd": "error against the truth (posterior sds)", "rate_error": "peak strain-rate error (relative)",
          "seconds": "seconds", "fit_s": "seconds to fit", "min_s": "seconds (best round)",
          "latency_s": "decision latency (s)", "accuracy": "accuracy"}
 
