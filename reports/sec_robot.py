@@ -16,13 +16,13 @@ from feeler.reports.robotdata import robot_data
 __all__ = ["robot_section", "plate_rows"]
 
 
-def plate_rows(rd) -> tuple:
-    """Per plate: step, scans, peak z mean ± sd, raw U̇_y peak mean ± sd, ΔU_y jump mean."""
+def plate_rows(rd, where: tuple = ()) -> tuple:
+    """Per plate: (``where``,) step, scans, peak z mean ± sd, raw U̇_y peak mean ± sd, ΔU_y jump mean."""
     rows = []
     for s in rd.steps:
         m = rd.scans.step_mm == s
         sd = (lambda v: np.std(v, ddof=1) if v.size > 1 else np.nan)
-        rows.append((fmt(s), str(int(m.sum())), f"{fmt(rd.peak_z[m].mean())} ± {fmt(sd(rd.peak_z[m]), 2)}",
+        rows.append((*where, fmt(s), str(int(m.sum())), f"{fmt(rd.peak_z[m].mean())} ± {fmt(sd(rd.peak_z[m]), 2)}",
                      f"{fmt(rd.peak_rate_uy_mm_s[m].mean())} ± {fmt(sd(rd.peak_rate_uy_mm_s[m]), 2)}",
                      fmt(np.mean(rd.jump_uy_mm[m]))))
     return tuple(rows)
@@ -48,8 +48,8 @@ def _pairs_table(rd, src) -> Table:
 def _figures(rd, src) -> list[Figure]:
     s, t = rd.scans, rd.scans.t_s
     ref = max(float(rd.z[rd.first[-1]].max()), np.finfo(float).tiny)
-    fig, (a7, a8) = subplots(2)
-    fig2, (a9, ap) = subplots(2)
+    fig, (a7, a8) = subplots(2, height_in=2.4)
+    fig2, (a9, ap) = subplots(2, height_in=2.4)
     for k, (step, i) in enumerate(zip(rd.steps, rd.first)):
         label, c = f"δ = {step:g} mm", f"C{k}"
         a7.plot(s.x_mm[i], s.uy_mm[i] - s.uy_mm[i, 0], color=c, lw=1, label=label)
@@ -101,14 +101,19 @@ def _acquisition_blocks(rd, src) -> list:
     return blocks
 
 
-def _tables(rd, src, where: str = "", pairs: bool = True) -> list:
-    blocks = [Table(f"Per plate{where}: peak z, raw U̇_y peak and the ΔU_y jump",
-                    ("step mm", "scans", "peak z (V) mean ± sd", "raw U̇_y peak (mm/s) mean ± sd",
-                     "ΔU_y jump (mm)"), plate_rows(rd), src,
-                    caption="– : the scans are too short for the jump's two windows."
-                    if not np.all(np.isfinite(rd.jump_uy_mm)) else "")]
-    if pairs and len(rd.steps) > 1:
-        blocks.append(_pairs_table(rd, src))
+def _tables(datas, srcs) -> list:
+    """The per-plate table of every directory of the design (one column says which), and
+    the adjacent-pair table of the first."""
+    many = len(datas) > 1
+    rows = sum((plate_rows(rd, (rd.part.label,) if many else ()) for rd in datas), ())
+    short = not all(np.all(np.isfinite(rd.jump_uy_mm)) for rd in datas)
+    blocks = [Table("Per plate: peak z, raw U̇_y peak and the ΔU_y jump",
+                    (("directory",) if many else ()) + ("step mm", "scans", "peak z (V) mean ± sd",
+                                                        "raw U̇_y peak (mm/s) mean ± sd", "ΔU_y jump (mm)"),
+                    rows, tuple(s for src in srcs for s in src),
+                    caption="– : the scans are too short for the jump's two windows." if short else "")]
+    if len(datas[0].steps) > 1:
+        blocks.append(_pairs_table(datas[0], srcs[0]))
     return blocks
 
 
@@ -127,11 +132,10 @@ def robot_section(inv, spec) -> Section:
         blocks += _figures(rd, src)
     if part.kind == "acquisition":
         blocks += _acquisition_blocks(rd, src)
-    blocks += _tables(rd, src, f" ({part.label})" if repeats else "")
-    for other in repeats:
-        ro = robot_data(inv, other)
-        osrc = tuple(other.path(f) for f in other.files)
-        blocks.append(Note(f"{other.label}: {len(ro.scans.scan_id)} more scans of the same design (another seed); "
-                           "figures as above.", sources=osrc))
-        blocks += _tables(ro, osrc, f" ({other.label})", pairs=False)
+    others = [robot_data(inv, p) for p in repeats]
+    if others:
+        blocks.append(Note(f"{', '.join(o.part.label for o in others)}: {sum(len(o.scans.scan_id) for o in others)} "
+                           "more scans of the same design (another seed); their figures would repeat these.",
+                           sources=tuple(o.part.path("scans.csv") for o in others)))
+    blocks += _tables([rd, *others], [src, *(tuple(o.part.path(f) for f in o.part.files) for o in others)])
     return Section(spec.key, spec.title, tuple(blocks))

@@ -52,7 +52,7 @@ def _trade_figure(name, frame, x, y, rel, provenance):
     for c in (x, y):
         t[c] = np.asarray(t[c].map(lambda v: float(v) if str(v).strip() not in ("", "nan") else np.nan), float)
     labels = _option(frame)
-    fig, ax = subplots(width_in=5.6, height_in=2.6)
+    fig, ax = subplots(width_in=5.6, height_in=2.3)
     for k, (lab, xs, ys) in enumerate(zip(labels, t[x], t[y])):
         if np.isfinite(xs) and np.isfinite(ys):
             ax.plot(xs, max(ys, 1e-6) if y in ERROR_COLS else ys, "os^vD<>"[k % 7], color=f"C{k % 10}", ms=6,
@@ -119,10 +119,11 @@ def speed_section(inv, spec) -> Section:
         t = read_table(inv.run_dir / rel, ("level", "mesh", "seconds_per_slide", "rate_error"),
                        ("seconds_per_slide", "rate_error"))
         ref = t["seconds_per_slide"].max()
-        rows = tuple((str(r.level), str(r.mesh), fmt(r.seconds_per_slide, 3), fmt(ref / r.seconds_per_slide, 3),
-                      fmt(r.rate_error, 3)) for r in t.itertuples(index=False))
-        blocks.append(Table("Skin ladder (plotted in the finger section)", ("level", "mesh", "s per slide",
-                            "faster than the slowest", "rate error"), rows, (rel,)))
+        words = "; ".join(f"{r.level.upper()} ({r.mesh}) {fmt(ref / r.seconds_per_slide, 3)}× faster at "
+                          f"{fmt(100 * r.rate_error, 2)} % error" for r in t.itertuples(index=False)
+                          if r.seconds_per_slide < ref)
+        blocks.append(Note(f"Skin ladder ({part.label}), against its slowest rung: {words}. Plotted with its table "
+                           "in the finger section.", sources=(rel,)))
     if not any((inv.run_dir / p.path("decoder.csv")).is_file() for p in spec.parts):
         blocks.append(Note("The live decoder's decision latency against accuracy appears here when the run holds "
                            "its trade table (decoder.csv in benchmarks/ or speed/: columns option, latency_s, "
