@@ -1,36 +1,34 @@
-"""Build ``report.html`` (self-contained) and ``report.pdf`` (WeasyPrint) from a run directory.
+"""Build ``report.html`` (self-contained), ``report.pdf`` (WeasyPrint) and
+``report-manifest.json`` from a run directory.
 
-``build_report(run_dir)`` discovers what the run holds, builds one section per group of
-files (robot scans, fits, classification, robot vs human, Fig. 6, skin, benchmarks),
-puts failed calibrations first, lists the missing files, appends the scene files and the
-package versions, and renders the jinja2 template with autoescaping on (text from scene
-files appears as text). Reports are derived files and are rewritten on every call.
+``build_report(run_dir)`` discovers what the run holds, opens with the first page
+(claims, verdicts, what the run holds and lacks), then one section per part — failed
+calibrations first —, the appendix, and renders the jinja2 template with autoescaping on
+(text from the run's files appears as text). Figures are numbered in order; the manifest
+names each with its section, the files it came from and any layout problem found when
+it was drawn. Reports are derived files and are rewritten on every call.
 """
 from __future__ import annotations
 
 import datetime as _dt
+import json
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 from feeler.reports.discover import Inventory, discover
 
-__all__ = ["Report", "build_report", "render_html", "write_pdf"]
+__all__ = ["Report", "build_report", "render_html", "write_pdf", "BUILDERS", "section_id"]
 
 TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
+MANIFEST = "report-manifest.json"
 
-
-def _builders() -> dict[str, Callable]:
-    from feeler.reports.sec_classify import classify_section
-    from feeler.reports.sec_fits import fit_section
-    from feeler.reports.sec_psycho import fig6_section, psychometric_section
-    from feeler.reports.sec_robot import robot_section
-    from feeler.reports.sec_tables import csv_dir_section
-
-    return {"robot": robot_section, "fit": fit_section, "classify": classify_section,
-            "psychometric": psychometric_section, "fig6": fig6_section,
-            "finger": csv_dir_section, "benchmarks": csv_dir_section}
-
+#: builder name of a section spec -> "module:function" (imported when used)
+BUILDERS = {"robot": "sec_robot:robot_section", "fit": "sec_fits:fit_section",
+            "classify": "sec_classify:classify_section", "compare": "sec_compare:compare_section",
+            "finger": "sec_finger:finger_section", "speed": "sec_speed:speed_section",
+            "calibration-data": "sec_caldata:caldata_section"}
 
 
 @dataclass(frozen=True)
@@ -38,55 +36,107 @@ class Report:
     """What :func:`build_report` wrote.
 
     Attributes:
-        html (Path): ``report.html``.
-        pdf (Path | None): ``report.pdf`` (None with ``pdf=False``).
-        n_pages (int): pages of the PDF as laid out by WeasyPrint (0 without PDF).
-        inventory (Inventory): sections present and files missing.
+        html (Path): ``report.html``. pdf (Path | None): ``report.pdf`` (None with ``pdf=False``).
+        manifest (Path): ``report-manifest.json``.
+        n_pages (int): pages of the PDF (0 without PDF).
+        page_sections (tuple[tuple[str, ...], ...]): per PDF page, the ids of the sections
+            that start on it (empty without PDF).
+        inventory (Inventory): what the run holds and lacks.
         failed (tuple[str, ...]): titles of sections whose calibration failed.
+        figures (tuple[dict, ...]): the manifest's figure entries.
     """
     html: Path
     pdf: Path | None
+    manifest: Path
     n_pages: int
+    page_sections: tuple
     inventory: Inventory
     failed: tuple[str, ...]
+    figures: tuple
+
+
+def section_id(key: str) -> str:
+    """The HTML id of a section (``sec-`` + the key with anything odd replaced)."""
+    return "sec-" + re.sub(r"[^A-Za-z0-9_-]+", "-", key).strip("-")
+
+
+_NUMBER = re.compile(r"[\s\d.,eE+\-−–±\[\]%×∞<>]*\d[\s\d.,eE+\-−–±\[\]%×∞<>]*")
+
+
+def is_number(cell: str) -> bool:
+    """Whether a table cell holds a number (or an interval of numbers): right-aligned."""
+    return bool(_NUMBER.fullmatch(str(cell)))
+
+
+def _builder(name: str) -> Callable:
+    import importlib
+
+    module, func = BUILDERS[name].split(":")
+    return getattr(importlib.import_module(f"feeler.reports.{module}"), func)
+
+
+def _manifest(sections) -> list[dict]:
+    entries, number = [], 0
+    for s in sections:
+        for b in s.blocks:
+            if b.kind == "figure":
+                number += 1
+                entries.append({"number": number, "id": f"fig-{number}", "title": b.title, "section": s.title,
+                                "sources": list(b.sources), "layout_problems": list(b.problems),
+                                "drawn_by": "feeler"})
+            elif b.kind == "gallery":
+                for title, _, src in b.items:
+                    number += 1
+                    entries.append({"number": number, "id": f"fig-{number}", "title": title, "section": s.title,
+                                    "sources": [src], "layout_problems": [], "drawn_by": "the run (image file)"})
+    return entries
 
 
 def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf: bool = True,
                  progress: Callable[[str], None] = lambda stage: None) -> Report:
-    """Write ``report.html`` (and ``report.pdf``) for ``run_dir`` into ``out_dir`` (default
-    ``run_dir``). ``progress(stage)`` is called before every stage.
+    """Write the report of ``run_dir`` into ``out_dir`` (default ``run_dir``).
+    ``progress(stage)`` is called before every stage (section titles, "html", "pdf").
 
     Raises:
         DataFileError: ``run_dir`` is not a directory, or a file of the run is corrupt
             (one line naming it).
     """
-    progress("discover")
-    inv = discover(run_dir)
-    builders = _builders()
-    sections = []
-    for spec in inv.present:
-        progress(spec.key)
-        sections.append(builders[spec.key.split(":", 1)[0]](inv, spec))
-    from feeler.reports.sec_tables import appendix_section
+    from feeler.reports.model import report_style
+    from feeler.reports.sec_appendix import appendix_section
+    from feeler.reports.sec_front import front_section
 
+    progress("reading the run")
+    inv = discover(run_dir)
+    sections = []
+    with report_style():
+        for spec in inv.present:
+            progress(spec.title)
+            sections.append(_builder(spec.builder)(inv, spec))
     sections.sort(key=lambda s: not s.failed)                 # failed calibrations first (stable)
-    sections.append(appendix_section(inv))
+    progress("first page")
+    sections.insert(0, front_section(inv))
+    manifest = _manifest(sections)
+    sections.append(appendix_section(inv, manifest))
     out = Path(out_dir) if out_dir is not None else inv.run_dir
     out.mkdir(parents=True, exist_ok=True)
     progress("html")
-    html = render_html(inv, sections)
+    html = render_html(inv, sections, manifest)
     html_path = out / "report.html"
     html_path.write_text(html, encoding="utf-8")
-    pdf_path, n_pages = None, 0
+    pdf_path, pages = None, ()
     if pdf:
         progress("pdf")
         pdf_path = out / "report.pdf"
-        n_pages = write_pdf(html, pdf_path)
-    return Report(html=html_path, pdf=pdf_path, n_pages=n_pages, inventory=inv,
-                  failed=tuple(s.title for s in sections if s.failed))
+        pages = write_pdf(html, pdf_path)
+    man_path = out / MANIFEST
+    man_path.write_text(json.dumps({"run_dir": str(inv.run_dir), "figures": manifest, "pages": len(pages),
+                                    "page_sections": [list(p) for p in pages]}, indent=2, ensure_ascii=False) + "\n",
+                        encoding="utf-8")
+    return Report(html=html_path, pdf=pdf_path, manifest=man_path, n_pages=len(pages), page_sections=tuple(pages),
+                  inventory=inv, failed=tuple(s.title for s in sections if s.failed), figures=tuple(manifest))
 
 
-def render_html(inv: Inventory, sections) -> str:
+def render_html(inv: Inventory, sections, manifest) -> str:
     """The report as one HTML string (jinja2, autoescape on for every template)."""
     import jinja2
 
@@ -94,16 +144,19 @@ def render_html(inv: Inventory, sections) -> str:
 
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATE_DIR), autoescape=True,
                              undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+    numbers = iter(m["number"] for m in manifest)
     synthetic = sorted({src for s in sections for b in s.blocks if getattr(b, "level", "") == "synthetic"
                         for src in b.sources})
     return env.get_template("report.html.j2").render(
         run_name=inv.run_dir.resolve().name, run_dir=str(inv.run_dir), sections=sections,
-        failed=[s for s in sections if s.failed], missing=inv.missing, synthetic=synthetic,
-        version=feeler.__version__, created=_dt.datetime.now().isoformat(timespec="seconds"))
+        failed=[s for s in sections if s.failed], synthetic=synthetic, section_id=section_id, is_number=is_number,
+        next_number=lambda: next(numbers), version=feeler.__version__,
+        created=_dt.datetime.now().isoformat(timespec="seconds"))
 
 
-def write_pdf(html: str, path: str | Path) -> int:
-    """Lay out ``html`` with WeasyPrint, write ``path``; returns the number of pages."""
+def write_pdf(html: str, path: str | Path) -> tuple[tuple[str, ...], ...]:
+    """Lay out ``html`` with WeasyPrint and write ``path``; returns, per page, the ids of
+    the sections that start on it."""
     import weasyprint
     from weasyprint.urls import FatalURLFetchingError, URLFetcher
 
@@ -114,4 +167,9 @@ def write_pdf(html: str, path: str | Path) -> int:
     except FatalURLFetchingError as exc:   # a BaseException in WeasyPrint 70
         raise RuntimeError(f"{path}: {exc}; a report may reference inline data: URIs only") from None
     document.write_pdf(path)
-    return len(document.pages)
+    seen, pages = set(), []
+    for page in document.pages:
+        starts = tuple(sorted(a for a in page.anchors if a.startswith("sec-") and a not in seen))
+        seen.update(starts)
+        pages.append(starts)
+    return tuple(pages)

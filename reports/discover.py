@@ -1,62 +1,65 @@
-"""Which sections a run directory can fill, and which expected files are missing.
+"""Which sections a run directory can fill, and what each missing one would need.
 
-The run layout (``feeler demo`` writes all of it; any part may be absent)::
-
-    four-plates/          scene.toml scans.csv [truth.json]        feeler simulate
-    robot_table.json                                                feeler demo
-    sensor-calibration/   scene.toml calibration.csv [truth.json]  feeler simulate
-    m1/ m2/ m4/           posterior.nc summary.csv verdict.json     calibrate / fit
-    classify/             classification.csv                        feeler classify
-    discriminate/         discrimination.json                       feeler discriminate
-    psychophysics/        trials.csv [scene.toml truth.json]       feeler simulate
-    m4/                   thresholds.csv                            feeler fit psychophysics
-    finger-route/         tau_report.json + fit files               feeler fit finger-route
-    finger/ benchmarks/   *.csv                                     skin ladder, benchmarks
-
-Any other sub-directory holding ``verdict.json`` is reported as a fit too.
+The parts of the run (:mod:`feeler.reports.parts`, recognised by their files, under any
+directory names) become sections in report order: robot scans (simulated or acquired),
+the sensor calibration data, every fit (M1, M2, M4, finger route, others), the
+classification, robot against human on one axis, the finger skin (Figs 3–6 and the
+fidelity ladder), and the speed/accuracy trade. Each expected section that the run
+cannot fill is listed with the command that would produce it.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
-__all__ = ["SectionSpec", "SPECS", "Inventory", "discover", "FIT_FILES"]
+from feeler.reports.parts import FIT_FILES, Part, find_parts
 
-FIT_FILES = ("posterior.nc", "summary.csv", "verdict.json")
+__all__ = ["SectionSpec", "Missing", "Inventory", "discover", "FIT_FILES", "FIT_TITLES", "EXPECTED"]
+
+FIT_TITLES = {"m1": "M1: sensor force→displacement matrix", "m2": "M2: neuron (a, τ, h) and decoder noise",
+              "m4": "M4: human psychometric functions", "finger-route": "Finger route: τ and decision noise σ_d"}
+_FIT_ORDER = ("m1", "m2", "m4", "finger-route", "")
+
+#: (title, kinds of which any one fills it, what it would need); {run} is the run directory
+EXPECTED: tuple[tuple[str, tuple[str, ...], str], ...] = (
+    ("Robot scans over the plates (paper Figs 7–9)", ("robot", "acquisition"),
+     "a directory with scans.csv and scene.toml: `feeler simulate datasets-synthetic/four-plates.toml "
+     "--out {run}/four-plates` or `feeler acquire ... --out {run}/acquired`"),
+    (FIT_TITLES["m1"], ("fit:m1",), "`feeler calibrate sensor DATASET --out {run}/m1` "
+     "(DATASET from `feeler simulate datasets-synthetic/sensor-calibration.toml`)"),
+    (FIT_TITLES["m2"], ("fit:m2",), "`feeler calibrate neuron SCANS_DIR --out {run}/m2`"),
+    ("Classification of held-out scans", ("classify",), "`feeler classify {run}/m2 SCANS_DIR --out {run}/classify`"),
+    ("The robot's difference threshold", ("discriminate",), "`feeler discriminate {run}/m2 --out {run}/discriminate`"),
+    ("Human 2AFC trials", ("psychophysics",), "trials.csv: `feeler simulate datasets-synthetic/"
+     "psychophysics-2afc.toml --out {run}/psychophysics` or a lab's 2AFC CSV"),
+    (FIT_TITLES["m4"], ("thresholds",), "`feeler fit psychophysics TRIALS.csv --out {run}/m4`"),
+    (FIT_TITLES["finger-route"], ("tau-report",), "`feeler fit finger-route TRIALS.csv --out {run}/finger-route`"),
+    ("Finger strain histories (paper Figs 3–6)", ("finger", "skin-figures"),
+     "`feeler simulate datasets-synthetic/finger-steps.toml --out {run}/finger`"),
+    ("Skin fidelity ladder", ("ladder",), "`feeler skin ladder --out {run}/skin-ladder` (or `feeler demo`)"),
+    ("Speed/accuracy tables", ("benchmarks", "speed"), "`make bench` before `feeler demo`, or `feeler demo` "
+     "(measures a small version)"),
+    ("Live decoder: decision latency against accuracy", ("decoder",),
+     "a decoder.csv trade table (columns option, latency_s, accuracy) in {run}/benchmarks or {run}/speed"),
+)
 
 
 @dataclass(frozen=True)
 class SectionSpec:
-    """A report section and the run-relative files it needs (all) and may use."""
+    """A report section: ``builder`` names the function that draws it from ``parts``."""
     key: str
     title: str
-    required: tuple[str, ...]
-    optional: tuple[str, ...] = ()
+    builder: str
+    parts: tuple[Part, ...]
 
 
-def _fit(name: str, title: str, optional: tuple[str, ...] = ()) -> SectionSpec:
-    return SectionSpec(f"fit:{name}", title, tuple(f"{name}/{f}" for f in FIT_FILES), optional)
-
-
-#: the expected sections, in report order (failed fits are moved to the top)
-SPECS: tuple[SectionSpec, ...] = (
-    SectionSpec("robot", "Robot scans over the four plates (paper Figs 7–9)",
-                ("four-plates/scene.toml", "four-plates/scans.csv"),
-                ("robot_table.json", "four-plates/truth.json")),
-    _fit("m1", "M1: sensor force→displacement matrix", ("sensor-calibration/calibration.csv",)),
-    _fit("m2", "M2: neuron (a, τ, h) and decoder noise", ("m2/ppc.json",)),
-    SectionSpec("classify", "Classification of held-out scans", ("classify/classification.csv",)),
-    SectionSpec("psychometric", "Robot and human discrimination side by side",
-                ("discriminate/discrimination.json", "psychophysics/trials.csv", "m4/thresholds.csv")),
-    _fit("m4", "M4: human psychometric functions", ("m4/thresholds.csv",)),
-    SectionSpec("fig6", "Accepted against presented step height (paper Fig. 6)",
-                ("finger-route/tau_report.json", "m4/thresholds.csv", "psychophysics/trials.csv")),
-    _fit("finger-route", "Finger route: τ and decision noise σ_d", ("finger-route/tau_report.json",)),
-    SectionSpec("finger", "Skin: strain histories and the fidelity ladder", ("finger",)),
-    SectionSpec("benchmarks", "Speed and accuracy tables", ("benchmarks",)),
-)
-
-_ANY_OF = {"psychometric"}   # sections shown when any one of their files exists
+@dataclass(frozen=True)
+class Missing:
+    """An expected section the run cannot fill, and what would produce it."""
+    title: str
+    needs: str
 
 
 @dataclass(frozen=True)
@@ -65,25 +68,100 @@ class Inventory:
 
     Attributes:
         run_dir (Path): the run directory.
-        present (tuple[SectionSpec, ...]): sections that can be shown, in report order.
-        missing (tuple[tuple[str, tuple[str, ...]], ...]): (section title, missing files)
-            for every section whose required files are not all there.
+        parts (tuple[Part, ...]): every recognised part, in directory order.
+        present (tuple[SectionSpec, ...]): the sections to draw, in report order.
+        missing (tuple[Missing, ...]): expected sections the run cannot fill.
+        cache (dict): what sections computed from the run's files, shared between them.
     """
     run_dir: Path
+    parts: tuple[Part, ...]
     present: tuple[SectionSpec, ...]
-    missing: tuple[tuple[str, tuple[str, ...]], ...]
+    missing: tuple[Missing, ...]
+    cache: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def cached(self, key, compute: Callable):
+        """``compute()`` once per inventory for ``key`` (several sections use the same numbers)."""
+        if key not in self.cache:
+            self.cache[key] = compute()
+        return self.cache[key]
 
     def has(self, rel: str) -> bool:
         return (self.run_dir / rel).exists()
 
+    def of(self, kind: str, model: str | None = None) -> list[Part]:
+        """The parts of ``kind`` (fits: of ``model`` when given), in directory order."""
+        return [p for p in self.parts if p.kind == kind and (model is None or p.model == model)]
 
-def _extra_fits(run_dir: Path, known: set[str]) -> list[SectionSpec]:
-    found = sorted(p.parent.name for p in run_dir.glob("*/verdict.json"))
-    return [_fit(name, f"Fit: {name}") for name in found if f"fit:{name}" not in known]
+    def first(self, kind: str, model: str | None = None, *, prefer: str = "") -> Part | None:
+        """The part of ``kind`` in directory ``prefer`` if there is one, else the first."""
+        found = self.of(kind, model)
+        return next((p for p in found if p.rel.split("/")[-1] == prefer), found[0] if found else None)
+
+
+def _kinds(parts: list[Part]) -> set[str]:
+    kinds = {p.kind for p in parts} | {f"fit:{p.model}" for p in parts if p.kind == "fit"}
+    if any(p.kind == "thresholds" or (p.kind == "fit" and p.model == "m4") for p in parts):
+        kinds.add("thresholds")
+    if any(p.kind == "fit" and p.model == "finger-route" for p in parts):
+        kinds.add("tau-report")
+    return kinds
+
+
+def design(run_dir: Path, part: Part) -> str | None:
+    """A scan part's scene text without its seed, name and description (None without a scene):
+    two parts with the same design differ only in their random touches."""
+    path = run_dir / part.path("scene.toml")
+    if not path.is_file():
+        return None
+    text = path.read_text(encoding="utf-8", errors="replace")
+    return re.sub(r"(?m)^\s*(seed|name|description)\s*=.*$", "", text)
+
+
+def _robot_groups(run_dir: Path, parts: list[Part]) -> list[list[Part]]:
+    """Scan parts grouped by design (kind and scene up to the seed), first seen first."""
+    groups: list[list[Part]] = []
+    for p in (p for p in parts if p.kind in ("robot", "acquisition")):
+        d = design(run_dir, p)
+        same = next((g for g in groups if d is not None and g[0].kind == p.kind and design(run_dir, g[0]) == d), None)
+        if same is not None:
+            same.append(p)
+        else:
+            groups.append([p])
+    return groups
+
+
+def _sections(run_dir: Path, parts: list[Part]) -> list[SectionSpec]:
+    out = []
+    for group in _robot_groups(run_dir, parts):
+        p = group[0]
+        what = "acquired" if p.kind == "acquisition" else "simulated"
+        others = "".join(f", {q.label}" for q in group[1:])
+        out.append(SectionSpec(f"robot:{p.rel}", f"Robot scans ({what}, {p.label}{others})", "robot", tuple(group)))
+    fits = sorted((p for p in parts if p.kind == "fit"), key=lambda p: _FIT_ORDER.index(p.model))
+    for p in [p for p in parts if p.kind == "calibration-data"]:
+        if not any(f.model == "m1" for f in fits):
+            out.append(SectionSpec(f"calibration-data:{p.rel}", f"Sensor calibration campaign ({p.label})",
+                                   "calibration-data", (p,)))
+    for p in fits:
+        title = FIT_TITLES.get(p.model, f"Fit: {p.rel or run_dir.name}")
+        out.append(SectionSpec(f"fit:{p.rel}", f"{title} ({p.label})", "fit", (p,)))
+    for p in [p for p in parts if p.kind == "classify"]:
+        out.append(SectionSpec(f"classify:{p.rel}", f"Classification of held-out scans ({p.label})", "classify", (p,)))
+    human = [p for p in parts if p.kind in ("discriminate", "thresholds", "psychophysics")]
+    if human:
+        out.append(SectionSpec("compare", "Robot and human discrimination on one axis", "compare", tuple(human)))
+    finger = [p for p in parts if p.kind in ("finger", "skin-figures", "ladder")]
+    if finger:
+        out.append(SectionSpec("finger", "Finger skin: the paper's Figs 3–6 and the fidelity ladder", "finger",
+                               tuple(finger)))
+    speed = [p for p in parts if p.kind in ("benchmarks", "speed", "ladder")]
+    if speed:
+        out.append(SectionSpec("speed", "Speed and accuracy", "speed", tuple(speed)))
+    return out
 
 
 def discover(run_dir: str | Path) -> Inventory:
-    """Sort the expected sections of ``run_dir`` into present and missing.
+    """The parts of ``run_dir``, the sections they fill and the expected ones missing.
 
     Raises:
         DataFileError: ``run_dir`` is not a directory.
@@ -93,18 +171,11 @@ def discover(run_dir: str | Path) -> Inventory:
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise DataFileError(run_dir, "not a directory; expected a run directory")
-    specs = list(SPECS) + _extra_fits(run_dir, {s.key for s in SPECS})
-    present, missing = [], []
-    for spec in specs:
-        lacking = tuple(f for f in spec.required if not _usable(run_dir / f))
-        shown = len(lacking) < len(spec.required) if spec.key in _ANY_OF else not lacking
-        if shown:
-            present.append(spec)
-        if lacking:
-            missing.append((spec.title, lacking))
-    return Inventory(run_dir=run_dir, present=tuple(present), missing=tuple(missing))
-
-
-def _usable(path: Path) -> bool:
-    """A file, or a directory holding at least one CSV."""
-    return path.is_file() or (path.is_dir() and any(path.glob("*.csv")))
+    parts = find_parts(run_dir)
+    kinds = _kinds(parts)
+    if any((run_dir / p.path("decoder.csv")).is_file() for p in parts if p.kind in ("benchmarks", "speed")):
+        kinds.add("decoder")
+    missing = tuple(Missing(title, needs.replace("{run}", str(run_dir))) for title, any_of, needs in EXPECTED
+                    if not kinds & set(any_of))
+    return Inventory(run_dir=run_dir, parts=tuple(parts), present=tuple(_sections(run_dir, parts)),
+                     missing=missing)

@@ -61,11 +61,14 @@ def read_table(path: str | Path, columns: tuple[str, ...] = (), numeric: tuple[s
     return frame
 
 
-def load_fit(directory: str | Path):
-    """A :class:`feeler.calib.fit.FitResult` (corrupt posterior.nc etc. → DataFileError)."""
+def load_fit(directory: str | Path, inv=None):
+    """A :class:`feeler.calib.fit.FitResult` (corrupt posterior.nc etc. → DataFileError);
+    read once per report when the inventory ``inv`` is given."""
     from feeler.calib.fit import load
 
-    return load(directory)
+    if inv is None:
+        return load(directory)
+    return inv.cached(("fit", str(directory)), lambda: load(directory))
 
 
 def scene_text(path: str | Path) -> str:

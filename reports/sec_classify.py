@@ -1,8 +1,12 @@
-"""Classification section: confusion matrix with confidence, calibration curve, coverage.
+"""Classification section: confusion matrix with confidence, the decoded heights with
+their intervals, calibration curve, coverage.
 
-Reads ``classify/classification.csv`` as written by ``feeler classify --out``: one row per
-scan with its labelled ``step_mm``, the decided ``plate_mm``, one probability column
-``p_<plate>mm`` per training plate and the decoded height with its 90 % interval.
+Reads ``classification.csv`` as written by ``feeler classify --out``: one row per scan with
+its labelled ``step_mm``, the decided ``plate_mm``, one probability column ``p_<plate>mm``
+per training plate and the decoded height with its 90 % interval (other columns may
+appear and are ignored). A calibration curve is drawn only when the top-class
+probabilities spread over at least three of its ten bins; otherwise it would be one
+point, and the section says why it is left out.
 """
 from __future__ import annotations
 
@@ -10,12 +14,12 @@ import re
 
 import numpy as np
 
-from feeler.reports.model import Figure, Section, Table, figure_uri, fmt, subplots
+from feeler.reports.model import Figure, Note, Section, Table, fmt, make_figure, subplots
 from feeler.reports.readers import read_table
 
-__all__ = ["classify_section", "plate_columns", "reliability"]
+__all__ = ["classify_section", "plate_columns", "reliability", "MIN_BINS"]
 
-CSV = "classify/classification.csv"
+MIN_BINS = 3             # a calibration curve needs this many occupied confidence bins
 _P = re.compile(r"^p_(.+)mm$")
 
 
@@ -45,7 +49,9 @@ def classify_section(inv, spec) -> Section:
     from feeler.calib.neuron.classify import expected_calibration_error
     from feeler.errors import DataFileError
 
-    path = inv.run_dir / CSV
+    part = spec.parts[0]
+    rel = part.path("classification.csv")
+    path = inv.run_dir / rel
     frame = read_table(path, ("step_mm", "plate_mm", "lo90_mm", "hi90_mm"),
                        ("step_mm", "plate_mm", "lo90_mm", "hi90_mm"))
     pcols = plate_columns(frame.columns)
@@ -61,7 +67,7 @@ def classify_section(inv, spec) -> Section:
     hit = np.isclose(step, decided)
     inside = (step >= frame["lo90_mm"].to_numpy()) & (step <= frame["hi90_mm"].to_numpy())
     ece = expected_calibration_error(prob[labelled], true_index[labelled]) if labelled.any() else float("nan")
-    src = (CSV,)
+    src = (rel,)
     rows = [("all", str(len(step)), fmt(hit.mean(), 3), fmt(conf.mean(), 3), fmt(inside.mean(), 3))]
     for s in np.unique(step):
         m = step == s
@@ -69,14 +75,44 @@ def classify_section(inv, spec) -> Section:
     table = Table("Accuracy, confidence and coverage per labelled step",
                   ("step_mm", "n scans", "accuracy", "mean top probability", "90 % interval coverage"),
                   tuple(rows), src, caption=f"Expected calibration error (10 bins): {fmt(ece, 3)}.")
-    return Section(spec.key, spec.title, (_confusion(step, decided, conf, plates, src),
-                                          _calibration(conf, hit, ece, src), table))
+    blocks = [_confusion(step, decided, conf, plates, src), _heights(frame, step, src)]
+    rel_curve = reliability(conf, hit)
+    if len(rel_curve) >= MIN_BINS:
+        blocks.append(_calibration(conf, hit, ece, src))
+    else:
+        blocks.append(Note(f"No calibration curve: the top-class probabilities of the {len(step)} scans fall in "
+                           f"{len(rel_curve)} of 10 bins (mean {fmt(conf.mean(), 4)}, accuracy {fmt(hit.mean(), 3)}), "
+                           "so the curve would be a single point. The 90 % interval coverage below is the "
+                           "calibration check that informs.", sources=src))
+    return Section(spec.key, spec.title, tuple(blocks) + (table,))
+
+
+def _heights(frame, step, src) -> Figure:
+    """Decoded height and its 90 % interval per scan, grouped by labelled step."""
+    fig, ax = subplots(width_in=4.4, height_in=2.8)
+    est = frame["height_mm"].to_numpy(float) if "height_mm" in frame else None
+    lo, hi = frame["lo90_mm"].to_numpy(float), frame["hi90_mm"].to_numpy(float)
+    mid = est if est is not None else (lo + hi) / 2
+    order = np.lexsort((mid, step))
+    x = np.arange(len(step))
+    inside = (step[order] >= lo[order]) & (step[order] <= hi[order])
+    for ok, color, label in ((True, "C0", "label inside the 90 % interval"), (False, "C3", "label outside")):
+        m = inside == ok
+        if m.any():                  # intervals as lines: an estimate may lie outside its interval
+            ax.vlines(x[m], lo[order][m], hi[order][m], lw=0.6, color=color)
+            ax.plot(x[m], mid[order][m], ".", ms=3, color=color, label=label)
+    ax.plot(x, step[order], "k_", ms=4, label="labelled step")
+    ax.set(xlabel="scan (sorted by labelled step, then estimate)", ylabel="step height (mm)",
+           title="Decoded height with its 90 % interval")
+    ax.legend(fontsize=6)
+    return make_figure("Decoded heights of the held-out scans", fig, src,
+                       "Each scan's continuous estimate and 90 % interval against its labelled step.")
 
 
 def _confusion(step, decided, conf, plates, src) -> Figure:
     labels = np.unique(step)
     count = np.array([[np.sum((step == s) & np.isclose(decided, p)) for p in plates] for s in labels])
-    fig, ax = subplots(width_in=4.6, height_in=3.8)
+    fig, ax = subplots(width_in=3.6, height_in=3.0)
     ax.imshow(count, cmap="Blues")
     for i, s in enumerate(labels):
         for j, p in enumerate(plates):
@@ -87,13 +123,13 @@ def _confusion(step, decided, conf, plates, src) -> Figure:
     ax.set_xticks(range(len(plates)), [f"{p:g}" for p in plates])
     ax.set_yticks(range(len(labels)), [f"{s:g}" for s in labels])
     ax.set(xlabel="decided plate (mm)", ylabel="labelled step (mm)", title="Confusion matrix")
-    return Figure("Confusion matrix with confidence", figure_uri(fig), src,
-                  caption="Each cell: number of scans and their mean top-class probability.")
+    return make_figure("Confusion matrix with confidence", fig, src,
+                       "Each cell: number of scans and their mean top-class probability.")
 
 
 def _calibration(conf, hit, ece, src) -> Figure:
     rel = reliability(conf, hit)
-    fig, ax = subplots(width_in=4.2, height_in=3.8)
+    fig, ax = subplots(width_in=3.6, height_in=3.0)
     ax.plot([0, 1], [0, 1], "k--", lw=0.8, label="perfect calibration")
     ax.plot(rel[:, 0], rel[:, 1], "o-", label=f"classifier (ECE {ece:.3f})")
     for x, y, n in rel:
@@ -101,5 +137,5 @@ def _calibration(conf, hit, ece, src) -> Figure:
     ax.set(xlim=(0, 1.02), ylim=(0, 1.02), xlabel="top-class probability",
            ylabel="fraction correct", title="Calibration curve")
     ax.legend(fontsize=7, loc="upper left")
-    return Figure("Calibration curve of the classifier", figure_uri(fig), src,
-                  caption="Scans binned by their top-class probability (numbers: scans per bin).")
+    return make_figure("Calibration curve of the classifier", fig, src,
+                       "Scans binned by their top-class probability (numbers: scans per bin).")

@@ -1,97 +1,100 @@
-"""A section per fitted model (M1, M2, M4, finger route, ...): verdict, posterior plots,
-the diagnostics table and the priors. A failed verdict marks the section ``failed`` so
-the report puts it first under a red banner.
+"""A section per fitted model: verdict, every parameter's posterior by name, the
+diagnostics table and the priors. A failed verdict marks the section ``failed`` so the
+report puts it first under a red banner.
+
+What is drawn depends on the model (:mod:`feeler.reports.fit_plots`) and the backend:
+chains are compared (marginals per chain, traces) only for samplers (NUTS, emcee), whose
+chains can disagree; exact, Laplace and grid posteriors are independent draws, shown
+pooled, and a grid's own marginal is drawn as the curve it is.
 """
 from __future__ import annotations
 
-import numpy as np
+from feeler.reports.model import Note, Section, Table, fmt, interval
+from feeler.reports.readers import load_fit
 
-from feeler.reports.model import Figure, Note, Section, Table, figure_uri, fmt, subplots, table_from_frame
-from feeler.reports.readers import load_fit, read_json
+__all__ = ["fit_section", "SAMPLERS", "summary_table"]
 
-__all__ = ["fit_section", "N_PLOTTED"]
+SAMPLERS = ("nuts", "emcee", "pymc", "mcmc")
 
-N_PLOTTED = 6            # parameters drawn per fit (the table lists them all)
-_COLUMNS = ("name", "mean", "sd", "eti95_lb", "eti95_ub", "r_hat", "ess_bulk", "ess_tail")
+
+def _is_sampler(backend: str) -> bool:
+    return any(s in backend.lower() for s in SAMPLERS)
+
+
+def summary_table(result, labels: dict, src: str) -> Table:
+    """Mean, sd, 95 % interval, R-hat and ESS of every parameter entry, named by ``labels``."""
+    s = result.summary
+    has = set(s.columns)
+    rows = []
+    for _, r in s.iterrows():
+        ci = interval(r["mean"], r.get("eti95_lb"), r.get("eti95_ub"), 4) if {"eti95_lb", "eti95_ub"} <= has \
+            else fmt(r["mean"])
+        rows.append((labels.get(r["name"], r["name"]), ci, fmt(r.get("sd"), 3), fmt(r.get("r_hat"), 4),
+                     fmt(r.get("ess_bulk"), 4), fmt(r.get("ess_tail"), 4)))
+    return Table("Posterior summary and diagnostics", ("parameter", "mean [95 % interval]", "sd", "R-hat",
+                                                       "ESS bulk", "ESS tail"), tuple(rows), (src,),
+                 caption="Equal-tailed intervals. A fit passes with R-hat ≤ 1.01 and bulk ESS ≥ 400 for every "
+                         "entry and no divergences.")
+
+
+def _ppc_note(attrs, src) -> list:
+    if "ppc_coverage90" not in attrs:
+        return []
+    return [Note(f"Posterior predictive check: the 90 % predictive intervals hold "
+                 f"{100 * float(attrs['ppc_coverage90']):.1f} % of the scans' labelled steps; predictive "
+                 f"p-value {fmt(attrs.get('ppc_p_value'), 3)}.", sources=(src,))]
 
 
 def fit_section(inv, spec) -> Section:
-    """Verdict, marginal posteriors per chain, traces and the diagnostics of one fit."""
-    name = spec.key.split(":", 1)[1]
-    result = load_fit(inv.run_dir / name)
-    files = tuple(spec.required)
+    """Verdict, posterior plots chosen for the model, the diagnostics and the priors."""
+    from feeler.reports.fit_plots import labels_of, plots_of
+
+    part = spec.parts[0]
+    result = load_fit(inv.run_dir / part.rel, inv)
+    post_rel, verdict_rel = part.path("posterior.nc"), part.path("verdict.json")
     verdict = result.verdict
-    blocks = []
     if verdict.ok:
-        blocks.append(Note(f"Verdict: passed every diagnostic (backend {result.backend}, "
-                           f"{fmt(result.seconds, 3)} s).", sources=(f"{name}/verdict.json",)))
+        blocks = [Note(f"Verdict: passed every diagnostic (backend {result.backend}, {fmt(result.seconds, 3)} s).",
+                       sources=(verdict_rel,))]
     else:
-        blocks.append(Note("Verdict: FAILED — do not use this posterior. " + "; ".join(verdict.problems),
-                           level="failed", sources=(f"{name}/verdict.json",)))
-    draws = result.draws()
-    shown = [n for n in result.summary["name"] if n in draws][:N_PLOTTED]
-    if shown:
-        blocks.append(_marginals(draws, shown, (f"{name}/posterior.nc",)))
-        blocks.append(_traces(draws, shown, (f"{name}/posterior.nc",)))
-    cols = [c for c in _COLUMNS if c in result.summary.columns]
-    blocks.append(table_from_frame(result.summary[cols], title="Posterior summary and diagnostics",
-                                   sources=(f"{name}/summary.csv",),
-                                   caption="95 % equal-tailed intervals; R-hat ≤ 1.01 and bulk ESS ≥ 400 pass."))
+        blocks = [Note("Verdict: FAILED — do not use this posterior. " + "; ".join(verdict.problems),
+                       level="failed", sources=(verdict_rel,))]
+    attrs = dict(result.posterior["posterior"].attrs)
+    blocks += plots_of(inv, part, result, attrs, sampler=_is_sampler(result.backend))
+    blocks += _ppc_note(attrs, post_rel)
+    blocks.append(summary_table(result, labels_of(part.model, attrs, result.summary["name"]),
+                                part.path("summary.csv")))
     if result.priors:
         rows = tuple((str(k), str(v)) for k, v in result.priors.items())
-        blocks.append(Table("Priors", ("parameter", "prior"), rows, (f"{name}/posterior.nc",)))
-    for rel in spec.optional:
-        if rel.endswith(".json") and inv.has(rel):
-            blocks.append(_json_table(inv.run_dir / rel, rel))
-    return Section(spec.key, spec.title + f" ({name}/)", tuple(blocks), failed=not verdict.ok,
-                   problems=tuple(verdict.problems))
+        blocks.append(Table("Priors", ("parameter", "prior"), rows, (post_rel,)))
+    if part.model == "finger-route" and inv.has(part.path("tau_report.json")):
+        blocks += _tau_blocks(inv, part)
+    if inv.has(part.path("thresholds.csv")):
+        from feeler.reports.m4_extras import curves_gallery, thresholds_table
+
+        blocks.append(thresholds_table(inv, part))
+        gallery = curves_gallery(inv, part)
+        if gallery is not None:
+            blocks.append(gallery)
+    return Section(spec.key, spec.title, tuple(blocks), failed=not verdict.ok, problems=tuple(verdict.problems))
 
 
-def _marginals(draws, names, src) -> Figure:
-    fig, axes = _grid(len(names))
-    for ax, n in zip(axes, names):
-        x = np.asarray(draws[n], float)
-        for c, chain in enumerate(x.reshape(-1, x.shape[-1])):
-            ax.hist(chain, bins=30, histtype="step", density=True, label=f"chain {c}")
-        ax.set_title(n, fontsize=8)
-        ax.tick_params(labelsize=6)
-    return Figure("Marginal posteriors, one line per chain", figure_uri(fig), src,
-                  caption=f"First {len(names)} parameters; chains that agree overlap.")
+def _tau_blocks(inv, part) -> list:
+    """The finger route's τ report in words and Fig. 6 at the fitted τ with the human points."""
+    from feeler.reports.fit_plots import finger_route_fig6
+    from feeler.reports.readers import read_json
 
-
-def _traces(draws, names, src) -> Figure:
-    fig, axes = _grid(len(names))
-    for ax, n in zip(axes, names):
-        x = np.asarray(draws[n], float)
-        for chain in x.reshape(-1, x.shape[-1]):
-            ax.plot(chain, lw=0.4)
-        ax.set_title(n, fontsize=8)
-        ax.set_xlabel("draw", fontsize=7)
-        ax.tick_params(labelsize=6)
-    return Figure("Traces", figure_uri(fig), src, caption="Draw against iteration, per chain.")
-
-
-def _grid(n: int):
-    """Up to three panels per row; unused panels hidden."""
-    ncols = min(n, 3)
-    nrows = -(-n // ncols)
-    fig, axes = subplots(ncols, nrows=nrows, width_in=2.6, height_in=2.1, squeeze=False)
-    flat = axes.ravel()
-    for ax in flat[n:]:
-        ax.set_axis_off()
-    return fig, flat[:n]
-
-
-def _json_table(path, rel) -> Table:
-    """A flat key → value table of a small JSON file (e.g. ppc.json, tau_report.json)."""
-    obj = read_json(path)
-    return Table(rel.rsplit("/", 1)[-1], ("key", "value"),
-                 tuple((str(k), _cell(v)) for k, v in obj.items()), (rel,))
-
-
-def _cell(value) -> str:
-    if isinstance(value, list):
-        return ", ".join(_cell(v) for v in value)
-    if isinstance(value, dict):
-        return "; ".join(f"{k}: {_cell(v)}" for k, v in value.items())
-    return fmt(value)
+    rel = part.path("tau_report.json")
+    rep = read_json(inv.run_dir / rel, ("tau_median_s",))
+    tau_s = float(rep["tau_median_s"])
+    if not tau_s > 0:
+        from feeler.errors import DataFileError
+        raise DataFileError(inv.run_dir / rel, f"tau_median_s = {tau_s!r} must be > 0")
+    eti = [float(x) * 1e3 for x in rep.get("tau_eti95_s", [])][:2] or [float("nan")] * 2
+    blocks = [Note(f"τ posterior median {fmt(tau_s * 1e3, 3)} ms, 95 % interval {fmt(eti[0], 3)}–{fmt(eti[1], 3)} ms; "
+                   f"P(τ ≤ 300 ms | data) = {fmt(rep.get('p_tau_le_300ms'), 3)}. The paper: "
+                   f"{str(rep.get('paper', '')) or '–'}.", sources=(rel,))]
+    fig = finger_route_fig6(inv, tau_s, str(rep.get("skin_level") or "l0"), rel)
+    if fig is not None:
+        blocks.insert(0, fig)
+    return blocks

@@ -1,92 +1,141 @@
-"""The robot-scan section: the paper's Figs 7–9 and the strain and peak figures for this run.
+"""The robot-scan section of one scan directory (simulated or acquired): the paper's
+Figs 7–9 and the peak pulse density against the step, per-plate numbers, and for an
+acquisition its counts and how late each sample was taken.
 
-All curves are computed from ``four-plates/scans.csv`` with the neuron of
-``four-plates/scene.toml`` (strain = U_y / representative length, paper §5.2); the
-per-plate table is ``robot_table.json`` as written by ``feeler demo``.
+Curves are computed from the part's ``scans.csv`` (each scan with its own sample times)
+with the neuron of :mod:`feeler.reports.robotdata`. A scan directory whose scene differs
+from an earlier one's only by the seed (the demo's held-out scans) gets the table only.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from feeler.reports.model import Figure, Note, Section, Table, figure_uri, fmt, subplots
-from feeler.reports.readers import read_json
+from feeler.reports.model import Figure, Note, Section, Table, fmt, interval, make_figure, subplots
+from feeler.reports.robotdata import robot_data
 
-__all__ = ["robot_section"]
+__all__ = ["robot_section", "plate_rows"]
 
-SCENE, SCANS, TABLE = "four-plates/scene.toml", "four-plates/scans.csv", "robot_table.json"
+
+def plate_rows(rd, where: tuple = ()) -> tuple:
+    """Per plate: (``where``,) step, scans, peak z mean ± sd, raw U̇_y peak mean ± sd, ΔU_y jump mean."""
+    rows = []
+    for s in rd.steps:
+        m = rd.scans.step_mm == s
+        sd = (lambda v: np.std(v, ddof=1) if v.size > 1 else np.nan)
+        rows.append((*where, fmt(s), str(int(m.sum())), f"{fmt(rd.peak_z[m].mean())} ± {fmt(sd(rd.peak_z[m]), 2)}",
+                     f"{fmt(rd.peak_rate_uy_mm_s[m].mean())} ± {fmt(sd(rd.peak_rate_uy_mm_s[m]), 2)}",
+                     fmt(np.mean(rd.jump_uy_mm[m]))))
+    return tuple(rows)
+
+
+def _pairs_table(rd, src) -> Table:
+    from feeler.datasets import proportion_correct
+    from feeler.reports.stats import bootstrap_interval
+
+    rows = []
+    for lo, hi in zip(sorted(rd.steps)[:-1], sorted(rd.steps)[1:]):
+        a, b = rd.scans.step_mm == lo, rd.scans.step_mm == hi
+        cells = []
+        for v in (rd.peak_z, rd.peak_rate_uy_mm_s):
+            pc = proportion_correct(v[a], v[b])
+            cells.append(interval(pc, *bootstrap_interval(proportion_correct, [v[a], v[b]])))
+        rows.append((fmt(lo), fmt(hi), *cells))
+    return Table("2AFC proportion correct of adjacent plates (95 % bootstrap intervals over scans)",
+                 ("lower mm", "higher mm", "by peak z", "by raw U̇_y peak"), tuple(rows), src,
+                 caption="P(the higher plate's scan gives the larger value) over all pairs of scans.")
+
+
+def _figures(rd, src) -> list[Figure]:
+    s, t = rd.scans, rd.scans.t_s
+    ref = max(float(rd.z[rd.first[-1]].max()), np.finfo(float).tiny)
+    fig, (a7, a8) = subplots(2, height_in=2.4)
+    fig2, (a9, ap) = subplots(2, height_in=2.4)
+    for k, (step, i) in enumerate(zip(rd.steps, rd.first)):
+        label, c = f"δ = {step:g} mm", f"C{k}"
+        a7.plot(s.x_mm[i], s.uy_mm[i] - s.uy_mm[i, 0], color=c, lw=1, label=label)
+        a8.plot(t[i, 1:], np.diff(s.uy_mm[i]) / np.diff(t[i]), color=c, lw=1, label=label)
+        a9.plot(t[i], rd.z[i] / ref, color=c, lw=1, label=label)
+    a7.set(xlabel="x (mm)", ylabel="ΔU_y = U_y − U_y0 (mm)", title="Fig. 7: vertical displacement")
+    a8.set(xlabel="t (s)", ylabel="U̇_y (mm/s)", title="Fig. 8: rate of vertical displacement")
+    a9.set(xlabel="t (s)", ylabel="Z = z / peak z (highest plate)", title="Fig. 9: normalised pulse density")
+    steps = np.array(sorted(rd.steps))
+    mean = np.array([rd.peak_z[s.step_mm == v].mean() for v in steps])
+    sd = np.array([rd.peak_z[s.step_mm == v].std(ddof=1) if (s.step_mm == v).sum() > 1 else 0.0 for v in steps])
+    ap.plot(s.step_mm, rd.peak_z, ".", color="0.6", ms=3, label="each scan")
+    ap.errorbar(steps, mean, yerr=sd, fmt="o-", color="C3", capsize=3, ms=4, label="mean ± sd")
+    ap.set(xlabel="step height δ (mm)", ylabel="peak z (V)", title="Peak pulse density against the step")
+    for ax in (a7, a8, a9, ap):
+        ax.legend(fontsize=6)
+    return [make_figure("Figs 7 and 8: ΔU_y against x, U̇_y against t", fig, src,
+                        "First scan of each plate, each on its own sample times."),
+            make_figure("Fig. 9 and the peak pulse density against the step", fig2, src,
+                        "Left: z of the first scan of each plate, normalised to the highest plate's peak "
+                        "(paper Fig. 9). Right: peak z of every scan (cf. the finger's Fig. 5).")]
+
+
+def _acquisition_blocks(rd, src) -> list:
+    blocks = []
+    if rd.summary:
+        keys = ("scans_done", "scans_planned", "samples_written", "late_samples", "bad_frames", "bad_lines",
+                "partial_lines_dropped", "aborted_attempts", "complete", "stopped", "stage", "camera", "c_source")
+        rows = tuple((k.replace("_", " "), fmt(rd.summary[k])) for k in keys if k in rd.summary)
+        blocks.append(Table("Acquisition counts", ("quantity", "value"), rows, (rd.part.path("summary.json"),)))
+        if rd.summary.get("complete") is False:
+            blocks.append(Note(f"Incomplete acquisition: {rd.summary.get('scans_done', '?')} of "
+                               f"{rd.summary.get('scans_planned', '?')} scans ({rd.summary.get('stopped', '')}); "
+                               "resume with `feeler acquire ... --resume`.", level="failed",
+                               sources=(rd.part.path("summary.json"),)))
+    if rd.timing is not None and len(rd.timing):
+        fig, (ax, hx) = subplots(2)
+        for k, (sid, g) in enumerate(rd.timing.groupby("scan_id", sort=False)):
+            ax.plot(g["t_sched_s"], (g["t_s"] - g["t_sched_s"]) * 1e3, lw=0.6, color=f"C{k % 10}", alpha=0.7)
+        ax.set(xlabel="time (s), as scheduled", ylabel="taken − scheduled (ms)", title="When each sample was taken")
+        if "status_rtt_s" in rd.timing:
+            hx.hist(rd.timing["status_rtt_s"].to_numpy(float) * 1e3, bins=30, color="C1")
+            hx.set(xlabel="status query round trip (ms)", ylabel="samples", title="Stage status round trip")
+        else:
+            hx.set_visible(False)
+        late = int(np.sum(rd.timing["late"].to_numpy(float) > 0))
+        blocks.append(make_figure("Sample timing of the acquisition", fig, src,
+                                  f"One line per scan; {late} of {len(rd.timing)} samples flagged late."))
+    return blocks
+
+
+def _tables(datas, srcs) -> list:
+    """The per-plate table of every directory of the design (one column says which), and
+    the adjacent-pair table of the first."""
+    many = len(datas) > 1
+    rows = sum((plate_rows(rd, (rd.part.label,) if many else ()) for rd in datas), ())
+    short = not all(np.all(np.isfinite(rd.jump_uy_mm)) for rd in datas)
+    blocks = [Table("Per plate: peak z, raw U̇_y peak and the ΔU_y jump",
+                    (("directory",) if many else ()) + ("step mm", "scans", "peak z (V) mean ± sd",
+                                                        "raw U̇_y peak (mm/s) mean ± sd", "ΔU_y jump (mm)"),
+                    rows, tuple(s for src in srcs for s in src),
+                    caption="– : the scans are too short for the jump's two windows." if short else "")]
+    if len(datas[0].steps) > 1:
+        blocks.append(_pairs_table(datas[0], srcs[0]))
+    return blocks
 
 
 def robot_section(inv, spec) -> Section:
-    """Figures of one scan per plate (strain, ΔU_y, U̇_y, z) and peak z against step height."""
-    from feeler.datasets import read_scans, strain
-    from feeler.models import neuron
-    from feeler.scene import load_scene
-    from feeler.simulate import features_of
-
-    scene = load_scene(inv.run_dir / SCENE)
-    scans = read_scans(inv.run_dir / SCANS)
-    nrn = scene.neuron
-    eps = strain(scans.uy_mm, nrn.length_mm)
-    z = neuron.per_time_base(lambda s, t: neuron.pulse_density(s, t, a=nrn.a, tau=nrn.tau_s, h=nrn.h,
-                                                                kernel=nrn.kernel), eps, scans.t_s)
-    peak_z = features_of(scene, scans).peak_z
-    steps = list(dict.fromkeys(scans.step_mm.tolist()))
-    first = [int(np.flatnonzero(scans.step_mm == s)[0]) for s in steps]
-    t = scans.t_s                      # each scan's own sample times (n_scans, n_time)
-    src = (SCANS, SCENE)
-    neuron_words = (f"a = {fmt(nrn.a)} V s, τ = {fmt(nrn.tau_s)} s, h = {fmt(nrn.h)} V, "
-                    f"length {fmt(nrn.length_mm)} mm ({nrn.kernel} window)")
-    curves = [
-        ("Strain history ε_y = U_y / length", "t (s)", "ε_y", lambda i: (t[i], eps[i])),
-        ("Fig. 7: ΔU_y = U_y − U_y0", "x (mm)", "ΔU_y (mm)",
-         lambda i: (scans.x_mm[i], scans.uy_mm[i] - scans.uy_mm[i, 0])),
-        ("Fig. 8: rate of vertical displacement U̇_y", "t (s)", "U̇_y (mm/s)",
-         lambda i: (t[i, 1:], np.diff(scans.uy_mm[i]) / np.diff(t[i]))),
-        ("Fig. 9: pulse density z", "t (s)", "z (V)", lambda i: (t[i], z[i])),
-    ]
-    blocks = [Note(f"Scene {scene.scene.name}: {scene.scene.description}", sources=(SCENE,)),
-              Note(f"{len(scans.scan_id)} scans, {len(steps)} plates; neuron {neuron_words}.",
-                   sources=src)]
-    for title, xlabel, ylabel, series in curves:
-        fig, ax = subplots()
-        for step, i in zip(steps, first):
-            ax.plot(*series(i), label=f"δ = {step:g} mm (scan {scans.scan_id[i]})")
-        ax.set(xlabel=xlabel, ylabel=ylabel, title=title)
-        ax.legend(fontsize=7)
-        blocks.append(Figure(title, figure_uri(fig), src, caption="First scan of each plate."))
-    blocks.append(_peak_figure(scans.step_mm, peak_z, src))
-    if inv.has(TABLE):
-        blocks += _plate_tables(inv.run_dir / TABLE)
+    """Scan directories of one design: the paper's robot figures for the first, per-plate
+    tables for each, acquisition facts."""
+    part, *repeats = spec.parts
+    rd = robot_data(inv, part)
+    src = tuple(part.path(f) for f in part.files)
+    n = rd.neuron
+    blocks = [Note(f"{rd.name}: {rd.description}".rstrip(": "), sources=src[1:] or src),
+              Note(f"{len(rd.scans.scan_id)} scans over {len(rd.steps)} plates. Neuron (from {n.source}): "
+                   f"a = {fmt(n.a)} V s, τ = {fmt(n.tau_s)} s, h = {fmt(n.h)} V, strain = U_y / {fmt(n.length_mm)} mm "
+                   f"({n.kernel} window).", sources=src)]
+    if len(rd.steps) and rd.scans.t_s.shape[1] > 2:
+        blocks += _figures(rd, src)
+    if part.kind == "acquisition":
+        blocks += _acquisition_blocks(rd, src)
+    others = [robot_data(inv, p) for p in repeats]
+    if others:
+        blocks.append(Note(f"{', '.join(o.part.label for o in others)}: {sum(len(o.scans.scan_id) for o in others)} "
+                           "more scans of the same design (another seed); their figures would repeat these.",
+                           sources=tuple(o.part.path("scans.csv") for o in others)))
+    blocks += _tables([rd, *others], [src, *(tuple(o.part.path(f) for f in o.part.files) for o in others)])
     return Section(spec.key, spec.title, tuple(blocks))
-
-
-def _peak_figure(step_mm, peak_z, src) -> Figure:
-    steps = np.unique(step_mm)
-    mean = np.array([peak_z[step_mm == s].mean() for s in steps])
-    sd = np.array([peak_z[step_mm == s].std(ddof=1) if (step_mm == s).sum() > 1 else 0.0 for s in steps])
-    fig, ax = subplots()
-    ax.plot(step_mm, peak_z, ".", alpha=0.4, label="each scan")
-    ax.errorbar(steps, mean, yerr=sd, fmt="o-", capsize=3, label="mean ± sd")
-    ax.set(xlabel="step height δ (mm)", ylabel="peak z (V)", title="Peak pulse density against step height")
-    ax.legend(fontsize=7)
-    return Figure("Peak pulse density against step height", figure_uri(fig), src,
-                  caption="Peak of z over each scan (cf. the paper's Fig. 5 for the finger).")
-
-
-def _plate_tables(path) -> list[Table]:
-    from feeler.errors import DataFileError
-
-    table = read_json(path, ("plates",))
-    cols = ("step_mm", "n_scans", "peak_z_mean", "peak_z_sd", "raw_rate_mean_mm_s",
-            "raw_rate_sd_mm_s", "jump_uy_mean_mm")
-    try:
-        rows = tuple(tuple(fmt(p[c]) for c in cols) for p in table["plates"])
-        pairs = tuple((fmt(p["lower_mm"]), fmt(p["higher_mm"]), fmt(p["pc_peak_z"], 3),
-                       fmt(p["pc_raw_rate"], 3)) for p in table.get("adjacent_pairs", ()))
-    except (KeyError, TypeError) as exc:
-        raise DataFileError(path, f"unexpected layout of the per-plate table ({exc!r})") from None
-    plates = Table("Per plate: peak z, raw U̇_y and the ΔU_y jump", cols, rows, (TABLE,))
-    if not pairs:
-        return [plates]
-    return [plates, Table("2AFC proportion correct of adjacent plates",
-                          ("lower_mm", "higher_mm", "pc by peak z", "pc by raw U̇_y peak"), pairs, (TABLE,))]

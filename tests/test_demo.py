@@ -1,10 +1,12 @@
-"""feeler demo: runs its stages on a small four-plates, prints the table, writes Figs 7-9."""
+"""feeler demo: runs its stages on a small four-plates, prints the table, writes Figs 7-9.
+
+The whole campaign (every stage, the report included) runs once per session in
+tests/reports/conftest.py; tests/reports/test_report_demo.py checks what it wrote."""
 import json
 from pathlib import Path
 
 import pytest
 
-from feeler.cli import main
 from feeler.demo import FIGURES, STAGES, run_demo
 from feeler.errors import OverwriteError
 
@@ -46,25 +48,6 @@ def test_demo_refuses_to_overwrite_without_force(tmp_path, small):
     run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1], force=True)
 
 
-def test_demo_cli_runs_the_whole_campaign(tmp_path, small, capsys):
-    assert main(["demo", "--out", str(tmp_path / "d"), "--scene", str(small)]) == 0
-    out = capsys.readouterr().out
-    assert "2AFC" in out and "fig9_pulse_density.png" in out
-    for heading in ("M1 —", "M2 —", "held-out", "M3 —", "M4 —", "SYNTHETIC"):
-        assert heading in out, heading
-    d = tmp_path / "d"
-    for fit in ("m1", "m2", "m4"):
-        assert json.loads((d / fit / "verdict.json").read_text())["ok"], fit
-        assert (d / fit / "posterior.nc").stat().st_size > 0
-    assert (d / "classify" / "classification.csv").is_file()
-    assert (d / "discriminate" / "discrimination.json").is_file()
-    assert (d / "m4" / "thresholds.csv").is_file()
-    # every stage's full output is kept
-    assert (d / "logs" / "calibrate-neuron.txt").read_text().startswith("$ feeler calibrate neuron")
-    assert main(["demo", "--out", str(tmp_path / "d"), "--scene", str(small)]) == 2
-    assert "--force" in capsys.readouterr().err
-
-
 def test_held_out_scene_moves_only_the_seed(tmp_path):
     from feeler.demo.campaign import HELD_OUT_SEED_OFFSET, held_out_scene
     from feeler.scene import load_scene
@@ -94,7 +77,7 @@ def test_speed_tables_of_the_last_bench_are_copied_with_their_source(tmp_path):
     printed = []
     out = tmp_path / "runs" / "demo"
     out.mkdir(parents=True)
-    ctx = {"out": out, "print": printed.append}
+    ctx = {"out": out, "print": printed.append, "measure_trades": False}
     _speed_tables(ctx)                                   # nothing measured yet: says so
     assert "make bench" in printed[-1] and not (out / "benchmarks").exists()
     bench = tmp_path / "runs" / "benchmarks"

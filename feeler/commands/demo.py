@@ -11,9 +11,13 @@ This is what `make demo` runs. Stages, each with its progress line:
   8    the robot's discrimination: 2AFC table, difference threshold, Weber fraction, PSE;
   9    simulate the SYNTHETIC human 2AFC data and fit psychometric functions (M4);
   10   infer tau and the decision noise through the finger chain;
-  11   write OUT/report.html and OUT/report.pdf.
-Every stage's full output is kept in OUT/logs/. A closing table lists each stage's time
-and verdict.
+  11   simulate the finger-steps scene (strain histories for the paper's Figs 3-6);
+  12   speed/accuracy: copy the tables of the last `make bench`, and measure small
+       versions of what they do not cover (skin ladder, calibration backends, sensor
+       fidelities), labelled as measured during the demo;
+  13   write OUT/report.html, OUT/report.pdf and OUT/report-manifest.json.
+Every stage's full output is kept in OUT/logs/. A closing table lists each stage's wall
+and CPU time and verdict.
 """
 from __future__ import annotations
 
@@ -39,10 +43,10 @@ def run(args) -> int:
     ctx = run_demo(args.out, force=args.force, scene_path=args.scene)
     out = ctx["out"]
     print("\nsummary" + "-" * 62)
-    print(f"{'stage':20s} {'seconds':>8s}   result")
+    print(f"{'stage':20s} {'seconds':>8s} {'cpu s':>7s}   result")
     for name, sec in ctx["seconds"].items():
-        print(f"{name:20s} {sec:8.1f}   {_result(out, name, json)}")
-    print(f"{'total':20s} {sum(ctx['seconds'].values()):8.1f}")
+        print(f"{name:20s} {sec:8.1f} {ctx['cpu_seconds'][name]:7.1f}   {_result(out, name, json)}")
+    print(f"{'total':20s} {sum(ctx['seconds'].values()):8.1f} {sum(ctx['cpu_seconds'].values()):7.1f}")
     print(f"figures: {', '.join(str(out / f) for f in FIGURES)}")
     if "report" in ctx:
         print(f"report:  {ctx['report'].html}")

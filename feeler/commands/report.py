@@ -1,65 +1,116 @@
 """Build the HTML and PDF report of a run directory.
 
-RUN_DIR is a directory written by `feeler demo` or assembled from the outputs of `feeler
-simulate`, `calibrate sensor|neuron`, `classify`, `discriminate` and `fit psychophysics`
-(synthetic, acquired or mixed). The report shows only the sections whose files exist and
-lists the missing ones; a failed calibration is shown first. report.html is
-self-contained (figures inlined, no network needed to open it); report.pdf is the same
-HTML laid out by WeasyPrint. A corrupt file of the run stops with a one-line error naming
-it (exit 2).
+RUN_DIR is any directory of runs: one command's output (a fit, a simulation, an
+acquisition, a skin study), the whole of `feeler demo`, or a mix under any names — the
+report recognises each part by its files. The first page answers "did it reproduce the
+paper, and what did it find": the paper's claims checked one by one against the run
+(number, 95 % interval, mark), every fit's verdict (a failed one first), and what each
+missing part would need. Then one section per part, failed calibrations first.
 
-Example:
+Writes report.html (self-contained: figures inlined, opens offline), report.pdf (the same
+HTML laid out by WeasyPrint) and report-manifest.json (every figure with the files it
+came from). Progress: a bar on a terminal, a line per stage otherwise (--no-progress:
+neither). A corrupt file of the run stops with a one-line error naming it (exit 2).
+
+Examples:
     feeler report runs/demo
+    feeler report runs/demo/m1 --no-pdf
+    feeler report runs/acquired --out /tmp/acquired-report
 """
 from __future__ import annotations
 
-__all__ = ["NAME", "HELP", "register"]
+__all__ = ["NAME", "HELP", "register", "run", "check_out_dir"]
 
 NAME = "report"
-HELP = "build report.html and report.pdf from a run directory"
+HELP = "build report.html and report.pdf from any run directory (a fit, a simulation, an acquisition, the demo)"
 
 
 def register(parser) -> None:
-    parser.add_argument("run_dir", metavar="RUN_DIR", help="run directory")
+    parser.add_argument("run_dir", metavar="RUN_DIR", help="run directory (any command's output, or several)")
     parser.add_argument("--out", default=None, metavar="DIR",
-                        help="where to write report.html / report.pdf (default RUN_DIR)")
-    parser.add_argument("--no-pdf", action="store_true", help="write only report.html")
+                        help="where to write report.html, report.pdf, report-manifest.json (default RUN_DIR)")
+    parser.add_argument("--no-pdf", action="store_true", help="write only report.html (and the manifest)")
     parser.add_argument("--progress", dest="progress", action="store_true", default=None,
-                        help="always show the progress bar")
+                        help="always show the progress bar (default: on a terminal; a line per stage otherwise)")
     parser.add_argument("--no-progress", dest="progress", action="store_false",
-                        help="never show the progress bar")
+                        help="no progress bar and no stage lines")
     parser.set_defaults(run=run)
+
+
+def check_out_dir(path) -> None:
+    """Refuse an output directory that cannot be written, before any work.
+
+    Raises:
+        ArgumentError: ``path`` is a file, or it (or its nearest existing parent) is not writable.
+    """
+    import os
+    from pathlib import Path
+
+    from feeler.errors import ArgumentError
+
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ArgumentError("--out", str(path), "a directory (this is a file)")
+    probe = path
+    while not probe.exists():
+        probe = probe.parent
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise ArgumentError("--out", str(path), f"a writable directory ({probe} is not writable)")
+
+
+def _reporter(setting):
+    """(step(stage), close()) for a bar on a terminal, a line per stage otherwise, or nothing."""
+    import sys
+
+    from feeler.calib.progress import show_progress
+
+    if setting is False:
+        return (lambda stage: None), (lambda: None)
+    if show_progress(setting):
+        import shutil
+
+        from tqdm.auto import tqdm
+        # a terminal that reports no size (a bare pseudo-terminal) gets 100 x 20, not 0 x 0
+        # (tqdm draws nothing on a terminal of 0 rows)
+        size = shutil.get_terminal_size((100, 20))
+        bar = tqdm(desc="report", file=sys.stderr, leave=False, ncols=size.columns or 100, nrows=size.lines or 20,
+                   bar_format="{desc} [{elapsed}]")
+
+        def step(stage: str) -> None:
+            bar.set_description_str(f"report: {stage}")
+        return step, bar.close
+    return (lambda stage: print(f"report: {stage} ...", file=sys.stderr, flush=True)), (lambda: None)
 
 
 def run(args) -> int:
     import sys
+    from pathlib import Path
 
-    from feeler.calib.progress import show_progress
-    from feeler.reports import build_report, discover
+    from feeler.errors import DataFileError
 
-    inv = discover(args.run_dir)
-    bar = None
-    if show_progress(args.progress):
-        from tqdm.auto import tqdm
-        bar = tqdm(total=len(inv.present) + 2 + (not args.no_pdf), desc="report", file=sys.stderr,
-                   leave=False, dynamic_ncols=True)
+    print(f"feeler report: reading {args.run_dir} ...", file=sys.stderr, flush=True)
+    if not Path(args.run_dir).is_dir():
+        raise DataFileError(args.run_dir, "not a directory; expected a run directory")
+    check_out_dir(args.out if args.out is not None else args.run_dir)
+    from feeler.reports import build_report
 
-    def step(stage: str) -> None:
-        if bar is not None and stage != "discover":
-            bar.set_postfix_str(stage)
-            bar.update(1)
-
+    step, close = _reporter(args.progress)
     try:
         report = build_report(args.run_dir, args.out, pdf=not args.no_pdf, progress=step)
     finally:
-        if bar is not None:
-            bar.close()
+        close()
+    inv = report.inventory
     for title in report.failed:
         print(f"FAILED calibration shown first: {title}")
-    for title, files in report.inventory.missing:
-        print(f"missing for '{title}': {', '.join(files)}")
-    print(f"sections: {len(report.inventory.present)} shown, {len(report.inventory.missing)} with missing files")
+    print(f"holds: {len(inv.parts)} part(s) in {len(inv.present)} section(s)"
+          + "".join(f"\n  {s.title}" for s in inv.present))
+    for m in inv.missing:
+        print(f"not in this run: {m.title} — needs {m.needs}")
+    problems = [f for f in report.figures if f["layout_problems"]]
+    if problems:
+        print(f"warning: {len(problems)} figure(s) with layout problems (see {report.manifest.name})")
     print(f"report: {report.html}")
     if report.pdf is not None:
         print(f"report: {report.pdf} ({report.n_pages} pages)")
+    print(f"manifest: {report.manifest} ({len(report.figures)} figures)")
     return 0

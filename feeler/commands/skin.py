@@ -22,12 +22,21 @@ HELP = "finger skin ladder study (L0/L1/L2) and the paper's Figs 3-6"
 
 def register(parser) -> None:
     sub = parser.add_subparsers(title="skin commands", metavar="WHAT")
-    lad = sub.add_parser("ladder", help="mesh convergence and the L0/L1/L2 trade table")
+    lad = sub.add_parser("ladder", help="mesh convergence and the L0/L1/L2 trade table",
+                         description="L2 mesh convergence and the trade between the skin fidelities L0, L1 and L2: "
+                                     "seconds per slide against the error of the peak strain rate to converged L2. "
+                                     "Writes convergence.csv, trade.csv, ladder.json and ladder.png into --out "
+                                     "(default runs/skin-ladder). Example: feeler skin ladder --small --out runs/ladder")
     lad.add_argument("--out", default="runs/skin-ladder", metavar="DIR", help="output directory")
     lad.add_argument("--small", action="store_true", help="coarse meshes and time steps (a quick check)")
     lad.add_argument("--force", action="store_true", help="overwrite existing results in DIR")
     lad.set_defaults(run=run_ladder)
-    fig = sub.add_parser("figures", help="the paper's Figs 3-6 for a finger-steps scene")
+    fig = sub.add_parser("figures", help="the paper's Figs 3-6 for a finger-steps scene",
+                         description="The paper's Figs 3-6 for a finger-steps scene: strain at the corpuscle, "
+                                     "normalised pulse density, peak against step height, accepted against presented "
+                                     "height over the scene's tau sweep (PNGs, with fig5_peaks.csv, fig6_accepted.csv, "
+                                     "figures.json). Example: feeler skin figures "
+                                     "datasets-synthetic/finger-steps.toml --out runs/finger-figs")
     fig.add_argument("scene", metavar="SCENE", help="finger-steps scene TOML")
     fig.add_argument("--out", required=True, metavar="DIR", help="output directory")
     fig.add_argument("--level", choices=("l0", "l1", "l2"), help="override the scene's skin level")
@@ -41,9 +50,11 @@ def run_ladder(args) -> int:
 
     from feeler.rundir import prepare_out_dir
     out = prepare_out_dir(args.out, ladder_files(), force=args.force)
+    print(f"skin ladder ({'small' if args.small else 'full'} study) into {out} ...", flush=True)
     summary = run_ladder_study(out, small=args.small)
     for line in summary["lines"]:
         print(line)
+    print(f"wrote {', '.join(str(out / f) for f in ladder_files())}")
     return 0
 
 
@@ -59,4 +70,5 @@ def run_figures(args) -> int:
     out = prepare_out_dir(args.out, figure_files(), force=args.force)
     for line in write_figures(scene, out, level=args.level):
         print(line)
+    print(f"wrote {', '.join(str(out / f) for f in figure_files())}")
     return 0

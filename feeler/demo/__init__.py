@@ -119,19 +119,27 @@ STAGES: list[tuple[str, Callable[[dict], None]]] = [
 
 
 def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | None = None,
-             stages=None, echo: Callable[[str], None] = print) -> dict:
+             stages=None, echo: Callable[[str], None] = print, scenes: dict | None = None,
+             discriminate_scans: int | None = None) -> dict:
     """Run the demo stages into ``out``; returns the context (scene, scans, features, table...).
+
+    Args:
+        scene_path: the robot-scan scene (default the shipped four-plates).
+        scenes: other scene files by name ("sensor-calibration", "psychophysics-2afc",
+            "finger-steps") instead of the shipped ones (smaller runs, e.g. in tests).
+        discriminate_scans: touches per height for the discrimination (default the command's).
 
     Raises:
         OverwriteError: ``out`` holds demo results and ``force`` is false.
     """
     out = prepare_out_dir(out, ("robot_table.json", *FIGURES, "four-plates/scans.csv"), force=force)
     ctx = {"out": out, "force": force, "scene_path": Path(scene_path or DEFAULT_SCENE), "print": echo,
-           "seconds": {}}
+           "seconds": {}, "cpu_seconds": {}, "scenes": dict(scenes or {}), "discriminate_scans": discriminate_scans}
     todo = STAGES if stages is None else stages
     for i, (name, stage) in enumerate(todo, 1):
         echo(f"[{i}/{len(todo)}] {name} ...")
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         stage(ctx)
         ctx["seconds"][name] = time.perf_counter() - t0
+        ctx["cpu_seconds"][name] = time.process_time() - c0
     return ctx

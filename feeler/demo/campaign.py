@@ -12,11 +12,13 @@ Run-directory layout written here (the report reads it):
 - ``sensor-calibration/`` simulated calibration campaign; ``m1/`` its M1 posterior;
 - ``m2/`` the neuron's (a, τ, h, σ) posterior from ``four-plates/``;
 - ``held-out/`` fresh four-plates scans (seed + 10⁸); ``classify/`` their classification;
-- ``discriminate/`` the robot's 2AFC table, difference threshold, Weber fraction, PSE;
+- ``discriminate/`` the robot's 2AFC table, difference threshold, Weber fraction, PSE, and
+  the curve behind the threshold (:mod:`feeler.demo.curve`);
 - ``psychophysics/`` the synthetic human 2AFC data; ``m4/`` their psychometric fits;
 - ``finger-route/`` τ and σ_d inferred from the human data through the finger chain;
 - ``finger/`` strain histories of the finger-steps scene (skin level L1);
 - ``benchmarks/`` the speed/accuracy tables of the last ``make bench``, when there are any;
+  ``skin-ladder/`` and ``speed/`` what the demo measured itself (:mod:`feeler.demo.speed`);
 - ``report.html`` and ``report.pdf`` (:mod:`feeler.reports`) from all of the above.
 """
 from __future__ import annotations
@@ -88,10 +90,16 @@ def _force(ctx) -> list[str]:
     return ["--force"] if ctx["force"] else []
 
 
+def _scene(ctx: dict, name: str) -> Path:
+    """The scene file of ``name`` ("sensor-calibration", ...): the shipped one unless the
+    caller of :func:`feeler.demo.run_demo` gave another (small sizes for tests)."""
+    return Path(ctx.get("scenes", {}).get(name, DATA / f"{name}.toml"))
+
+
 def _calibrate_sensor(ctx: dict) -> None:
     out = ctx["out"]
     _run(ctx, "simulate-sensor-calibration",
-         ["simulate", str(DATA / "sensor-calibration.toml"), "--out", str(out / "sensor-calibration"),
+         ["simulate", str(_scene(ctx, "sensor-calibration")), "--out", str(out / "sensor-calibration"),
           *_force(ctx)], keep=lambda lines: [])
     ctx["print"]("\nM1 — the sensor's force→displacement matrix C (exact conjugate posterior):")
     _run(ctx, "calibrate-sensor", ["calibrate", "sensor", str(out / "sensor-calibration"), "--out",
@@ -117,13 +125,19 @@ def _classify(ctx: dict) -> None:
 
 def _discriminate(ctx: dict) -> None:
     ctx["print"]("\nM3 — the robot's discrimination (2AFC proportion correct):")
-    _run(ctx, "discriminate", ["discriminate", str(ctx["out"] / "m2"), "--out",
-                               str(ctx["out"] / "discriminate"), *_force(ctx)], keep=_from("low mm"))
+    from feeler.demo.curve import write_threshold_curve
+
+    scans = ctx.get("discriminate_scans")
+    _run(ctx, "discriminate", ["discriminate", str(ctx["out"] / "m2"), "--out", str(ctx["out"] / "discriminate"),
+                               *(["--n-scans", str(scans)] if scans else []), *_force(ctx)], keep=_from("low mm"))
+    curve = write_threshold_curve(ctx["out"] / "m2", ctx["out"] / "discriminate", **({"n_scans": scans} if scans else {}))
+    if curve is not None:
+        ctx["print"](f"the curve behind the threshold: {curve}")
 
 
 def _psychophysics(ctx: dict) -> None:
     out = ctx["out"]
-    _run(ctx, "simulate-psychophysics", ["simulate", str(DATA / "psychophysics-2afc.toml"), "--out",
+    _run(ctx, "simulate-psychophysics", ["simulate", str(_scene(ctx, "psychophysics-2afc")), "--out",
                                          str(out / "psychophysics"), *_force(ctx)], keep=lambda lines: [])
     ctx["print"]("\nM4 — human psychometric functions (SYNTHETIC 2AFC data), pooled rows:")
     _run(ctx, "fit-psychophysics", ["fit", "psychophysics", str(out / "psychophysics" / "trials.csv"),
@@ -141,25 +155,31 @@ def _finger_route(ctx: dict) -> None:
 
 def _finger(ctx: dict) -> None:
     ctx["print"]("\nFinger skin: strain histories at the corpuscle for the paper's steps (finger-steps):")
-    _run(ctx, "simulate-finger-steps", ["simulate", str(DATA / "finger-steps.toml"), "--out",
+    _run(ctx, "simulate-finger-steps", ["simulate", str(_scene(ctx, "finger-steps")), "--out",
                                         str(ctx["out"] / "finger"), *_force(ctx)], keep=_matching(r"wrote"))
 
 
 def _speed_tables(ctx: dict) -> None:
-    """Copy the speed/accuracy tables of the last ``make bench`` (runs/benchmarks/*.csv)."""
+    """Copy the speed/accuracy tables of the last ``make bench`` (runs/benchmarks/*.csv),
+    then measure small versions of what they do not cover (:mod:`feeler.demo.speed`)."""
     import shutil
+
+    from feeler.demo.speed import measure_trades
 
     src = Path(ctx["out"]).resolve().parent / "benchmarks"
     tables = sorted(src.glob("*.csv")) if src.is_dir() else []
-    if not tables:
-        ctx["print"](f"\nspeed/accuracy tables: none in {src} (run `make bench` to measure them)")
+    if tables:
+        dest = ctx["out"] / "benchmarks"
+        dest.mkdir(exist_ok=True)
+        for table in tables:
+            shutil.copyfile(table, dest / table.name)
+        (dest / "SOURCE.txt").write_text(f"copied from {src} (written by `make bench`)\n", encoding="utf-8")
+        ctx["print"](f"\nspeed/accuracy tables from {src}: {', '.join(t.name for t in tables)}")
+    else:
+        ctx["print"](f"\nspeed/accuracy: no `make bench` tables in {src}; measuring small versions now")
+    if not ctx.get("measure_trades", True):
         return
-    dest = ctx["out"] / "benchmarks"
-    dest.mkdir(exist_ok=True)
-    for table in tables:
-        shutil.copyfile(table, dest / table.name)
-    (dest / "SOURCE.txt").write_text(f"copied from {src} (written by `make bench`)\n", encoding="utf-8")
-    ctx["print"](f"\nspeed/accuracy tables from {src}: {', '.join(t.name for t in tables)}")
+    measure_trades(ctx["out"], DATA, echo=ctx["print"])
 
 
 def _report(ctx: dict) -> None:
@@ -174,5 +194,5 @@ def _report(ctx: dict) -> None:
 CAMPAIGN_STAGES = [("calibrate sensor", _calibrate_sensor), ("calibrate neuron", _calibrate_neuron),
                    ("classify", _classify), ("discriminate", _discriminate),
                    ("psychophysics", _psychophysics), ("finger route", _finger_route), ("finger skin", _finger),
-                   ("speed tables", _speed_tables),
+                   ("speed/accuracy", _speed_tables),
                    ("report", _report)]

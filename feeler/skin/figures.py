@@ -87,59 +87,52 @@ def figure_data(runs, neuron, press_s: float) -> FigureData:
     return FigureData(heights, speeds, z_norm, peaks, fits, taus, accepted, kappa, ratio)
 
 
-def plot_figures(runs, data: FigureData, out_dir, *, label: str) -> list:
-    """Write fig3_strain.png … fig6_accepted.png into ``out_dir``; returns the paths."""
-    import matplotlib
-    matplotlib.use("Agg")
+def _labelled(fig, label: str):
+    """Put ``label`` (the skin level) in the suptitle, or after the single panel's title."""
+    if getattr(fig, "_suptitle", None) is not None:
+        fig._suptitle.set_text(f"{fig._suptitle.get_text()} ({label})")
+    elif fig.axes:
+        fig.axes[0].set_title(f"{fig.axes[0].get_title()} ({label})")
+    return fig
+
+
+def plot_figures(runs, data: FigureData, out_dir, *, label: str, tau_s: float, step_mm: float,
+                 human=()) -> list[tuple]:
+    """Write fig3_strain.png, fig3_detail.png, fig4_pulse_density.png, fig5_peak_vs_height.png
+    and fig6_accepted.png into ``out_dir``: the report's finger figures, drawn the same way.
+
+    Args:
+        tau_s: the neuron window of Fig. 4; step_mm: where the step is (Fig. 3 detail);
+        human: Fig. 6 symbols, (presented µm, PSE, lo, hi, speed mm/s, label) each.
+    Returns:
+        (path, layout problems) per figure (see :func:`feeler.reports.layout.check_figure`).
+    """
+    from feeler.reports.model import report_style
+
+    speeds = list(data.speeds_mm_s)
+    fits = [(f.slope_per_um, f.intercept, f.r2) for f in data.fits]
+    with report_style():
+        return _save_all(runs, data, out_dir, label, speeds, fits, tau_s, step_mm, human)
+
+
+def _save_all(runs, data, out_dir, label, speeds, fits, tau_s, step_mm, human) -> list[tuple]:
     import matplotlib.pyplot as plt
 
-    paths = []
-    n_v = len(data.speeds_mm_s)
-    fig, axes = plt.subplots(2, n_v, figsize=(5 * n_v, 6.4), squeeze=False)
-    for j, v in enumerate(data.speeds_mm_s):
-        ax, zoom = axes[0, j], axes[1, j]
-        for r in runs:
-            if r.speed_mm_s == v:
-                ax.plot(r.t_s, r.eps_y, lw=1, label=f"{r.step_um:g} µm")
-                s = r.slide_start
-                zoom.plot(r.t_s[s:], r.eps_y[s:] - r.eps_y[s], lw=1, label=f"{r.step_um:g} µm")
-        ax.set(title=f"Fig 3 — ε_y at the corpuscle, {v:g} mm/s", xlabel="time (s)", ylabel="ε_y")
-        zoom.set(title="slide: change from the pressed state", xlabel="time (s)", ylabel="Δε_y")
-        ax.legend(fontsize=7)
-    paths.append(_save(fig, out_dir, "fig3_strain.png", label))
-    fig, axes = plt.subplots(1, len(data.speeds_mm_s), figsize=(5 * len(data.speeds_mm_s), 3.6), squeeze=False)
-    for n, ((t, z), r) in enumerate(zip(data.z_norm, runs)):
-        j = int(np.searchsorted(data.speeds_mm_s, r.speed_mm_s))
-        axes[0, j].plot(t, z, lw=1, label=f"{r.step_um:g} µm")
-    for j, v in enumerate(data.speeds_mm_s):
-        axes[0, j].set(title=f"Fig 4 — normalised pulse density, {v:g} mm/s", xlabel="time (s)", ylabel="z / z_ref")
-        axes[0, j].legend(fontsize=7)
-    paths.append(_save(fig, out_dir, "fig4_pulse_density.png", label))
-    fig, ax = plt.subplots(figsize=(5, 3.8))
-    for j, f in enumerate(data.fits):
-        ax.plot(data.heights_um, data.peak_z[:, j], "o", label=f"{f.speed_mm_s:g} mm/s (R² = {f.r2:.4f})")
-        ax.plot(data.heights_um, f.slope_per_um * data.heights_um + f.intercept, "-", lw=1)
-    ax.set(title="Fig 5 — peak pulse density vs step height", xlabel="step height (µm)", ylabel="peak z (normalised)")
-    ax.legend(fontsize=7)
-    paths.append(_save(fig, out_dir, "fig5_peak_vs_height.png", label))
-    fig, ax = plt.subplots(figsize=(5.5, 4.2))
-    styles = ["-", "--", ":", "-."]
-    for k, tau in enumerate(data.taus_s):
-        for j, v in enumerate(data.speeds_mm_s):
-            ax.plot(data.heights_um, data.accepted_um[k, :, j], styles[j % 4], marker="o", ms=3,
-                    color=f"C{k % 10}", label=f"τ = {tau * 1e3:g} ms, {v:g} mm/s")
-    ax.plot(data.heights_um, data.heights_um, "k-", lw=0.5)
-    ax.set(title="Fig 6 — accepted vs presented step height", xlabel="presented (µm)", ylabel="accepted (µm)")
-    ax.legend(fontsize=6, ncol=2)
-    paths.append(_save(fig, out_dir, "fig6_accepted.png", label))
-    return paths
+    from feeler.reports import finger_plots as fp
+    from feeler.reports.layout import check_figure
 
-
-def _save(fig, out_dir, name, label):
-    fig.text(0.99, 0.01, label, ha="right", va="bottom", fontsize=6, color="0.4")
-    fig.tight_layout()
-    path = out_dir / name
-    fig.savefig(path, dpi=110)
-    import matplotlib.pyplot as plt
-    plt.close(fig)
-    return path
+    figures = {"fig3_strain.png": fp.fig3(runs, speeds),
+               "fig3_detail.png": fp.fig3_detail(runs, speeds, step_mm),
+               "fig4_pulse_density.png": fp.fig4(runs, speeds, data.z_norm, tau_s),
+               "fig5_peak_vs_height.png": fp.fig5(data.heights_um, data.speeds_mm_s, data.peak_z, fits),
+               "fig6_accepted.png": fp.fig6(data.taus_s, data.heights_um, data.speeds_mm_s, data.accepted_um, human)}
+    out = []
+    for name, fig in figures.items():
+        _labelled(fig, label)
+        fig.set_dpi(110)
+        fig.canvas.draw()
+        problems = check_figure(fig)
+        fig.savefig(out_dir / name, dpi=110)
+        plt.close(fig)
+        out.append((out_dir / name, problems))
+    return out

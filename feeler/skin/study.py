@@ -20,22 +20,31 @@ def ladder_files() -> list[str]:
 
 
 def figure_files() -> list[str]:
-    return ["fig3_strain.png", "fig4_pulse_density.png", "fig5_peak_vs_height.png", "fig6_accepted.png",
+    return ["fig3_strain.png", "fig3_detail.png", "fig4_pulse_density.png", "fig5_peak_vs_height.png", "fig6_accepted.png",
             "fig5_peaks.csv", "fig6_accepted.csv", "figures.json"]
 
 
-def ladder_setup(small: bool):
-    """(base mesh, refinement factors, travel per step mm) of the full or the small study."""
+def ladder_setup(small: bool, tiny: bool = False):
+    """(base mesh, refinement factors, travel per step mm) of the full, the small or the
+    tiny study (tiny: the small study's two coarsest meshes, what ``feeler demo`` measures)."""
+    coarse = MeshSpec(h_contact_mm=0.05, h_corpuscle_mm=0.02, h_far_mm=1.5, grade=0.4)
+    if tiny:
+        return coarse, (1.0, 1.41), 0.05
     if small:
-        return MeshSpec(h_contact_mm=0.05, h_corpuscle_mm=0.02, h_far_mm=1.5, grade=0.4), (1.0, 1.41, 2.0), 0.05
+        return coarse, (1.0, 1.41, 2.0), 0.05
     return MeshSpec(), (0.5, 0.71, 1.0, 1.41, 2.0), 0.01
 
 
-def run_ladder_study(out: Path, *, small: bool = False, speed_mm_s: float = 20.0,
-                     profile: StepProfile = StepProfile(15.0)) -> dict:
-    """Run both parts, write the files, return the summary (also in ladder.json)."""
+def run_ladder_study(out: Path, *, small: bool = False, tiny: bool = False, measured: str | None = None,
+                     speed_mm_s: float = 20.0, profile: StepProfile = StepProfile(15.0)) -> dict:
+    """Run both parts, write the files, return the summary (also in ladder.json).
+
+    Args:
+        small, tiny: the study's size (see :func:`ladder_setup`); full by default.
+        measured: words saying when and where it was measured (kept in ladder.json).
+    """
     params = SkinParams()
-    base, factors, travel = ladder_setup(small)
+    base, factors, travel = ladder_setup(small, tiny)
     dt = travel / speed_mm_s
     rows = convergence_study(params, profile, speed_mm_s, base=base, factors=factors, dt_s=dt)
     change = converged_change(rows)
@@ -61,7 +70,9 @@ def run_ladder_study(out: Path, *, small: bool = False, speed_mm_s: float = 20.0
     l2 = next(t for t in trade if t.level == "l2" and t.mesh == "converged")
     l1 = next(t for t in trade if t.level == "l1" and t.mesh == "converged")
     l0 = next(t for t in trade if t.level == "l0")
-    result = {"small": small, "speed_mm_s": speed_mm_s, "step_um": profile.height_um,
+    size = "tiny" if tiny else "small" if small else "full"
+    result = {"small": small or tiny, "size": size, "speed_mm_s": speed_mm_s, "step_um": profile.height_um,
+              "measured": measured or f"by `feeler skin ladder` ({size} study)",
               "convergence_change": change, "goals": GOALS,
               "l1_speedup": l2.seconds_per_slide / l1.seconds_per_slide, "l1_rate_error": l1.rate_error,
               "l0_speedup": l2.seconds_per_slide / l0.seconds_per_slide,
@@ -79,26 +90,22 @@ def run_ladder_study(out: Path, *, small: bool = False, speed_mm_s: float = 20.0
                        f"L1 speed-up {result['l1_speedup']:.3g}x, L0 speed-up {result['l0_speedup']:.3g}x "
                        f"({result['l0_speedup_with_l2_setup']:.3g}x counting L2 setup)",
                        f"L0 fitted to converged L2: gain {fitted.l0_gain:.4g}, base shift {fitted.l0_base:.4g}",
-                       f"goals met: {result['met']}"]
+                       "goals: " + "; ".join(f"{k.replace('_', ' ')} {'met' if v else 'NOT met'}"
+                                             for k, v in result["met"].items())]
     write_json(out / "ladder.json", result)
     _plot_trade(trade, out / "ladder.png")
     return result
 
 
 def _plot_trade(trade, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(5.5, 4))
-    for t in trade:
-        err = max(t.rate_error, 1e-4)
-        ax.loglog(t.seconds_per_slide, err, "o")
-        ax.annotate(f"{t.level} ({t.mesh})", (t.seconds_per_slide, err), fontsize=7)
-    ax.set(xlabel="seconds per slide", ylabel="peak strain-rate error vs converged L2 (floor 1e-4)",
-           title="Skin ladder: cost against accuracy")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    from feeler.reports.finger_plots import ladder_trade
+    from feeler.reports.model import report_style
+
+    with report_style():
+        fig = ladder_trade([(t.level, t.mesh, t.seconds_per_slide, t.rate_error) for t in trade])
+        fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
@@ -110,7 +117,8 @@ def write_figures(scene, out: Path, *, level: str | None = None) -> list[str]:
     level = scene.model.level if level is None else level
     runs = finger_runs(scene, level=level)
     data = figure_data(runs, scene.neuron, scene.loading.press_s)
-    plot_figures(runs, data, out, label=f"skin level {level.upper()}")
+    plot_figures(runs, data, out, label=f"skin {level.upper()}", tau_s=scene.neuron.tau_s,
+                 step_mm=scene.steps.position_mm)
     with open(out / "fig5_peaks.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["step_um", "speed_mm_s", "peak_z_norm"])

@@ -19,7 +19,17 @@ import subprocess
 import tempfile
 import time
 
-__all__ = ["chromium_path", "open_page", "FLAGS"]
+__all__ = ["chromium_path", "open_page", "FLAGS", "OVERFLOW_JS"]
+
+#: the page's width, its scroll width, and the elements reaching past the viewport's right edge
+OVERFLOW_JS = """(() => {
+  const width = document.documentElement.clientWidth, bad = [];
+  for (const el of document.querySelectorAll('body *')) {
+    const r = el.getBoundingClientRect();
+    if (r.width > 0 && r.right > width + 1) bad.push(el.tagName + (el.id ? '#' + el.id : '') + ' right=' + Math.round(r.right));
+  }
+  return JSON.stringify({width: width, scroll: document.documentElement.scrollWidth, bad: bad.slice(0, 12)});
+})()"""
 
 FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -92,8 +102,12 @@ def _errors(events) -> list[str]:
     return found
 
 
-def open_page(url: str, *, width: int = 1200, max_height: int = 6000, timeout_s: float = 60.0):
-    """Load ``url``; returns (errors list[str], screenshot PNG bytes of the page's top part)."""
+def open_page(url: str, *, width: int = 1200, max_height: int = 6000, timeout_s: float = 60.0,
+              evaluate: str | None = None, widths: tuple[int, ...] = ()):
+    """Load ``url`` in a viewport ``width`` CSS pixels wide; returns (errors list[str],
+    screenshot PNG bytes of the page's top part), plus the value of the JavaScript
+    expression ``evaluate`` (a string) when one is given — a dict {width: value} over
+    ``widths`` (the viewport resized in turn, one browser) when those are given."""
     exe = chromium_path()
     with tempfile.TemporaryDirectory(prefix="feeler-chromium-") as profile:
         cmd = ["sh", "-c", 'exec "$0" "$@" 3<&0 4>&1 </dev/null >/dev/null', exe, *FLAGS,
@@ -106,6 +120,8 @@ def open_page(url: str, *, width: int = 1200, max_height: int = 6000, timeout_s:
             sid = pipe.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
             for domain in ("Runtime", "Log", "Page"):
                 pipe.call(f"{domain}.enable", session=sid)
+            pipe.call("Emulation.setDeviceMetricsOverride", {"width": width, "height": 900, "deviceScaleFactor": 1,
+                                                             "mobile": False}, session=sid)
             pipe.call("Page.navigate", {"url": url}, session=sid)
             pipe.wait_event("Page.loadEventFired", timeout_s)
             pipe.call("Runtime.evaluate", {"expression": "1"}, session=sid)   # flush pending events
@@ -113,12 +129,22 @@ def open_page(url: str, *, width: int = 1200, max_height: int = 6000, timeout_s:
             clip = {"x": 0, "y": 0, "width": width, "height": min(size["height"], max_height), "scale": 0.5}
             shot = pipe.call("Page.captureScreenshot", {"format": "png", "clip": clip,
                                                         "captureBeyondViewport": True}, session=sid)
+            value = None
+            if evaluate is not None:
+                value = {}
+                for w in widths or (width,):
+                    pipe.call("Emulation.setDeviceMetricsOverride", {"width": w, "height": 900, "deviceScaleFactor": 1,
+                                                                     "mobile": False}, session=sid)
+                    value[w] = pipe.call("Runtime.evaluate", {"expression": evaluate, "returnByValue": True},
+                                         session=sid)["result"].get("value")
+                value = value if widths else value[width]
             errors = _errors(pipe.events)
             try:
                 pipe.call("Browser.close", timeout_s=5)
             except (RuntimeError, TimeoutError):
                 pass
-            return errors, base64.b64decode(shot["data"])
+            png = base64.b64decode(shot["data"])
+            return (errors, png) if evaluate is None else (errors, png, value)
         finally:
             try:
                 proc.wait(timeout=10)

@@ -1,15 +1,13 @@
-"""A small synthetic run directory for the report tests, built once per session.
+"""One small demo run per session, shared by the report tests, and its report.
 
-Simulated through the CLI: four-plates (its scene renamed to a script tag, to test
-escaping), the sensor-calibration scene with an exact M1 fit, the psychophysics scene
-with a Laplace M4 fit. Written by hand in the real formats of their commands (faster than
-the M2 grid fit they would need): classify/classification.csv with known counts,
-discriminate/discrimination.json, finger-route/tau_report.json (without the fit files,
-so that section is listed as missing), finger/strain.csv and benchmarks/speed.csv.
+The demo runs every stage a user's `feeler demo` runs, at small sizes: four-plates with 6
+scans per plate (its name turned into a script tag, to test escaping), the finger-steps
+scene with three steps on a coarse mesh, 80 touches per height for the discrimination.
+A tiny real acquisition (the emulated Grbl stage and the virtual camera, 2 plates x 1
+scan) is made once for the tests that need one.
 """
 from __future__ import annotations
 
-import json
 import shutil
 from pathlib import Path
 
@@ -20,87 +18,73 @@ from feeler.cli import main
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "datasets-synthetic"
 EVIL = "<script>alert(1)</script>"
+TINY_PLAN = ROOT / "tests" / "hardware" / "data" / "tiny-plan.toml"
 
 
-def _cli(*argv: str) -> None:
-    assert main(list(argv)) == 0, argv
-
-
-CLASSIFICATION = """scan_id,step_mm,plate_mm,p_0mm,p_0.1mm,height_mm,lo90_mm,hi90_mm
-0,0.0,0.0,0.9,0.1,0.01,-0.02,0.04
-1,0.0,0.0,0.8,0.2,0.02,-0.01,0.05
-2,0.0,0.1,0.4,0.6,0.06,0.03,0.09
-3,0.1,0.1,0.05,0.95,0.1,0.07,0.13
-4,0.1,0.1,0.3,0.7,0.09,0.06,0.12
-5,0.1,0.1,0.02,0.98,0.11,0.12,0.14
-"""
-
-DISCRIMINATION = {
-    "pairs": [{"low_mm": 0.0, "high_mm": 0.05, "pc": 0.95, "lo95": 0.93, "hi95": 0.96},
-              {"low_mm": 0.05, "high_mm": 0.1, "pc": 1.0, "lo95": 1.0, "hi95": 1.0}],
-    "reference_mm": 0.1,
-    "threshold_mm": {"mean": 0.005, "lo95": 0.0032, "hi95": 0.0074, "found": 1.0},
-    "weber": {"mean": 0.05, "lo95": 0.032, "hi95": 0.074},
-    "pse": {"speed_ref_mm_s": 0.5, "speed_test_mm_s": 1.0, "mean_mm": 0.0853, "lo95": 0.077, "hi95": 0.0925},
-}
-
-ROBOT_TABLE = {  # the layout feeler demo writes
-    "plates": [{"step_mm": s, "n_scans": 24, "peak_z_mean": 0.01 + s, "peak_z_sd": 0.002, "raw_rate_mean_mm_s": 0.04,
-                "raw_rate_sd_mm_s": 0.01, "jump_uy_mean_mm": s} for s in (0.0, 0.05, 0.1, 0.2)],
-    "adjacent_pairs": [{"lower_mm": 0.0, "higher_mm": 0.05, "pc_peak_z": 0.93, "pc_raw_rate": 0.6}],
-}
-
-TAU_REPORT = {"tau_mean_s": 0.136, "tau_median_s": 0.135, "tau_eti95_s": [0.119, 0.16], "tau_map_s": 0.136,
-              "p_tau_le_300ms": 0.999, "paper": "tau <= 300 ms", "skin_level": "l0", "synthetic_data": True}
-
-
-def build_run(run: Path) -> Path:
-    scene = run.parent / "evil-four-plates.toml"
+def small_scenes(tmp: Path) -> tuple[Path, dict]:
+    """(four-plates with 6 scans per plate and an evil name, {"finger-steps": a small one})."""
+    robot = tmp / "evil-four-plates.toml"
     text = (SCENES / "four-plates.toml").read_text(encoding="utf-8")
-    scene.write_text(text.replace('name = "four-plates"', f'name = "{EVIL}"'), encoding="utf-8")
-    _cli("simulate", str(scene), "--out", str(run / "four-plates"))
-    _cli("simulate", str(SCENES / "sensor-calibration.toml"), "--out", str(run / "sensor-calibration"))
-    _cli("calibrate", "sensor", str(run / "sensor-calibration"), "--out", str(run / "m1"), "--draws", "300",
-         "--no-progress")
-    _cli("simulate", str(SCENES / "psychophysics-2afc.toml"), "--out", str(run / "psychophysics"))
-    _cli("fit", "psychophysics", str(run / "psychophysics" / "trials.csv"), "--backend", "laplace",
-         "--draws", "300", "--out", str(run / "m4"), "--no-progress")
-    for rel, text in (("classify/classification.csv", CLASSIFICATION),
-                      ("discriminate/discrimination.json", json.dumps(DISCRIMINATION)),
-                      ("robot_table.json", json.dumps(ROBOT_TABLE)),
-                      ("finger-route/tau_report.json", json.dumps(TAU_REPORT)),
-                      ("finger/strain.csv", "t_s,strain_l0,strain_l1\n0,0,0\n0.1,0.001,0.0011\n0.2,0.003,0.0028\n"),
-                      ("benchmarks/speed.csv", "backend,ms_per_fit,max_error\nexact,4.1,0.0\nnuts,5300,0.002\n")):
-        (run / rel).parent.mkdir(parents=True, exist_ok=True)
-        (run / rel).write_text(text, encoding="utf-8")
-    return run
+    robot.write_text(text.replace('name = "four-plates"', f'name = "{EVIL}"')
+                     .replace("scans_per_plate = 24", "scans_per_plate = 6"), encoding="utf-8")
+    finger = tmp / "finger-small.toml"
+    text = (SCENES / "finger-steps.toml").read_text(encoding="utf-8")
+    for old, new in (("heights_um = [5.0, 7.5, 10.0, 12.5, 15.0]", "heights_um = [5.0, 10.0, 15.0]"),
+                     ("travel_step_mm = 0.01 ", "travel_step_mm = 0.05 "), ("h_contact_mm = 0.0177", "h_contact_mm = 0.05"),
+                     ("h_corpuscle_mm = 0.0071", "h_corpuscle_mm = 0.02"), ("h_far_mm = 0.567", "h_far_mm = 1.5"),
+                     ("grade = 0.25", "grade = 0.4")):
+        assert old in text, old
+        text = text.replace(old, new)
+    finger.write_text(text, encoding="utf-8")
+    return robot, {"finger-steps": finger}
 
 
 @pytest.fixture(scope="session")
 def run_dir(tmp_path_factory) -> Path:
-    return build_run(tmp_path_factory.mktemp("report-run") / "run")
+    from feeler.demo import run_demo
+
+    tmp = tmp_path_factory.mktemp("demo-run")
+    robot, scenes = small_scenes(tmp)
+    printed = []
+    run_demo(tmp / "run", scene_path=robot, scenes=scenes, discriminate_scans=80, echo=printed.append)
+    (tmp / "printed.txt").write_text("\n".join(printed), encoding="utf-8")      # what the demo said
+    return tmp / "run"
 
 
 @pytest.fixture(scope="session")
-def report(run_dir, tmp_path_factory):
-    from feeler.reports import build_report
+def report(run_dir):
+    """The report the demo wrote (its last stage), with its PDF."""
+    from feeler.reports.build import MANIFEST
 
-    return build_report(run_dir, tmp_path_factory.mktemp("report-out"), pdf=True)
+    assert (run_dir / "report.pdf").is_file() and (run_dir / MANIFEST).is_file()
+    return run_dir
+
+
+@pytest.fixture(scope="session")
+def acquired(tmp_path_factory) -> Path:
+    """A real acquisition: the emulated stage on a pty and the virtual camera."""
+    tmp = tmp_path_factory.mktemp("acquired")
+    plan = tmp / "plan.toml"
+    text = TINY_PLAN.read_text(encoding="utf-8").replace("scans_per_plate = 2", "scans_per_plate = 1")
+    plan.write_text(text, encoding="utf-8")
+    assert main(["acquire", "--emulate", "--plan", str(plan), "--out", str(tmp / "acq")]) == 0
+    return tmp / "acq"
 
 
 @pytest.fixture
 def copy_run(run_dir, tmp_path) -> Path:
-    """A fresh copy of the run (for tests that damage or remove files)."""
-    return Path(shutil.copytree(run_dir, tmp_path / "run"))
+    """A fresh copy of the demo run (for tests that damage or remove files)."""
+    return Path(shutil.copytree(run_dir, tmp_path / "run", ignore=shutil.ignore_patterns("report*", "logs")))
 
 
 @pytest.fixture
 def part_run(run_dir, tmp_path):
-    """``make(*names)``: a fresh run holding only these top-level entries of the run."""
+    """``make(*names)``: a fresh run holding only these top-level entries of the demo run."""
     def make(*names: str) -> Path:
         dst = tmp_path / "part"
         dst.mkdir()
         for name in names:
-            shutil.copytree(run_dir / name, dst / name)
+            src = run_dir / name
+            (shutil.copytree if src.is_dir() else shutil.copyfile)(src, dst / name)
         return dst
     return make

@@ -1,40 +1,11 @@
-"""Missing files give a report of what is there; corrupt files a one-line DataFileError."""
+"""Corrupt files of a run: a one-line DataFileError naming the file, before any output."""
 from __future__ import annotations
 
-import json
-import shutil
-
-import pypdfium2 as pdfium
 import pytest
 
 from feeler.cli import main
 from feeler.errors import DataFileError
 from feeler.reports import build_report
-from feeler.reports.discover import SPECS
-
-
-def test_empty_run_lists_everything_missing(tmp_path, capsys):
-    (tmp_path / "run").mkdir()
-    assert main(["report", str(tmp_path / "run"), "--no-progress"]) == 0
-    out = capsys.readouterr().out
-    assert f"report: {tmp_path / 'run' / 'report.html'}" in out
-    assert f"sections: 0 shown, {len(SPECS)} with missing files" in out
-    html = (tmp_path / "run" / "report.html").read_text(encoding="utf-8")
-    for spec in SPECS:
-        assert f"{spec.title}: missing {', '.join(spec.required)}".replace("&", "&amp;") in html
-    assert len(pdfium.PdfDocument(tmp_path / "run" / "report.pdf")) == 2     # title page + appendix
-
-
-def test_partial_run_shows_what_is_there(part_run, tmp_path):
-    run = part_run("four-plates", "m4", "discriminate", "finger-route")
-    (run / "four-plates" / "scans.csv").unlink()
-    report = build_report(run, tmp_path / "out", pdf=False)
-    keys = [s.key for s in report.inventory.present]
-    assert "robot" not in keys and "fig6" not in keys and "psychometric" in keys
-    missing = dict(report.inventory.missing)
-    assert missing["Robot scans over the four plates (paper Figs 7–9)"] == ("four-plates/scans.csv",)
-    assert "psychophysics/trials.csv" in missing["Robot and human discrimination side by side"]
-
 
 FP, PSY = ("four-plates",), ("finger-route", "m4", "psychophysics")
 
@@ -42,6 +13,7 @@ FP, PSY = ("four-plates",), ("finger-route", "m4", "psychophysics")
 @pytest.mark.parametrize("parts, rel, content, problem", [
     (("m1",), "m1/posterior.nc", b"\x89HDF\r\n garbage", "not a readable NetCDF posterior"),
     (("m1",), "m1/summary.csv", b"name,mean\nC,1\n", "missing columns"),
+    (("m1",), "m1/verdict.json", b'{"ok": "maybe"', "not a verdict"),
     (("classify",), "classify/classification.csv", b"\xff\xfe\x00garbage\x00", "not a readable CSV"),
     (("classify",), "classify/classification.csv", b"scan_id,step_mm,plate_mm\n0,0,0\n",
      "missing column(s) lo90_mm"),
@@ -54,10 +26,13 @@ FP, PSY = ("four-plates",), ("finger-route", "m4", "psychophysics")
     (("discriminate",), "discriminate/discrimination.json", b"{not json", "not a readable JSON file"),
     (("discriminate",), "discriminate/discrimination.json", b"[1, 2]", "expected a JSON object"),
     (("discriminate",), "discriminate/discrimination.json", b'{"pairs": []}', "missing key(s) threshold_mm"),
-    (FP, "robot_table.json", b'{"plates": [{"step_mm": 0}]}', "unexpected layout of the per-plate table"),
+    (("discriminate",), "discriminate/threshold_curve.csv", b"delta_mm,pc\n0,0.5\n", "a threshold curve needs"),
     (FP, "four-plates/scans.csv", b"scan_id,t_s\n0,0\n", "missing column(s)"),
     (PSY, "finger-route/tau_report.json", b'{"tau_median_s": -1}', "must be > 0"),
-    (("benchmarks",), "benchmarks/speed.csv", b"\x00\xff\xfe", "not a readable CSV"),
+    (("finger",), "finger/strain.csv", b"step_um,speed_mm_s,t_s,x_mm,eps_y\n5,20,0,0,0\n", "every step height"),
+    (("skin-ladder",), "skin-ladder/trade.csv", b"level,mesh\nl2,x\n", "missing column(s)"),
+    (("speed",), "speed/backends.csv", b"\x00\xff\xfe", "not a readable CSV"),
+    (("speed",), "speed/speed.json", b'{"tables": {}}', "missing key(s) measured"),
 ])
 def test_corrupt_file_is_named_in_one_line(part_run, tmp_path, parts, rel, content, problem):
     run = part_run(*parts)
@@ -66,14 +41,15 @@ def test_corrupt_file_is_named_in_one_line(part_run, tmp_path, parts, rel, conte
         build_report(run, tmp_path / "out", pdf=False)
     message = str(info.value)
     assert "\n" not in message and rel.split("/")[-1] in message and problem in message
+    assert not (tmp_path / "out" / "report.html").exists()
 
 
 def test_cli_corrupt_netcdf_exit_2(part_run, capsys):
     run = part_run("m4")
     (run / "m4" / "posterior.nc").write_bytes(b"not a netcdf file")
     assert main(["report", str(run), "--no-pdf", "--no-progress"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "m4/posterior.nc" in err and err.startswith("feeler: error:")
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and "m4/posterior.nc" in err[1] and err[1].startswith("feeler: error:")
 
 
 def test_run_dir_must_be_a_directory(tmp_path, capsys):
@@ -81,10 +57,8 @@ def test_run_dir_must_be_a_directory(tmp_path, capsys):
     assert "not a directory" in capsys.readouterr().err
 
 
-def test_extra_fit_directory_is_reported(part_run, tmp_path):
-    run = part_run("m1")
-    shutil.copytree(run / "m1", run / "m1-student")
-    (run / "m1-student" / "verdict.json").write_text(json.dumps({"ok": True, "problems": []}))
-    report = build_report(run, tmp_path / "out", pdf=False)
-    assert "fit:m1-student" in [s.key for s in report.inventory.present]
-    assert "Fit: m1-student (m1-student/)" in report.html.read_text(encoding="utf-8")
+def test_finger_histories_need_their_scene(part_run, tmp_path):
+    run = part_run("finger")
+    (run / "finger" / "scene.toml").unlink()
+    with pytest.raises(DataFileError, match=r"finger/scene\.toml: missing; the finger's strain histories need"):
+        build_report(run, tmp_path / "out", pdf=False)

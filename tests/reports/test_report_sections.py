@@ -12,37 +12,57 @@ from hypothesis import strategies as st
 
 from feeler.calib.neuron.classify import expected_calibration_error
 from feeler.reports import build_report, discover
-from feeler.reports.discover import FIT_FILES
 from feeler.reports.sec_classify import classify_section, plate_columns, reliability
-from feeler.reports.sec_psycho import psychometric_section
+from feeler.reports.sec_compare import Z75, compare_section, folded_points, human_curve
 
 
 def _spec(inv, key):
     return next(s for s in inv.present if s.key == key)
 
 
-def test_discover_lists_present_and_missing(run_dir):
+def _section_html(html: str, sid: str) -> str:
+    part = html[html.index(f'<section id="{sid}">'):]
+    return part[:part.index("</section>")]
+
+
+def test_the_demo_run_is_found_part_by_part(run_dir):
     inv = discover(run_dir)
     keys = [s.key for s in inv.present]
-    assert keys == ["robot", "fit:m1", "classify", "psychometric", "fit:m4", "fig6", "finger", "benchmarks"]
-    missing = dict(inv.missing)
-    assert set(missing) == {"M2: neuron (a, τ, h) and decoder noise", "Finger route: τ and decision noise σ_d"}
-    assert missing["M2: neuron (a, τ, h) and decoder noise"] == tuple(f"m2/{f}" for f in FIT_FILES)
+    assert keys == ["robot:four-plates", "fit:m1", "fit:m2", "fit:m4", "fit:finger-route", "classify:classify",
+                    "compare", "finger", "speed"]
+    robot = _spec(inv, "robot:four-plates")
+    assert [p.rel for p in robot.parts] == ["four-plates", "held-out"]           # same design, another seed
+    assert {p.model for p in inv.of("fit")} == {"m1", "m2", "m4", "finger-route"}
+    assert [m.title for m in inv.missing] == ["Live decoder: decision latency against accuracy"]
 
 
-def test_classification_numbers_from_the_csv(run_dir):
-    inv = discover(run_dir)
-    section = classify_section(inv, _spec(inv, "classify"))
+def test_classification_numbers_from_the_csv(copy_run):
+    (copy_run / "classify" / "classification.csv").write_text(
+        "scan_id,step_mm,plate_mm,p_0mm,p_0.1mm,height_mm,lo90_mm,hi90_mm,extra_column\n"
+        "0,0.0,0.0,0.9,0.1,0.01,-0.02,0.04,a\n1,0.0,0.0,0.8,0.2,0.02,-0.01,0.05,b\n"
+        "2,0.0,0.1,0.4,0.6,0.06,0.03,0.09,c\n3,0.1,0.1,0.05,0.95,0.1,0.07,0.13,d\n"
+        "4,0.1,0.1,0.3,0.7,0.09,0.06,0.12,e\n5,0.1,0.1,0.02,0.98,0.11,0.12,0.14,f\n", encoding="utf-8")
+    inv = discover(copy_run)
+    section = classify_section(inv, _spec(inv, "classify:classify"))
     table = next(b for b in section.blocks if b.kind == "table")
     rows = {r[0]: r for r in table.rows}
     # hand-made file: step 0 → 2 of 3 right, step 0.1 → 3 of 3; scans 2 and 5 outside their interval
     assert rows["all"][1:] == ("6", "0.833", str(round(np.mean([.9, .8, .6, .95, .7, .98]), 3)), "0.667")
     assert rows["0"][2] == "0.667" and rows["0.1"][2] == "1"
-    assert rows["0"][4] == "0.667" and rows["0.1"][4] == "0.667"
     prob = np.array([[.9, .1], [.8, .2], [.4, .6], [.05, .95], [.3, .7], [.02, .98]])
     ece = expected_calibration_error(prob, [0, 0, 0, 1, 1, 1])
     assert table.caption.endswith(f"{ece:.3g}.")
+    titles = [b.title for b in section.blocks if b.kind == "figure"]
+    assert "Calibration curve of the classifier" in titles                     # 4 bins occupied
     assert all(b.sources == ("classify/classification.csv",) for b in section.blocks)
+
+
+def test_a_one_point_calibration_curve_is_replaced_by_words(run_dir):
+    inv = discover(run_dir)
+    section = classify_section(inv, _spec(inv, "classify:classify"))
+    titles = [getattr(b, "title", "") for b in section.blocks]
+    assert "Calibration curve of the classifier" not in titles
+    assert any(b.kind == "note" and "No calibration curve" in b.text for b in section.blocks)
 
 
 def test_plate_columns_parse_only_probabilities():
@@ -56,8 +76,6 @@ def test_reliability_bins_reproduce_the_ece(cases):
     hit = np.array([h for _, h in cases])
     rel = reliability(conf, hit)
     assert rel[:, 2].sum() == len(cases)
-    # a two-class problem with top probability max(conf, 1 - conf) has the same bins only when
-    # conf >= 0.5; build the probabilities so that class 0 is the top class with probability conf
     top = np.maximum(conf, 0.5)
     prob = np.stack([top, 1 - top], axis=1)
     rel_top = reliability(top, hit)
@@ -65,61 +83,117 @@ def test_reliability_bins_reproduce_the_ece(cases):
     assert ece == pytest.approx(expected_calibration_error(prob, np.where(hit, 0, 1)), abs=1e-12)
 
 
+def test_human_curve_passes_75_percent_at_the_threshold():
+    assert human_curve(0.0, 1.3) == pytest.approx(0.5)
+    assert human_curve(1.3, 1.3) == pytest.approx(0.75, abs=1e-12)
+    assert human_curve(-1.3, 1.3) == pytest.approx(0.25, abs=1e-12)
+    assert Z75 == pytest.approx(0.6744897501960817)
+
+
+def test_folded_points_count_correct_answers_on_both_sides():
+    trials = pd.DataFrame({"subject": ["A"] * 4 + ["B"] * 2, "standard_um": 10.0, "standard_speed_mm_s": 20.0,
+                           "comparison_speed_mm_s": 20.0, "comparison_um": [9.0, 11.0, 10.0, 8.0, 9.0, 12.0],
+                           "n_trials": [10, 10, 10, 10, 20, 20], "n_comparison_higher": [3, 8, 5, 1, 4, 19]})
+    d, k, n = folded_points(trials, 20.0, 20.0)
+    assert d.tolist() == [1.0, 2.0]                                 # the Δ = 0 comparison is left out
+    assert k.tolist() == [7 + 8 + 16, 9 + 19] and n.tolist() == [40, 30]
+
+
 def test_robot_and_human_numbers(run_dir):
     inv = discover(run_dir)
-    section = psychometric_section(inv, _spec(inv, "psychometric"))
-    robot, human = (b for b in section.blocks if b.kind == "table")
+    section = compare_section(inv, _spec(inv, "compare"))
+    table = next(b for b in section.blocks if b.kind == "table")
     disc = json.loads((run_dir / "discriminate/discrimination.json").read_text())
-    assert robot.rows[0][1] == "0.005 [0.0032, 0.0074]" and robot.rows[1][1] == "0.05 [0.032, 0.074]"
-    assert robot.sources == ("discriminate/discrimination.json",)
-    assert len(robot.rows) == 3 + len(disc["pairs"])
+    th, w = disc["threshold_mm"], disc["weber"]
+    robot = table.rows[0]
+    assert robot[0] == "robot" and robot[2].startswith(f"{th['mean'] * 1e3:.3g} [{th['lo95'] * 1e3:.3g}, ")
+    assert robot[3].startswith(f"{w['mean']:.3g} [")
     thr = pd.read_csv(run_dir / "m4/thresholds.csv", comment="#")
     pooled = thr[thr["subject"] == "all"].reset_index(drop=True)
-    assert [r[0] for r in human.rows] == ["all"] * len(pooled)
-    for row, (_, r) in zip(human.rows, pooled.iterrows()):
-        std = 10.0                                                      # the scene's standard, µm
-        assert row[5] == f"{r['dt_um'] / std:.3g} [{r['dt_lb_um'] / std:.3g}, {r['dt_ub_um'] / std:.3g}]"
+    human = table.rows[1:]
+    assert len(human) == len(pooled)
+    for row, (_, r) in zip(human, pooled.iterrows()):
+        std = 10.0                                                     # the scene's standard, µm
+        assert row[3] == f"{r['dt_um'] / std:.3g} [{r['dt_lb_um'] / std:.3g}, {r['dt_ub_um'] / std:.3g}]"
+        assert "SYNTHETIC" in row[0]
     notes = [b for b in section.blocks if b.kind == "note"]
-    assert notes and notes[0].level == "synthetic" and "SYNTHETIC" in notes[0].text
+    assert notes[0].level == "synthetic" and notes[0].text.startswith("SYNTHETIC human data, not human measurements")
+    assert "SYNTHETIC — SYNTHETIC" not in notes[0].text and "seed 20040616" in notes[0].text
+
+
+def test_robot_curve_drawn_from_the_demo_file(run_dir):
+    curve = pd.read_csv(run_dir / "discriminate/threshold_curve.csv", comment="#")
+    disc = json.loads((run_dir / "discriminate/discrimination.json").read_text())
+    assert curve["pc"].iloc[0] == pytest.approx(0.5, abs=0.05) and curve["pc"].is_monotonic_increasing
+    # the same touches as the command: the curve crosses 75 % where its threshold lies
+    crossing = np.interp(0.75, curve["pc"], curve["delta_mm"])
+    assert crossing == pytest.approx(disc["threshold_mm"]["mean"], rel=0.15)
+    assert np.all(curve["lo95"] <= curve["pc"] + 1e-12) and np.all(curve["pc"] <= curve["hi95"] + 1e-12)
 
 
 def test_every_source_is_a_file_of_the_run(report, run_dir):
-    html = report.html.read_text(encoding="utf-8")
+    html = (report / "report.html").read_text(encoding="utf-8")
     sources = set()
     for block in re.findall(r"Source: ([^<]+)</span>", html):
         sources |= {s.strip() for s in block.split(",")}
     assert {"four-plates/scans.csv", "m1/posterior.nc", "m4/thresholds.csv", "classify/classification.csv",
-            "finger/strain.csv", "benchmarks/speed.csv", "finger-route/tau_report.json",
-            "robot_table.json"} <= sources
+            "finger/strain.csv", "skin-ladder/trade.csv", "speed/backends.csv", "finger-route/tau_report.json",
+            "discriminate/threshold_curve.csv"} <= sources
     for s in sources:
         assert (run_dir / s).exists(), s
 
 
-def test_robot_table_from_the_demo_file(report):
-    html = report.html.read_text(encoding="utf-8")
-    robot = html[html.index('<section id="robot">'):]
-    robot = robot[:robot.index("</section>")]
-    assert "Per plate: peak z, raw U̇_y and the ΔU_y jump" in robot
-    assert "<td>0.21</td>" in robot and "<td>0.93</td>" in robot   # peak_z_mean of 0.2 mm; pc by peak z
+def test_every_parameter_is_named(report):
+    html = (report / "report.html").read_text(encoding="utf-8")
+    m1 = _section_html(html, "sec-fit-m1")
+    assert all(f"C[{i},{j}]" in m1 for i in range(3) for j in range(3)) and "σ_z (N)" in m1 and "cond(C)" in m1
+    m4 = _section_html(html, "sec-fit-m4")
+    assert "pse · all · 10 µm at 40 vs 20 mm/s" in m4 and "dt · S6 · 10 µm at 20 vs 20 mm/s" in m4
+    assert "pse[0,0]" not in m4
+    route = _section_html(html, "sec-fit-finger-route")
+    assert "no traces are drawn" in route and "κ is a function of τ" in route
 
 
-def test_human_points_labelled_synthetic(report):
-    html = report.html.read_text(encoding="utf-8")
+def test_tables_are_readable(report):
+    html = (report / "report.html").read_text(encoding="utf-8")
+    assert "overflow-wrap: anywhere; }" not in html.split("th, td")[1][:200]          # keys are not cut mid-word
+    assert "tau_mea" not in html and "tau_report.json</h3>" not in html              # no raw key/value dump
+
+
+def test_human_points_labelled_synthetic(report, run_dir):
+    from feeler.reports.sec_finger import human_points
+
+    html = (report / "report.html").read_text(encoding="utf-8")
     assert "Synthetic data." in html and "psychophysics/trials.csv" in html
-    fig6 = html[html.index('<section id="fig6">'):]
-    assert "Human points: SYNTHETIC" in fig6[:fig6.index("</section>")]
+    manifest = json.loads((report / "report-manifest.json").read_text(encoding="utf-8"))
+    fig6 = next(f for f in manifest["figures"] if f["title"].startswith("Fig. 6"))
+    assert {"m4/thresholds.csv", "psychophysics/trials.csv"} <= set(fig6["sources"])
+    points, _ = human_points(discover(run_dir))
+    assert len(points) == 2 and all("SYNTHETIC" in p[-1] for p in points)
+    assert [p[0] for p in points] == [10.0, 10.0]                    # presented: the standard
 
 
-def test_failed_calibration_comes_first(copy_run, tmp_path):
-    bad = {"ok": False, "problems": ["C[0,0]: R-hat 1.2 > 1.01"]}
-    (copy_run / "m4/verdict.json").write_text(json.dumps(bad), encoding="utf-8")
-    for part in ("four-plates", "classify", "finger", "benchmarks", "finger-route"):
-        import shutil
-        shutil.rmtree(copy_run / part)
-    report = build_report(copy_run, tmp_path / "out", pdf=False)
+def test_speed_section_says_where_its_numbers_come_from(report):
+    html = (report / "report.html").read_text(encoding="utf-8")
+    speed = _section_html(html, "sec-speed")
+    assert "Measured during `feeler demo` at" in speed and "a small version" in speed
+    assert "Calibration backends" in speed and "Sensor fidelity" in speed
+    assert "live decoder" in speed.lower() and "decoder.csv" in speed
+    finger = _section_html(html, "sec-finger")
+    assert "The skin fidelity ladder: seconds per slide against error" in finger and "Trade table" in finger
+
+
+def test_failed_calibration_comes_first(part_run, tmp_path):
+    run = part_run("m1", "m4", "psychophysics")
+    bad = {"ok": False, "problems": ["pse[0,0]: R-hat 1.2 > 1.01"]}
+    (run / "m4/verdict.json").write_text(json.dumps(bad), encoding="utf-8")
+    report = build_report(run, tmp_path / "out", pdf=False)
     assert report.failed == ("M4: human psychometric functions (m4/)",)
     html = report.html.read_text(encoding="utf-8")
-    banner = html.index("FAILED CALIBRATION: M4")
-    assert banner < html.index("<section")
-    assert html.index('<section id="fit-m4">') == html.index("<section")
-    assert "C[0,0]: R-hat 1.2 &gt; 1.01" in html
+    assert html.index("FAILED CALIBRATION: M4") < html.index("<section")
+    sections = re.findall(r'<section id="([^"]+)"', html)
+    assert sections[:2] == ["sec-front", "sec-fit-m4"]
+    front = _section_html(html, "sec-front")
+    verdicts = front[front.index("Verdict of every fit"):]
+    assert verdicts.index("M4: human psychometric functions") < verdicts.index("M1: sensor")
+    assert "FAILED: pse[0,0]: R-hat 1.2 &gt; 1.01" in verdicts

@@ -68,3 +68,46 @@ def test_neuron_window_extremes(runs, small_scene, tau_s):
         assert data.speed_ratio[0] == pytest.approx(1.0, abs=1e-3)
     else:                 # a short window: u ≈ τ |ε̇| ∝ speed
         assert data.speed_ratio[0] == pytest.approx(2.0, rel=0.1)
+
+
+def test_standalone_figures_are_the_reports_with_a_clean_layout(runs, small_scene, tmp_path):
+    from feeler.skin.figures import plot_figures
+
+    data = figure_data(runs, small_scene.neuron, small_scene.loading.press_s)
+    human = [(10.0, 10.0, 9.8, 10.2, 20.0, "human PSE, standard at 20 mm/s")]
+    out = plot_figures(runs, data, tmp_path, label="skin L2", tau_s=small_scene.neuron.tau_s,
+                       step_mm=small_scene.steps.position_mm, human=human)
+    assert [p.name for p, _ in out] == ["fig3_strain.png", "fig3_detail.png", "fig4_pulse_density.png",
+                                        "fig5_peak_vs_height.png", "fig6_accepted.png"]
+    assert [(p.name, problems) for p, problems in out if problems] == []
+    assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p, _ in out)
+
+
+def test_fig5_keeps_coinciding_speeds_visible_and_names_its_lines():
+    from feeler.reports.finger_plots import fig5
+    from feeler.reports.layout import check_figure
+
+    heights = np.array([5.0, 10.0, 15.0])
+    peaks = np.column_stack([heights / 15, heights / 15])           # the two speeds coincide exactly
+    fig = fig5(heights, np.array([20.0, 40.0]), peaks, [(1 / 15, 0.0, 1.0), (1 / 15, 0.0, 1.0)])
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    points = [ln for ln in ax.lines if ln.get_linestyle() == "None"]
+    assert len(points) == 2 and points[0].get_marker() != points[1].get_marker()
+    assert points[0].get_markersize() > points[1].get_markersize()      # the one below stays visible
+    labels = ax.get_legend_handles_labels()[1]
+    assert labels == ["20 mm/s", "line, 20 mm/s (R² = 1.0000)", "40 mm/s", "line, 40 mm/s (R² = 1.0000)"]
+    assert check_figure(fig) == ()
+
+
+def test_ladder_plot_labels_fit_in_the_figure():
+    from feeler.reports.finger_plots import ladder_trade
+    from feeler.reports.layout import check_figure
+
+    rows = [("l2", "converged", 1.99, 0.0), ("l1", "converged", 0.0094, 0.0078), ("l2", "coarsest", 0.78, 0.029),
+            ("l1", "coarsest", 0.0025, 0.042), ("l0", "closed form", 0.00054, 0.354),
+            ("l0-fitted", "closed form", 0.00032, 0.022)]
+    fig = ladder_trade(rows)
+    fig.canvas.draw()
+    assert check_figure(fig) == ()
+    assert "L2 (converged) = reference" in [t.get_text() for t in fig.legends[0].get_texts()]

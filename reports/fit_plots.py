@@ -1,0 +1,295 @@
+"""Posterior figures of each model, every parameter named by what it is.
+
+- M1: the matrix C entry by entry against the true C when the run holds the simulated
+  sensor's truth, marginals of all nine entries, of σ per axis and of cond(C);
+- M2: a, τ, h and σ with their units;
+- M4: the pooled PSE and DT per condition and the lapse, then every subject's PSE and DT
+  per condition against the pooled interval (indices mapped to subjects and conditions);
+- finger route: the grid's own τ marginal (log axis, 300 ms marked), σ_d and the lapse
+  (κ is a function of τ and is not drawn);
+- any other model: the marginals of all its entries, six to a figure.
+
+Samplers (NUTS, emcee) also get one line per chain and traces; other backends' draws are
+independent and pooled.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from feeler.reports.model import Figure, Note, log_axis, make_figure, subplots
+
+__all__ = ["labels_of", "plots_of", "finger_route_fig6", "conditions_of"]
+
+_UNITS = {"a": "a (mm per unit strain)", "tau_s": "τ (s)", "h": "h (mm)", "sigma_mm": "σ (mm)",
+          "sigma_d_um": "σ_d (µm)", "lapse": "lapse", "cond_C": "cond(C)", "lapse_all": "lapse (pooled)"}
+_PER_FIG = 6
+
+
+def _json(value, default):
+    if isinstance(value, str):
+        try:
+            return json.loads(value)
+        except json.JSONDecodeError:
+            return default
+    return default if value is None else list(value)
+
+
+def conditions_of(attrs) -> list[str]:
+    """M4 conditions as words, "10 µm at 40 vs 20 mm/s", in index order."""
+    out = []
+    for c in _json(attrs.get("conditions"), []):
+        c = list(c) + [np.nan] * 3
+        out.append(f"{c[0]:g} µm at {c[1]:g} vs {c[2]:g} mm/s")
+    return out
+
+
+def _m1_label(name: str) -> str:
+    base, _, idx = name.partition("[")
+    ij = [int(i) for i in idx.rstrip("]").split(",") if i.strip().isdigit()]
+    if base == "C" and len(ij) == 2:
+        return f"C[{ij[0]},{ij[1]}]  U_{'xyz'[ij[0]]} ← F_{'xyz'[ij[1]]} (mm/N)"
+    if base == "K" and len(ij) == 2:
+        return f"K[{ij[0]},{ij[1]}]  F_{'xyz'[ij[0]]} ← U_{'xyz'[ij[1]]} (N/mm)"
+    if base == "sigma_n" and len(ij) == 1:
+        return f"σ_{'xyz'[ij[0]]} (N)"
+    return _UNITS.get(name, name)
+
+
+def labels_of(model: str, attrs, names) -> dict:
+    """Readable names of summary entries (M1 entries by axis, M4 indices as subjects and
+    conditions, units where the model states them)."""
+    if model == "m1":
+        return {n: _m1_label(n) for n in names}
+    if model != "m4":
+        return {n: _UNITS.get(n, n) for n in names}
+    subjects, conds = _json(attrs.get("subjects"), []), conditions_of(attrs)
+    out = {}
+    for n in names:
+        base, _, idx = n.partition("[")
+        parts = [int(i) for i in idx.rstrip("]").split(",") if i.strip().isdigit()] if idx else []
+        if base.endswith("_all"):
+            who, rest = "all", parts
+        else:
+            who, rest = (subjects[parts[0]] if parts and parts[0] < len(subjects) else "?"), parts[1:]
+        cond = conds[rest[0]] if rest and rest[0] < len(conds) else ""
+        out[n] = f"{base.removesuffix('_all')} · {who}" + (f" · {cond}" if cond else "")
+    return out
+
+
+def _marginals(draws, names, labels, *, per_chain: bool, title: str, src) -> Figure:
+    from matplotlib.ticker import MaxNLocator
+
+    n = len(names)
+    ncols = 4 if n == 4 else min(n, 3)
+    fig, axes = subplots(ncols, nrows=-(-n // ncols), width_in=7.0 / ncols, height_in=1.45, squeeze=False)
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
+    for ax, name in zip(axes.ravel(), names):
+        x = np.asarray(draws[name], float).reshape(-1, np.shape(draws[name])[-1])
+        for chain in (x if per_chain else x.reshape(1, -1)):
+            ax.hist(chain, bins=30, histtype="step", density=True, lw=0.9)
+        lo, hi = np.quantile(x, [0.025, 0.975])
+        ax.axvspan(lo, hi, color="0.85", zorder=0)
+        ax.set_title(labels.get(name, name), fontsize=7)
+        ax.xaxis.set_major_locator(MaxNLocator(3))
+        ax.ticklabel_format(axis="x", style="plain", useOffset=False)
+        ax.tick_params(labelsize=6)
+        ax.set_yticks([])
+    how = "one line per chain (chains that agree overlap)" if per_chain else "all draws pooled"
+    return make_figure(title, fig, src, f"Marginal posterior densities, {how}; grey: 95 % interval.")
+
+
+def _traces(draws, names, labels, src) -> Figure:
+    n = len(names)
+    fig, axes = subplots(min(n, 3), nrows=-(-n // 3), width_in=7.0 / min(n, 3), height_in=1.3, squeeze=False)
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
+    for ax, name in zip(axes.ravel(), names):
+        x = np.asarray(draws[name], float).reshape(-1, np.shape(draws[name])[-1])
+        step = max(1, x.shape[1] // 300)
+        for chain in x:
+            ax.plot(np.arange(0, x.shape[1], step), chain[::step], lw=0.4, alpha=0.8)
+        ax.set_title(labels.get(name, name), fontsize=7)
+        ax.set_xlabel("draw", fontsize=6)
+        ax.tick_params(labelsize=6)
+    return make_figure("Traces", fig, src, "Each chain's draws in order (every "
+                       f"{max(1, np.shape(draws[names[0]])[-1] // 300)}th shown).")
+
+
+def _forest(ax, labels, mean, lo, hi, *, truth=None, band=None, color="C0") -> None:
+    y = np.arange(len(labels))[::-1]
+    ax.errorbar(mean, y, xerr=[np.subtract(mean, lo), np.subtract(hi, mean)], fmt="o", ms=3, capsize=2,
+                color=color, label="posterior mean, 95 % interval")
+    if truth is not None:
+        ax.plot(truth, y, "x", color="k", ms=5, label="true value (simulated)")
+    if band is not None:
+        ax.axvspan(*band, color=color, alpha=0.15, label="pooled 95 % interval")
+    ax.set_yticks(y, labels, fontsize=6)
+    ax.tick_params(axis="x", labelsize=6)
+
+
+def _summary_cols(result, names):
+    s = result.summary.set_index("name").loc[names]
+    return s["mean"].to_numpy(), s["eti95_lb"].to_numpy(), s["eti95_ub"].to_numpy()
+
+
+def _true_c(inv):
+    from feeler.reports.readers import read_json
+
+    part = inv.first("calibration-data", prefer="sensor-calibration")
+    if part is None or not inv.has(part.path("truth.json")):
+        return None, None
+    truth = read_json(inv.run_dir / part.path("truth.json"))
+    c = truth.get("scene", {}).get("sensor", {}).get("c_mm_per_n")
+    return (np.asarray(c, float).ravel(), part.path("truth.json")) if c is not None else (None, None)
+
+
+def _m1(inv, result, draws, sampler, src) -> list:
+    names = [f"C[{i},{j}]" for i in range(3) for j in range(3)]
+    truth, truth_rel = _true_c(inv)
+    fig, ax = subplots(width_in=4.6, height_in=2.6)
+    _forest(ax, [f"C[{i},{j}]  U_{'xyz'[i]} ← F_{'xyz'[j]}" for i in range(3) for j in range(3)],
+            *_summary_cols(result, names), truth=truth)
+    ax.set(xlabel="compliance (mm/N)", title="Force→displacement matrix C, entry by entry")
+    ax.legend(fontsize=6)
+    out = [make_figure("The matrix C", fig, src + ((truth_rel,) if truth_rel else ()),
+                       "Posterior mean and 95 % interval of every entry" +
+                       ("; ×: the simulated sensor's true C." if truth is not None else "."))]
+    labels = {n: n for n in names} | {f"sigma_n[{j}]": f"σ_{'xyz'[j]} (N)" for j in range(3)} | {"cond_C": "cond(C)"}
+    out.append(_marginals(draws, names[:6], labels, per_chain=sampler, title="Marginals of C, rows x and y", src=src))
+    rest = names[6:] + [n for n in ("sigma_n[0]", "sigma_n[1]", "sigma_n[2]", "cond_C") if n in draws]
+    out.append(_marginals(draws, rest, labels, per_chain=sampler, title="Marginals of C row z, σ and cond(C)",
+                          src=src))
+    return out
+
+
+def _m4(result, draws, attrs, labels, src) -> list:
+    conds = conditions_of(attrs)
+    fig, axes = subplots(3, width_in=7.0 / 3, height_in=1.9)
+    for ax, var, xl in zip(axes, ("pse_all", "dt_all"), ("PSE (µm)", "DT (µm)")):
+        for c, cond in enumerate(conds):
+            name = f"{var}[{c}]"
+            if name in draws:
+                ax.hist(np.ravel(draws[name]), bins=40, histtype="step", density=True, label=cond, color=f"C{c}")
+        ax.set(xlabel=xl, yticks=[])
+        ax.legend(fontsize=5)
+    if "lapse_all" in draws:
+        axes[2].hist(np.ravel(draws["lapse_all"]), bins=40, histtype="step", density=True, color="C2")
+    axes[2].set(xlabel="lapse rate (pooled)", yticks=[])
+    for ax in axes:
+        ax.tick_params(labelsize=6)
+    out = [make_figure("Pooled PSE and difference threshold per condition", fig, src,
+                       "All subjects pooled (the section's estimands); draws pooled over chains.")]
+    subjects = _json(attrs.get("subjects"), [])
+    fig, axes = subplots(2, width_in=3.5, height_in=min(0.2 * max(len(subjects) * len(conds), 4) + 0.9, 3.6))
+    for ax, var, xl in zip(axes, ("pse", "dt"), ("PSE (µm)", "difference threshold (µm)")):
+        names = [f"{var}[{s},{c}]" for s in range(len(subjects)) for c in range(len(conds))]
+        names = [n for n in names if n in result.summary["name"].values]
+        if not names:
+            ax.set_visible(False)
+            continue
+        for c in range(len(conds)):
+            sel = [n for n in names if n.endswith(f",{c}]")]
+            mean, lo, hi = _summary_cols(result, sel)
+            y = np.arange(len(sel))[::-1] * len(conds) + (len(conds) - 1 - c)
+            ax.errorbar(mean, y, xerr=[mean - lo, hi - mean], fmt="o", ms=3, capsize=2, color=f"C{c}",
+                        label=conds[c])
+            pooled = f"{var}_all[{c}]"
+            if pooled in result.summary["name"].values:
+                _, plo, phi = _summary_cols(result, [pooled])
+                ax.axvspan(plo[0], phi[0], color=f"C{c}", alpha=0.12)
+        ticks = np.arange(len(subjects))[::-1] * len(conds) + (len(conds) - 1) / 2
+        ax.set_yticks(ticks, subjects, fontsize=6)
+        ax.set(xlabel=xl)
+        ax.tick_params(axis="x", labelsize=6)
+        ax.legend(fontsize=5)
+    out.append(make_figure("Every subject's PSE and difference threshold", fig, src,
+                           "Mean and 95 % interval per subject and condition; shaded: the pooled 95 % interval."))
+    return out
+
+
+def _finger_route(draws, attrs, src) -> list:
+    fig, axes = subplots(3, width_in=7.0 / 3, height_in=1.9)
+    grid, dens = _json(attrs.get("tau_grid_s"), []), _json(attrs.get("tau_marginal"), [])
+    if grid and len(grid) == len(dens):
+        g, d = np.asarray(grid, float) * 1e3, np.asarray(dens, float)
+        axes[0].plot(g, d / d.max(), color="C0", label="grid marginal")
+    else:
+        axes[0].hist(np.ravel(draws["tau_s"]) * 1e3, bins=40, histtype="step", color="C0", label="draws")
+    axes[0].axvline(300.0, color="C3", ls="--", lw=0.8, label="300 ms (paper)")
+    axes[0].set(xlabel="τ (ms)", yticks=[])
+    log_axis(axes[0], "x")
+    axes[0].legend(fontsize=5)
+    for ax, name in zip(axes[1:], ("sigma_d_um", "lapse")):
+        if name in draws:
+            ax.hist(np.ravel(draws[name]), bins=40, histtype="step", density=True, color="C1")
+        ax.set(xlabel=_UNITS[name], yticks=[])
+    for ax in axes:
+        ax.tick_params(labelsize=6)
+    return [make_figure("Posterior of τ, σ_d and the lapse", fig, src,
+                        "τ: the grid's marginal density (normalised to its peak); σ_d and lapse: draws pooled. "
+                        "κ is a function of τ and is not drawn.")]
+
+
+def plots_of(inv, part, result, attrs, *, sampler: bool) -> list:
+    """The figures of one fit (see the module docstring)."""
+    draws = result.draws()
+    src = (part.path("posterior.nc"),)
+    labels = labels_of(part.model, attrs, list(draws))
+    if part.model == "m1" and "C[0,0]" in draws:
+        out = _m1(inv, result, draws, sampler, src)
+        key = ["C[0,0]", "C[1,1]", "C[2,2]", "sigma_n[0]", "sigma_n[1]", "sigma_n[2]"]
+    elif part.model == "m4":
+        out = _m4(result, draws, attrs, labels, src)
+        key = [n for n in draws if n.startswith(("pse_all", "dt_all", "lapse_all"))][:_PER_FIG]
+    elif part.model == "finger-route":
+        out = _finger_route(draws, attrs, src)
+        key = [n for n in ("tau_s", "sigma_d_um", "lapse") if n in draws]
+    else:
+        names = [n for n in result.summary["name"] if n in draws]
+        out = [_marginals(draws, names[i:i + _PER_FIG], labels, per_chain=sampler, src=src,
+                          title="Marginal posteriors" + (f" ({i // _PER_FIG + 1})" if len(names) > _PER_FIG else ""))
+               for i in range(0, len(names), _PER_FIG)]
+        key = names[:_PER_FIG]
+    if sampler and key:
+        out.append(_traces(draws, [k for k in key if k in draws], labels, src))
+    elif not sampler:
+        out.append(Note(f"Backend {result.backend}: independent draws, so chains are not compared and no "
+                        "traces are drawn."))
+    return out
+
+
+def finger_route_fig6(inv, tau_s: float, level: str, tau_rel: str):
+    """Accepted against presented height at the fitted τ, with the human PSEs (or None
+    without human thresholds)."""
+    from feeler.calib.psychometric.finger_route import accepted_heights
+    from feeler.reports.humandata import human_data
+
+    human = human_data(inv)
+    if human.pooled is None:
+        return None
+    speeds = sorted(set(human.pooled["standard_speed_mm_s"].astype(float)))
+    heights = np.linspace(5.0, 15.0, 5)
+    s_hat, _ = accepted_heights([(float(h), float(v)) for v in speeds for h in heights], np.array([tau_s]),
+                                level=level)
+    fig, ax = subplots(width_in=4.2, height_in=3.0)
+    tag = " (SYNTHETIC)" if human.label else ""
+    for k, v in enumerate(speeds):
+        ax.plot(heights, s_hat[0, k * len(heights):(k + 1) * len(heights)], "-", color=f"C{k}",
+                label=f"finger route, {v:g} mm/s")
+        for _, r in human.pooled[human.pooled["standard_speed_mm_s"].astype(float) == v].iterrows():
+            std = human.standard_um(r)
+            pse, lo, hi = (human.value(r, c).value for c in ("pse_um", "pse_lb_um", "pse_ub_um"))
+            if np.isfinite(std) and np.isfinite(pse):
+                ax.errorbar([std], [pse], yerr=[[pse - lo], [hi - pse]], fmt="s", ms=4, color=f"C{k}", capsize=3,
+                            label=f"human PSE{tag}, {v:g} mm/s")
+    ax.plot(heights, heights, "k:", lw=0.7, label="accepted = presented")
+    ax.set(xlabel="presented step height (µm)", ylabel="accepted step height (µm)",
+           title=f"At the fitted τ = {tau_s * 1e3:.0f} ms (skin {level.upper()})")
+    ax.legend(fontsize=6)
+    return make_figure("Accepted against presented step height at the fitted τ", fig,
+                       (tau_rel, human.thresholds_rel) + ((human.trials_rel,) if human.trials_rel else ()),
+                       "Line: κ(τ)·peak z of the finger chain at the posterior median τ; squares: pooled human "
+                       "PSEs of the standard (95 % intervals).")

@@ -1,0 +1,62 @@
+"""What an M4 fit directory holds beyond the posterior: its thresholds table, read
+tolerantly (columns the fit adds are shown too), and its per-subject curve images
+(``curves/index.csv``: subject, standard_um, standard_speed_mm_s, comparison_speed_mm_s,
+file), every one listed shown.
+"""
+from __future__ import annotations
+
+import base64
+
+import numpy as np
+
+from feeler.reports.humandata import THRESH_COLS, parse_value
+from feeler.reports.model import Gallery, Table, fmt, interval
+from feeler.reports.readers import read_table
+
+__all__ = ["thresholds_table", "curves_gallery", "CURVE_INDEX"]
+
+CURVE_INDEX = "curves/index.csv"
+_PAIRS = (("PSE (µm)", "pse_um", "pse_lb_um", "pse_ub_um"), ("DT (µm)", "dt_um", "dt_lb_um", "dt_ub_um"))
+
+
+def thresholds_table(inv, part) -> Table:
+    """Every row of thresholds.csv: PSE and DT as intervals, then any further column."""
+    rel = part.path("thresholds.csv")
+    t = read_table(inv.run_dir / rel, THRESH_COLS)
+    used = {c for _, *cs in _PAIRS for c in cs} | {"subject", "standard_speed_mm_s", "comparison_speed_mm_s"}
+    extra = [c for c in t.columns if c not in used]
+    rows = []
+    for _, r in t.iterrows():
+        cells = [str(r["subject"]), f"{fmt(r['standard_speed_mm_s'])} / {fmt(r['comparison_speed_mm_s'])}"]
+        for _, m, lo, hi in _PAIRS:
+            v = parse_value(r[m])
+            cells.append(f"{v.bound} {fmt(v.value, 3)}" if v.bound else
+                         interval(v.value, *(parse_value(r[c]).value if c in r else np.nan for c in (lo, hi))))
+        cells += [fmt(parse_value(r[c]).value, 4) if np.isfinite(parse_value(r[c]).value) else str(r[c]) for c in extra]
+        rows.append(tuple(cells))
+    return Table("Thresholds per subject and condition (95 % intervals)",
+                 ("subject", "standard / comparison mm/s", *(p[0] for p in _PAIRS), *extra), tuple(rows), (rel,),
+                 caption="The 'all' rows are the pooled estimates.")
+
+
+def curves_gallery(inv, part) -> Gallery | None:
+    """Every PNG listed in the fit's curves/index.csv (None when there is no index)."""
+    from feeler.errors import DataFileError
+
+    rel = part.path(CURVE_INDEX)
+    if not inv.has(rel):
+        return None
+    index = read_table(inv.run_dir / rel, ("subject", "standard_um", "standard_speed_mm_s",
+                                           "comparison_speed_mm_s", "file"))
+    items = []
+    for r in index.itertuples(index=False):
+        png = part.path(f"curves/{r.file}")
+        path = inv.run_dir / png
+        data = path.read_bytes() if path.is_file() else b""
+        if not data.startswith(b"\x89PNG\r\n\x1a\n"):
+            raise DataFileError(path, f"listed in {rel} but not a readable PNG")
+        title = (f"{r.subject} · {fmt(r.standard_um)} µm at {fmt(r.standard_speed_mm_s)} vs "
+                 f"{fmt(r.comparison_speed_mm_s)} mm/s")
+        items.append((title, "data:image/png;base64," + base64.b64encode(data).decode("ascii"), png))
+    return Gallery("Psychometric curve of every subject and condition", tuple(items),
+                   (rel,) + tuple(i[2] for i in items), caption=f"Images written by the fit, as listed in {rel}.")

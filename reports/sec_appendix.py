@@ -1,0 +1,57 @@
+"""The appendix: the run's scene files verbatim, the list of figures with the files each
+came from (the manifest, also written as ``report-manifest.json``) and the package versions."""
+from __future__ import annotations
+
+import platform
+from importlib import metadata
+
+from feeler.reports.model import Note, Section, Table
+from feeler.reports.readers import scene_text
+
+__all__ = ["appendix_section", "versions", "PACKAGES", "figure_list"]
+
+PACKAGES = ("feeler", "numpy", "scipy", "pandas", "xarray", "h5netcdf", "arviz", "pymc", "pytensor",
+            "emcee", "numba", "matplotlib", "scikit-fem", "jinja2", "weasyprint")
+
+
+def versions() -> tuple[tuple[str, str], ...]:
+    """(package, installed version or "not installed") of :data:`PACKAGES`, then Python."""
+    rows = []
+    for name in PACKAGES:
+        try:
+            rows.append((name, metadata.version(name)))
+        except metadata.PackageNotFoundError:
+            rows.append((name, "not installed"))
+    return tuple(rows) + (("python", platform.python_version()),)
+
+
+def figure_list(manifest: list[dict]) -> Table:
+    """One row per figure of the report: its number, title, section and source files."""
+    rows = tuple((str(m["number"]), m["title"], m["section"], ", ".join(m["sources"])) for m in manifest)
+    return Table("Figures and the files they come from", ("figure", "title", "section", "files"), rows, (),
+                 caption="Also in report-manifest.json beside the report.")
+
+
+def appendix_section(inv, manifest: list[dict]) -> Section:
+    """Scene files, the figure list and the package versions."""
+    from feeler.reports.discover import design
+
+    blocks, designs, done = [], {}, set()
+    for part in inv.parts:
+        rel = part.path("scene.toml")
+        if rel in done or not inv.has(rel):
+            continue
+        done.add(rel)
+        d = design(inv.run_dir, part)
+        if d in designs:
+            blocks.append(Note(f"{rel}: as {designs[d]} except its seed (and name).", sources=(rel,)))
+        else:
+            designs[d] = rel
+            blocks.append(Note(scene_text(inv.run_dir / rel), level="code", sources=(rel,)))
+    if not blocks:
+        blocks.append(Note("No scene files in this run."))
+    if manifest:
+        blocks.append(figure_list(manifest))
+    blocks.append(Table("Package versions", ("package", "version"), versions(), (),
+                        caption="Installed when this report was made (not a file of the run)."))
+    return Section("appendix", "Appendix: scene files, figures and versions", tuple(blocks))

@@ -1,0 +1,28 @@
+"""A sensor calibration campaign without its M1 fit: the imposed tip displacements against
+the measured forces, axis by axis (what ``feeler calibrate sensor`` would fit)."""
+from __future__ import annotations
+
+from feeler.reports.model import Note, Section, make_figure, subplots
+
+__all__ = ["caldata_section"]
+
+
+def caldata_section(inv, spec) -> Section:
+    from feeler.calib.matrix import read_calibration_csv
+
+    part = spec.parts[0]
+    rel = part.path("calibration.csv")
+    data = read_calibration_csv(inv.run_dir / rel)
+    fig, axes = subplots(3, width_in=7.0 / 3, height_in=2.2)
+    for j, ax in enumerate(axes):
+        for i in range(3):
+            ax.plot(data.f_n[:, j], data.u_mm[:, i], "o", ms=3, color=f"C{i}", label=f"U_{'xyz'[i]}")
+        ax.set(xlabel=f"F_{'xyz'[j]} (N)", title=f"against F_{'xyz'[j]}")
+        ax.tick_params(labelsize=6)
+        ax.legend(fontsize=6)
+    axes[0].set_ylabel("imposed U (mm)")
+    return Section(spec.key, spec.title, (
+        Note(f"{len(data.u_mm)} calibration points; fit them with `feeler calibrate sensor {inv.run_dir / part.rel} "
+             f"--out {inv.run_dir / 'm1'}`.", sources=(rel,)),
+        make_figure("Imposed displacement against measured force", fig, (rel,),
+                    "Each point: one imposed tip displacement and the three-axis force read back.")))

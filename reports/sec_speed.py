@@ -1,0 +1,131 @@
+"""The speed/accuracy section: every trade the run measured, cost against error.
+
+Tables come from two places, and each says which: ``make bench`` (``benchmarks/<module>.csv``
+and ``ratios.csv``, copied by the demo; measured on the machine that ran the benchmarks)
+or the demo itself (``speed/`` with ``speed.json``: small versions measured while the demo
+ran, when no bench tables exist). A table with a time column and an error (or accuracy)
+column is drawn as a trade plot, one point per option; any other table is listed. The
+live decoder's decision-latency/accuracy trade has its place here: it is drawn from a
+``decoder.csv`` as soon as one exists.
+"""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from feeler.reports.model import Note, Section, Table, fmt, log_axis, make_figure, subplots, table_from_frame
+from feeler.reports.readers import read_json, read_table
+
+__all__ = ["speed_section", "trade_columns", "TIME_COLS", "ERROR_COLS", "ACCURACY_COLS"]
+
+TIME_COLS = ("latency_s", "decision_latency_s", "seconds_per_slide", "seconds", "fit_s", "min_s")
+ERROR_COLS = ("error_ref_sd", "error_sd", "error", "rate_error", "max_abs_mean_err_sd", "max_error")
+ACCURACY_COLS = ("accuracy", "pc", "proportion_correct")
+_TITLES = {"m1": "M1 backends", "fidelity": "Sensor fidelity (M1 on each level)", "backends": "Calibration backends",
+           "decoder": "Live decoder: decision latency against accuracy", "skin": "Skin ladder (speed only)"}
+_AXIS = {"error_ref_sd": "error (reference posterior sds)", "max_abs_mean_err_sd": "largest |mean error| (reference sds)",
+         "error_sd": "error against the truth (posterior sds)", "rate_error": "peak strain-rate error (relative)",
+         "seconds": "seconds", "fit_s": "seconds to fit", "min_s": "seconds (best round)",
+         "latency_s": "decision latency (s)", "accuracy": "accuracy"}
+
+
+def trade_columns(frame) -> tuple[str | None, str | None]:
+    """(time column, error or accuracy column) of a table, None where absent."""
+    cols = set(frame.columns)
+    x = next((c for c in TIME_COLS if c in cols), None)
+    y = next((c for c in ERROR_COLS + ACCURACY_COLS if c in cols), None)
+    return x, y
+
+
+def _option(frame) -> list[str]:
+    if "option" in frame:
+        return [str(v) for v in frame["option"]]
+    if "benchmark" in frame:
+        return [re.sub(r"-kw\d+$", "", m.group(1)) if (m := re.search(r"\[(.+)\]", str(b))) else str(b)
+                for b in frame["benchmark"]]
+    return [str(i) for i in range(len(frame))]
+
+
+def _trade_figure(name, frame, x, y, rel, provenance):
+    t = frame.copy()
+    for c in (x, y):
+        t[c] = np.asarray(t[c].map(lambda v: float(v) if str(v).strip() not in ("", "nan") else np.nan), float)
+    labels = _option(frame)
+    fig, ax = subplots(width_in=5.6, height_in=2.3)
+    for k, (lab, xs, ys) in enumerate(zip(labels, t[x], t[y])):
+        if np.isfinite(xs) and np.isfinite(ys):
+            ax.plot(xs, max(ys, 1e-6) if y in ERROR_COLS else ys, "os^vD<>"[k % 7], color=f"C{k % 10}", ms=6,
+                    label=lab)
+    log_axis(ax, "x")
+    ys = t[y].to_numpy(float)
+    if y in ERROR_COLS and np.all(ys[np.isfinite(ys)] > 0) and np.nanmax(ys) > 10 * np.nanmin(ys):
+        log_axis(ax, "y")
+    ax.set(xlabel=_AXIS.get(x, x.replace("_", " ")), ylabel=_AXIS.get(y, y.replace("_", " ")),
+           title=_TITLES.get(name, name))
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside right upper", fontsize=6, frameon=False)
+    return make_figure(_TITLES.get(name, name), fig, (rel,), f"One point per option; {provenance}.")
+
+
+def _tables(inv, part, names, provenance) -> list:
+    blocks = []
+    for name in names:
+        rel = part.path(name)
+        frame = read_table(inv.run_dir / rel)
+        stem = name.removesuffix(".csv")
+        if frame.empty:
+            blocks.append(Note(f"{rel}: no rows.", sources=(rel,)))
+            continue
+        x, y = trade_columns(frame)
+        if x and y and len(frame) > 1:
+            blocks.append(_trade_figure(stem, frame, x, y, rel, provenance))
+        keep = [c for c in frame.columns if c not in ("measured_at",)]
+        blocks.append(table_from_frame(frame[keep], title=_TITLES.get(stem, stem), sources=(rel,), digits=3))
+    return blocks
+
+
+def _bench_blocks(inv, part) -> list:
+    names = list(part.files)
+    stamp = ""
+    if "ratios.csv" in names:
+        ratios = read_table(inv.run_dir / part.path("ratios.csv"))
+        stamp = str(ratios["measured_at"].iloc[0]) if "measured_at" in ratios and len(ratios) else ""
+    provenance = f"measured by `make bench`{' at ' + stamp if stamp else ''}"
+    return [Note(f"Tables of {part.label}: {provenance}.", level="measured",
+                 sources=tuple(part.path(n) for n in names))] + _tables(inv, part, names, provenance)
+
+
+def _demo_blocks(inv, part) -> list:
+    rel = part.path("speed.json")
+    index = read_json(inv.run_dir / rel, ("measured", "tables"))
+    provenance = f"measured {index['measured']} (a small version; `make bench` measures the full one)"
+    blocks = [Note(f"{provenance[0].upper()}{provenance[1:]}.", level="measured", sources=(rel,))]
+    for name, what in dict(index["tables"]).items():
+        if what:
+            blocks.append(Note(f"{name}: {what}", sources=(part.path(f"{name}.csv"),)))
+    names = [f"{n}.csv" for n in index["tables"] if inv.has(part.path(f"{n}.csv"))]
+    return blocks + _tables(inv, part, names, provenance)
+
+
+def speed_section(inv, spec) -> Section:
+    blocks = []
+    for part in spec.parts:
+        if part.kind == "benchmarks":
+            blocks += _bench_blocks(inv, part)
+        elif part.kind == "speed":
+            blocks += _demo_blocks(inv, part)
+    for part in (p for p in spec.parts if p.kind == "ladder"):
+        rel = part.path("trade.csv")
+        t = read_table(inv.run_dir / rel, ("level", "mesh", "seconds_per_slide", "rate_error"),
+                       ("seconds_per_slide", "rate_error"))
+        ref = t["seconds_per_slide"].max()
+        words = "; ".join(f"{r.level.upper()} ({r.mesh}) {fmt(ref / r.seconds_per_slide, 3)}× faster at "
+                          f"{fmt(100 * r.rate_error, 2)} % error" for r in t.itertuples(index=False)
+                          if r.seconds_per_slide < ref)
+        blocks.append(Note(f"Skin ladder ({part.label}), against its slowest rung: {words}. Plotted with its table "
+                           "in the finger section.", sources=(rel,)))
+    if not any((inv.run_dir / p.path("decoder.csv")).is_file() for p in spec.parts):
+        blocks.append(Note("The live decoder's decision latency against accuracy appears here when the run holds "
+                           "its trade table (decoder.csv in benchmarks/ or speed/: columns option, latency_s, "
+                           "accuracy)."))
+    return Section(spec.key, spec.title, tuple(blocks))

@@ -1,0 +1,194 @@
+"""`feeler report DIR` on any run directory: one fit, one simulation, an acquisition, a
+skin study, human data alone, a mix under other names, nothing; what the command says
+and its progress."""
+from __future__ import annotations
+
+import base64
+import json
+import os
+import pty
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from feeler.cli import main
+from feeler.reports import build_report, discover
+
+
+def _sections(report) -> list[str]:
+    return [s.key for s in report.inventory.present]
+
+
+def test_a_single_fit_directory(run_dir, tmp_path):
+    fit = shutil.copytree(run_dir / "m1", tmp_path / "m1")
+    report = build_report(fit, tmp_path / "out", pdf=False)
+    assert _sections(report) == ["fit:"] and report.inventory.parts[0].model == "m1"
+    html = report.html.read_text(encoding="utf-8")
+    assert "M1: sensor force→displacement matrix (./)" in html and "Source: posterior.nc" in html
+    needs = {m.title: m.needs for m in report.inventory.missing}
+    assert f"`feeler calibrate neuron SCANS_DIR --out {fit}/m2`" in needs["M2: neuron (a, τ, h) and decoder noise"]
+    assert all(f["layout_problems"] == [] for f in report.figures) and len(report.figures) == 3
+
+
+def test_a_single_simulation_directory(run_dir, tmp_path, capsys):
+    sim = shutil.copytree(run_dir / "four-plates", tmp_path / "sim")
+    assert main(["report", str(sim), "--no-pdf", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "holds: 1 part(s) in 1 section(s)\n  Robot scans (simulated, ./)" in out
+    assert "not in this run: M1: sensor force→displacement matrix — needs `feeler calibrate sensor" in out
+    manifest = json.loads((sim / "report-manifest.json").read_text(encoding="utf-8"))
+    assert [f["sources"] for f in manifest["figures"]] == [["scans.csv", "scene.toml"]] * 2
+
+
+def test_an_acquisition(acquired, tmp_path):
+    report = build_report(acquired, tmp_path / "out", pdf=False)
+    assert _sections(report) == ["robot:"] and report.inventory.parts[0].kind == "acquisition"
+    html = report.html.read_text(encoding="utf-8")
+    assert "Robot scans (acquired, ./)" in html and "Acquisition counts" in html
+    assert "the plan (scene.toml) sets the length; a, τ, h are the paper&#39;s (§5.2)" in html
+    assert "Sample timing of the acquisition" in [f["title"] for f in report.figures]
+    assert all(f["layout_problems"] == [] for f in report.figures)
+    # plates 0 and 0.2 mm only: the claims needing two non-zero plates say so
+    assert "needs scans of two non-zero plates" in html
+
+
+def test_a_mix_under_other_names(run_dir, tmp_path):
+    mix = tmp_path / "mix"
+    shutil.copytree(run_dir / "m2", mix / "calibrations" / "neuron-2026")
+    shutil.copytree(run_dir / "four-plates", mix / "scans" / "monday")
+    shutil.copytree(run_dir / "discriminate", mix / "robot-threshold")
+    shutil.copytree(run_dir / "skin-ladder", mix / "skin" / "ladder-2026")
+    inv = discover(mix)
+    assert [s.key for s in inv.present] == ["robot:scans/monday", "fit:calibrations/neuron-2026", "compare", "finger",
+                                            "speed"]
+    assert inv.first("fit", "m2").label == "calibrations/neuron-2026/"
+    report = build_report(mix, tmp_path / "out", pdf=False)
+    assert all(f["layout_problems"] == [] for f in report.figures)
+    assert all((mix / s).exists() for f in report.figures for s in f["sources"])
+
+
+def test_skin_figure_tables_without_histories(tmp_path):
+    scene = tmp_path / "tiny.toml"
+    scene.write_text('[scene]\nkind = "finger-steps"\n[loading]\nspeeds_mm_s = [20.0, 40.0]\ntravel_step_mm = 0.05\n'
+                     '[steps]\nheights_um = [5.0, 15.0]\n[model]\nlevel = "l0"\n', encoding="utf-8")
+    assert main(["skin", "figures", str(scene), "--out", str(tmp_path / "figs")]) == 0
+    report = build_report(tmp_path / "figs", tmp_path / "out", pdf=False)
+    assert _sections(report) == ["finger"]
+    assert [f["title"] for f in report.figures] == ["Fig. 5: peak pulse density against step height",
+                                                    "Fig. 6: accepted against presented step height"]
+    assert "Figs 3–4 need strain.csv" in report.html.read_text(encoding="utf-8")
+
+
+def test_human_trials_alone(run_dir, tmp_path):
+    trials = shutil.copytree(run_dir / "psychophysics", tmp_path / "trials")
+    report = build_report(trials, tmp_path / "out", pdf=False)
+    assert _sections(report) == ["compare"]
+    assert [f["title"] for f in report.figures] == ["Human 2AFC data and the pooled psychometric functions"]
+
+
+def _png(tmp_path) -> bytes:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(2, 1.5))
+    ax.plot([0, 1], [0, 1])
+    fig.savefig(tmp_path / "x.png")
+    plt.close(fig)
+    return (tmp_path / "x.png").read_bytes()
+
+
+def test_m4_curve_images_and_new_threshold_columns_are_shown(run_dir, tmp_path):
+    m4 = shutil.copytree(run_dir / "m4", tmp_path / "run" / "m4")
+    thr = (m4 / "thresholds.csv").read_text(encoding="utf-8").splitlines()
+    head = next(i for i, line in enumerate(thr) if line.startswith("subject"))
+    thr[head] += ",backend,pc,slope_per_um"
+    thr[head + 1:] = [line + ",laplace,0.75,0.31" for line in thr[head + 1:]]
+    (m4 / "thresholds.csv").write_text("\n".join(thr) + "\n", encoding="utf-8")
+    (m4 / "curves").mkdir()
+    png = _png(tmp_path)
+    rows = ["subject,standard_um,standard_speed_mm_s,comparison_speed_mm_s,file"]
+    for s in ("S1", "S2", "all"):
+        (m4 / "curves" / f"{s}-20.png").write_bytes(png)
+        rows.append(f"{s},10,20,20,{s}-20.png")
+    (m4 / "curves" / "index.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+    report = build_report(tmp_path / "run", tmp_path / "out", pdf=False)
+    html = report.html.read_text(encoding="utf-8")
+    assert html.count(base64.b64encode(png).decode("ascii")) == 3
+    assert "S2 · 10 µm at 20 vs 20 mm/s" in html and "<th>slope_per_um</th>" in html and "laplace" in html
+    listed = [f for f in report.figures if f["drawn_by"] != "feeler"]
+    assert [f["sources"] for f in listed] == [[f"m4/curves/{s}-20.png"] for s in ("S1", "S2", "all")]
+
+
+def test_a_listed_curve_that_is_not_a_png_is_named(run_dir, tmp_path):
+    from feeler.errors import DataFileError
+
+    m4 = shutil.copytree(run_dir / "m4", tmp_path / "run" / "m4")
+    (m4 / "curves").mkdir()
+    (m4 / "curves" / "index.csv").write_text("subject,standard_um,standard_speed_mm_s,comparison_speed_mm_s,file\n"
+                                             "S1,10,20,20,gone.png\n", encoding="utf-8")
+    with pytest.raises(DataFileError, match=r"gone\.png: listed in m4/curves/index\.csv but not a readable PNG"):
+        build_report(tmp_path / "run", tmp_path / "out", pdf=False)
+
+
+def test_an_empty_directory_lists_what_each_section_needs(tmp_path, capsys):
+    (tmp_path / "run").mkdir()
+    assert main(["report", str(tmp_path / "run"), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "holds: 0 part(s) in 0 section(s)" in out and out.count("not in this run: ") == 12
+    html = (tmp_path / "run" / "report.html").read_text(encoding="utf-8")
+    assert "Nothing this report recognises" in html and html.count("NOT IN THIS RUN") == 8
+    import pypdfium2 as pdfium
+    assert len(pdfium.PdfDocument(tmp_path / "run" / "report.pdf")) == 2          # first page + appendix
+
+
+def test_progress_is_a_line_per_stage_off_a_terminal(run_dir, tmp_path, capsys):
+    fit = shutil.copytree(run_dir / "m2", tmp_path / "m2")
+    assert main(["report", str(fit), "--no-pdf"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == f"feeler report: reading {fit} ..."
+    assert err[1:] == ["report: reading the run ...", "report: M2: neuron (a, τ, h) and decoder noise (./) ...",
+                       "report: first page ...", "report: html ..."]
+    assert main(["report", str(fit), "--no-pdf", "--no-progress"]) == 0
+    assert capsys.readouterr().err.splitlines() == [f"feeler report: reading {fit} ..."]
+
+
+def test_progress_bar_on_a_terminal(run_dir, tmp_path):
+    fit = shutil.copytree(run_dir / "m2", tmp_path / "m2")
+    master, slave = pty.openpty()
+    env = dict(os.environ, MPLBACKEND="Agg", COLUMNS="100")
+    proc = subprocess.Popen([sys.executable, "-m", "feeler", "report", str(fit), "--no-pdf"], stdin=subprocess.DEVNULL,
+                            stdout=subprocess.DEVNULL, stderr=slave, env=env)
+    os.close(slave)
+    chunks = []
+    while True:
+        try:
+            data = os.read(master, 4096)
+        except OSError:
+            break
+        if not data:
+            break
+        chunks.append(data)
+    assert proc.wait(timeout=120) == 0
+    os.close(master)
+    text = b"".join(chunks).decode("utf-8", "replace")
+    assert "report: M2: neuron" in text and "\r" in text                        # a bar redrawn in place
+    assert "report: M2: neuron (a, τ, h) and decoder noise (./) ...\n" not in text.replace("\r\n", "\n")
+
+
+@pytest.mark.parametrize("make", ["file", "readonly"])
+def test_an_unwritable_out_is_refused_before_any_work(run_dir, tmp_path, capsys, make):
+    out = tmp_path / "out"
+    if make == "file":
+        out.write_text("x")
+    else:
+        out.mkdir()
+        out.chmod(0o500)
+        if os.access(out, os.W_OK):                   # root writes anywhere
+            pytest.skip("running as root: a read-only directory is still writable")
+    assert main(["report", str(run_dir / "m1"), "--out", str(out / "r" if make != "file" else out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 2 and "--out" in err and "report: reading the run" not in err
+    assert not (out / "r").exists() if make != "file" else out.read_text() == "x"
