@@ -141,7 +141,7 @@ def _psychophysics(ctx: dict) -> None:
                                          str(out / "psychophysics"), *_force(ctx)], keep=lambda lines: [])
     ctx["print"]("\nM4 — human psychometric functions (SYNTHETIC 2AFC data), pooled rows:")
     _run(ctx, "fit-psychophysics", ["fit", "psychophysics", str(out / "psychophysics" / "trials.csv"),
-                                    "--backend", "laplace", "--out", str(out / "m4"), *_force(ctx)],
+                                    "--backend", "exact", "--out", str(out / "m4"), *_force(ctx)],
          keep=lambda lines: [line for line in lines if line.strip().startswith(("subject", "all", "wrote"))])
 
 
