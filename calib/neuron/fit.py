@@ -83,14 +83,14 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
         if usable:
             noise, scores, elpd = choose_noise(table, plates, growth_max=pri.growth_max, candidates=usable)
         else:
-            noise, elpd = "constant", np.zeros(table.log_tau.size)
+            noise, elpd = "constant", np.zeros((table.log_tau.size, 1))
     else:
         if noise not in usable:
             problems.append(f"plate_sd_mm: the {noise} noise model needs more scans per plate than these data have")
-            elpd = np.zeros(table.log_tau.size)
+            elpd = np.zeros((table.log_tau.size, 1))
         else:
-            elpd = loo_elpd(table, plates, noise, growth_max=pri.growth_max)
-    log_w = tau_log_weights(elpd)
+            elpd = loo_elpd(table, plates, noise, growth_max=pri.growth_max, pointwise=True)
+    log_w = tau_log_weights(elpd, rng)
     stats = None
     if backend == "grid":
         post = sample_grid(table, plates, pri, noise, log_w, chains=chains, draws=draws, rng=rng)

@@ -25,9 +25,10 @@ plates is biased for some of them, which is what the old one-σ regression repor
 
 The window τ is a choice of decoder, not a parameter of the scans: P(τ) are different
 data for each τ, so τ gets no likelihood of its own. Its weights are those of
-pseudo-Bayesian model averaging (Yao, Vehtari, Simpson & Gelman 2018): prior ×
-exp(Σ_k log p(δ_k | scan k, other scans, τ)), the leave-one-out predictive density of each
-label under the continuous decoder (:mod:`.window`).
+pseudo-Bayesian model averaging (pseudo-BMA+, Yao, Vehtari, Simpson & Gelman 2018): prior
+× exp(Σ_k log p(δ_k | scan k, other scans, τ)), the leave-one-out predictive density of
+each label under the continuous decoder, averaged over Bayesian-bootstrap resamples of
+the scans (:mod:`.window`).
 
 Derived per draw: the neuron's gain a (mm per unit strain) and offset h (mm), the
 least-squares line μ_c ≈ (c + h)/a through the plate means, so that the pulse density

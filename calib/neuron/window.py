@@ -11,7 +11,8 @@ predictive spread s·√(1 + 1/n_c) of the plate's plug-in fit (the integral per
 Gauss–Legendre, see :func:`continuous_log_density`). The sum over scans is the
 expected log predictive density (elpd) of the labels; it compares windows on the same
 data (the labels), unlike the density of P(τ), which differs with τ. Weights
-∝ prior × exp(elpd) are pseudo-BMA (Yao et al. 2018). A decoder whose curve is flat
+∝ prior × exp(elpd), averaged over Bayesian-bootstrap resamples of the scans, are
+pseudo-BMA+ (Yao et al. 2018; :func:`tau_log_weights`). A decoder whose curve is flat
 or turns down somewhere cannot be inverted and gets elpd = −∞ there. The noise model is
 chosen by the total (log Σ_τ prior·exp(elpd)); per-plate spreads must earn their extra
 parameters by two standard errors (:func:`choose_noise`).
@@ -121,16 +122,28 @@ def loo_elpd(table: PeakTable, plates: Plates, noise: str, *, growth_max: float 
     return dens if pointwise else np.sum(dens, axis=1)
 
 
-def tau_log_weights(elpd: np.ndarray) -> np.ndarray:
-    """Normalised log weights of the τ nodes (uniform prior in ln τ)."""
-    if not np.any(np.isfinite(elpd)):
-        return np.full(elpd.size, -np.log(elpd.size))
-    return elpd - logsumexp(elpd)
+def tau_log_weights(pointwise: np.ndarray, rng: np.random.Generator, n_boot: int = 400) -> np.ndarray:
+    """Normalised log weights of the τ nodes from the pointwise LOO densities
+    ``pointwise (ndarray[n_grid, n_scans])``: pseudo-BMA+ (Yao et al. 2018), the mean of
+    softmax(n·Σ_k α_k·log p_k(τ)) over Bayesian-bootstrap weights α ~ Dirichlet(1, …, 1)
+    (uniform prior in ln τ). Plain exp(elpd) puts all weight on whichever window the
+    training scans happen to favour by a few nats; the bootstrap spreads it over the
+    windows that the scans cannot tell apart."""
+    G, n = pointwise.shape
+    if not np.any(np.isfinite(pointwise)):
+        return np.full(G, -np.log(G))
+    d = np.where(np.isfinite(pointwise), pointwise, -1e300)
+    alpha = rng.dirichlet(np.ones(n), size=n_boot)                           # (B, n)
+    elpd = n * alpha @ d.T                                                   # (B, G)
+    w = np.exp(elpd - logsumexp(elpd, axis=1, keepdims=True)).mean(axis=0)
+    with np.errstate(divide="ignore"):
+        return np.log(w)
 
 
 def choose_noise(table: PeakTable, plates: Plates, *, growth_max: float = 3.0,
                  candidates: tuple[str, ...] | None = None) -> tuple[str, dict[str, float], np.ndarray]:
-    """(chosen model, total log score per model, elpd per τ of the chosen one).
+    """(chosen model, total log score per model, pointwise LOO densities of the chosen
+    one, ndarray[n_grid, n_scans]).
 
     The better of the pooled models (constant, growing); ``per-plate`` only when it beats
     that by more than two standard errors: its extra spread parameters, fitted to ~10
@@ -143,7 +156,7 @@ def choose_noise(table: PeakTable, plates: Plates, *, growth_max: float = 3.0,
     for m in models:
         dens = loo_elpd(table, plates, m, growth_max=growth_max, pointwise=True)
         e = np.sum(dens, axis=1)
-        curves[m] = e
+        curves[m] = dens
         scores[m] = float(logsumexp(e) - np.log(e.size)) if np.any(np.isfinite(e)) else -np.inf
         points[m] = dens[int(np.argmax(e))]
     pooled = [m for m in models if m != "per-plate"]
