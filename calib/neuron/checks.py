@@ -129,24 +129,31 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
     level = ALPHA / C
     if plates.counts.min() >= 3 or noise != "per-plate":
         pit = loo_pit(table, plates, noise, log_w, growth_max=growth_max)
-        cover, bias = [], []
+        cover, bias, pvals = [], [], []
         for j, step in enumerate(plates.steps_mm):
             u = pit[plates.group == j]
             k, m = int(np.sum((u >= 0.05) & (u <= 0.95))), u.size
             cover.append(k / m)
             bias.append(float(np.mean(u)))
+            z = (np.mean(u) - 0.5) / np.sqrt(1 / (12 * m))
+            pvals += [stats.binom.cdf(k, m, 0.85), stats.binom.sf(k - 1, m, 0.95), 2 * stats.norm.sf(abs(z))]
             if stats.binom.cdf(k, m, 0.85) < level:
                 out.append(f"plate_sd_mm: plate {_mm(step)}: only {k} of {m} scans inside their 90 % interval "
                            f"(leave-one-out); the decoder's {noise} noise is too narrow for this plate")
             elif stats.binom.sf(k - 1, m, 0.95) < level:
                 out.append(f"plate_sd_mm: plate {_mm(step)}: all but {m - k} of {m} scans inside their 90 % "
                            f"interval (leave-one-out); the decoder's {noise} noise is too wide for this plate")
-            z = (np.mean(u) - 0.5) / np.sqrt(1 / (12 * m))
             if 2 * stats.norm.sf(abs(z)) < level:
                 side = "high" if z > 0 else "low"
                 out.append(f"plate_mean_mm: plate {_mm(step)}: its scans sit {side} in their predictive "
                            f"(mean leave-one-out PIT {np.mean(u):.2f}): the decoder is biased for this plate")
-        info.update(loo_coverage90=cover, loo_mean_pit=bias)
+        info.update(loo_coverage90=cover, loo_mean_pit=bias, p_min=float(min(pvals)))
+    sd = np.median(np.asarray(post["plate_sd_mm"]).reshape(-1, C), axis=0)
+    flat = sd < 1e-6 * (plates.steps_mm[-1] - plates.steps_mm[0])
+    if flat.any():
+        out.append(f"plate_sd_mm, tau_s: plate(s) {', '.join(_mm(v) for v in plates.steps_mm[flat])} decode with "
+                   f"(numerically) zero spread at the windows the fit uses (noise-free data): neither the decoder "
+                   f"noise nor the window can be pinned")
     means = np.asarray(post["plate_mean_mm"]).reshape(-1, C)
     order = np.mean(np.diff(means, axis=1) > 0, axis=0)
     info["p_ordered"] = order.tolist()

@@ -102,6 +102,7 @@ def test_noise_free_scans_fail_with_zero_spread(data):
                                speed_mm_s=data.speed_mm_s[idx])
     res = _quiet_fit(same)
     assert not res.verdict.ok and any("identical" in q and "noise-free" in q for q in res.verdict.problems)
+    assert any(q.startswith("plate_sd_mm, tau_s:") and "zero spread" in q for q in res.verdict.problems)
     assert np.all(np.isfinite(res.summary["mean"]))
 
 
