@@ -2,7 +2,9 @@
 
 Every backend fits the same data; per backend: wall time, min bulk ESS per second, and
 the error of posterior means (in reference sds) and sds (ratio − 1) against the
-conjugate reference (exact posterior, 4 × 25 000 independent draws). The conjugate core
+conjugate reference (exact posterior, 4 × 25 000 independent draws). emcee runs until its
+chains are 50 autocorrelation times long with R-hat ≤ 1.01 and bulk ESS ≥ 400 (issue
+14): its verdict on the shipped campaign must be ok. The conjugate core
 (closed-form posterior + 4 000 independent draws + C = K⁻¹ per draw) is timed against one
 ``np.linalg.lstsq`` of the same design in the same run; the goal is ≤ 10 ms absolute.
 """
@@ -43,7 +45,7 @@ def _fit(data, backend, **kw):
 
 
 @pytest.mark.parametrize("backend, kw", [("exact", {}), ("nuts", {"draws": 1000, "tune": 1000}),
-                                         ("emcee", {"draws": 6000, "tune": 2000})])
+                                         ("emcee", {"draws": None})])
 def test_m1_backend(benchmark, data, reference, backend, kw):
     if backend == "nuts":
         _fit(data, "nuts", draws=50, tune=50, chains=1)          # warm PyTensor's compile cache
@@ -60,6 +62,8 @@ def test_m1_backend(benchmark, data, reference, backend, kw):
           f"max |mean error| {mean_err.max():.3f} sd, max |sd ratio - 1| {sd_err.max():.3f}")
     if backend == "exact":
         assert res.verdict.ok and mean_err.max() < 0.15 and sd_err.max() < 0.08
+    if backend == "emcee":
+        assert res.verdict.ok, res.verdict.problems
 
 
 def test_m1_conjugate_core_speed(benchmark, data):

@@ -1,10 +1,12 @@
-"""M2 speed/accuracy ladder on four-plates (issue 3 §7): every backend on the same scans.
+"""M2 speed/accuracy ladder on four-plates (issue 3 §7, issue 14): every backend on the same scans.
 
 Per backend: wall time, min bulk ESS per second, and the error of posterior means and sds
-against a long NUTS reference (NUTS samples (a, h, σ) with τ integrated out and draws τ
-from its conditional, see calib/neuron/mcmc.py; its verdict is printed). Goals of the default (grid)
-backend: R-hat ≤ 1.01, bulk ESS ≥ 400 within 5 s, ≥ 3× the ESS/s of emcee in the same run
-(recorded as a ratio).
+against a long NUTS reference (NUTS samples the plates with τ integrated out and draws τ
+from its conditional, see calib/neuron/mcmc.py; its verdict is printed). Goals of the
+default (grid, exact) backend: verdict ok, R-hat ≤ 1.01, bulk ESS ≥ 400 within 5 s, ≥ 3×
+the ESS/s of emcee in the same run (recorded as a ratio). emcee runs until its chains are
+50 autocorrelation times long with R-hat ≤ 1.01 and ESS ≥ 400 (issue 14): its verdict on
+the shipped data must be ok.
 """
 import warnings
 
@@ -15,7 +17,7 @@ from _ratios import record_ratio
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.synth import scene_scans
 
-NAMES = ("a", "tau_s", "h", "sigma_mm")
+NAMES = ("a", "tau_s", "h", "sigma_mm", "plate_mean_mm[1]", "plate_sd_mm[2]")
 RESULTS = {}
 
 
@@ -51,7 +53,7 @@ def _errors(s, ref):
 
 
 @pytest.mark.parametrize("backend, kw", [("grid", {}), ("nuts", {"draws": 1000, "tune": 1000}),
-                                         ("emcee", {"emcee_steps": 8000})])
+                                         ("emcee", {})])
 def test_m2_backend(benchmark, data, reference, backend, kw):
     res = benchmark.pedantic(lambda: _fit(data, backend, **kw), rounds=1, iterations=1)
     row = _row(res)
@@ -62,8 +64,10 @@ def test_m2_backend(benchmark, data, reference, backend, kw):
     print(f"\n{backend}: {row['seconds']:.2f} s, min ESS/s {row['min_ess_per_s']:.1f}, max R-hat "
           f"{row['max_r_hat']:.4f}, ok={row['ok']}; (mean error / ref sd, sd ratio - 1) vs NUTS ref: "
           + ", ".join(f"{k} ({m:+.3f}, {s:+.3f})" for k, (m, s) in errs.items()))
+    if backend in ("grid", "emcee"):
+        assert row["ok"], res.verdict.problems
     if backend == "grid":
-        assert row["ok"] and row["max_r_hat"] <= 1.01
+        assert row["max_r_hat"] <= 1.01
         assert row["summary"].loc[list(NAMES), "ess_bulk"].min() >= 400
     if backend == "emcee" and "grid" in RESULTS:
         ratio = RESULTS["grid"]["min_ess_per_s"] / row["min_ess_per_s"]

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
@@ -88,7 +88,7 @@ def summarize(posterior) -> pd.DataFrame:
 
 def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,
              bounds: Mapping[str, tuple[float, float]] | None = None,
-             thresholds: Thresholds = Thresholds()) -> Verdict:
+             thresholds: Thresholds = Thresholds(), checks: Sequence[str] = ()) -> Verdict:
     """Check a posterior and return its :class:`Verdict`; warn once per problem.
 
     Args:
@@ -99,11 +99,17 @@ def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,
         bounds (dict[str, (lo, hi)]): hard prior bounds of some parameters; a parameter
             with more than 5 % of its draws within 1 % of the range from a bound is
             flagged as piling against it.
+        checks (list[str]): the model's own problems (identifiability, units, predictive
+            checks), listed first. A parameter with no finite draw (the data do not
+            define it; a check names why) is reported once instead of by R-hat and ESS.
     """
     summary = summarize(posterior) if summary is None else summary
     t = thresholds
-    problems: list[str] = []
+    problems: list[str] = list(checks)
     for row in summary.itertuples(index=False):
+        if not np.isfinite(row.mean):
+            problems.append(f"{row.name}: no finite posterior draws (not defined by these data)")
+            continue
         if not np.isfinite(row.r_hat) or row.r_hat > t.r_hat_max:
             problems.append(f"{row.name}: R-hat {row.r_hat:.4f} > {t.r_hat_max}")
         if not np.isfinite(row.ess_bulk) or row.ess_bulk < t.ess_bulk_min:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import pandas as pd
 
@@ -68,10 +68,14 @@ class FitResult:
 
 def make_result(posterior, *, backend: str, priors: Mapping[str, str], seconds: float,
                 bounds: Mapping[str, tuple[float, float]] | None = None,
-                thresholds: Thresholds = Thresholds()) -> FitResult:
-    """Summarise and diagnose ``posterior`` and wrap everything in a :class:`FitResult`."""
+                thresholds: Thresholds = Thresholds(), checks: Sequence[str] = ()) -> FitResult:
+    """Summarise and diagnose ``posterior`` and wrap everything in a :class:`FitResult`.
+
+    ``checks``: the model's own problems (identifiability, units, posterior predictive
+    and prior–data conflict checks), one line each; any of them fails the verdict."""
     summary = summarize(posterior)
-    verdict = diagnose(posterior, summary, backend=backend, bounds=bounds, thresholds=thresholds)
+    verdict = diagnose(posterior, summary, backend=backend, bounds=bounds, thresholds=thresholds,
+                       checks=checks)
     return FitResult(posterior=posterior, summary=summary, verdict=verdict,
                      priors=dict(priors), backend=backend, seconds=float(seconds))
 

@@ -80,10 +80,16 @@ def _log_posterior(theta: np.ndarray, x, y, prior: RegressionPrior, noise: str, 
 
 
 def sample_emcee(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise: str, nu: float,
-                 noise_sd: np.ndarray | None, walkers: int, draws: int, tune: int, seed: int,
+                 noise_sd: np.ndarray | None, walkers: int, draws: int | None, tune: int, seed: int,
                  progress: bool | None):
-    """emcee (affine-invariant ensemble, stretch move); walkers are stored as chains."""
+    """emcee (affine-invariant ensemble, stretch move); walkers are stored as chains.
+
+    ``draws`` None: run until the chains pass their diagnostics (50 autocorrelation
+    times, R-hat, ESS; :mod:`feeler.calib.emcee_run`), discarding the first quarter;
+    else ``tune`` + ``draws`` steps. Returns (draws, sample_stats, notes)."""
     import emcee
+
+    from feeler.calib.emcee_run import run_until_converged
 
     rng = np.random.default_rng(seed)
     p = y.shape[1]
@@ -94,16 +100,21 @@ def sample_emcee(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise:
     sampler = emcee.EnsembleSampler(walkers, ndim, _log_posterior, vectorize=True,
                                     args=(x, y, prior, noise, nu, noise_sd))
     sampler.random_state = np.random.RandomState(seed).get_state()   # emcee uses the legacy RNG
-    sampler.run_mcmc(init, tune + draws, progress=show_progress(progress))
+    notes: list[str] = []
+    if draws is None:
+        tune, notes = run_until_converged(sampler, init, progress=progress)
+    else:
+        sampler.run_mcmc(init, tune + draws, progress=show_progress(progress))
     chain = sampler.get_chain(discard=tune)                # (draw, walker, ndim)
     chain = np.swapaxes(chain, 0, 1)                       # (walker, draw, ndim)
+    draws = chain.shape[1]
     B = chain[..., :3 * p].reshape(walkers, draws, p, 3)
     if noise_sd is None:
         sigma = np.exp(chain[..., 3 * p:])
     else:
         sigma = np.broadcast_to(np.asarray(noise_sd, float), (walkers, draws, p)).copy()
     lp = np.swapaxes(sampler.get_log_prob(discard=tune), 0, 1)
-    return {"B": B, "sigma": sigma}, {"lp": lp}
+    return {"B": B, "sigma": sigma}, {"lp": lp}, notes
 
 
 def _initial_walkers(rng, x, y, prior: RegressionPrior, noise_sd, walkers: int) -> np.ndarray:

@@ -14,7 +14,11 @@ keeps a stage error ε ~ N(0, stage_sd²) on U as latent variables (NUTS only).
 ``model="forward"`` is the naive regression, kept to show the bias.
 
 Backends: ``exact`` (Gaussian noise, models inverse/forward), ``nuts`` (PyMC, all
-variants), ``emcee`` (no latent variables: models inverse/forward).
+variants), ``emcee`` (no latent variables: models inverse/forward; runs until its chains
+pass their diagnostics unless ``draws`` is given).
+
+The verdict adds the model's own checks (:mod:`.checks`): unidentified design
+directions, units off by ~10³, prior–data conflict and posterior predictive checks.
 """
 from __future__ import annotations
 
@@ -24,6 +28,7 @@ import numpy as np
 
 from feeler.calib.fit import FitResult, make_result, posterior_from_draws
 from feeler.calib.matrix.backends import sample_emcee, sample_nuts
+from feeler.calib.matrix.checks import conflict_problems, design_problems, ppc_problems, unit_problems
 from feeler.calib.matrix.data import CalibrationData, weak_directions
 from feeler.calib.matrix.exact import exact_posterior
 from feeler.calib.matrix.prior import MatrixPrior
@@ -41,7 +46,7 @@ DIMS = {"C": ["disp_axis", "force_axis"], "K": ["force_axis", "disp_axis"],
 def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inverse",
                noise: str = "gaussian", backend: str = "exact", rng: np.random.Generator,
                noise_sd: tuple[float, float, float] | None = None, stage_sd_mm: float = 0.001,
-               student_nu: float = 4.0, chains: int = 4, draws: int = 1000, tune: int = 1000,
+               student_nu: float = 4.0, chains: int = 4, draws: int | None = 1000, tune: int = 1000,
                walkers: int = 32, progress: bool | None = None) -> FitResult:
     """Posterior of C (and K, noise sds, cond(C)) for one calibration campaign.
 
@@ -56,17 +61,26 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
         noise_sd: known noise sd per output axis (N for inverse/eiv, mm for forward);
             None infers it.
         stage_sd_mm: sd of the stage error on U for ``model="eiv"``, mm, > 0.
-        chains, draws, tune: chains (exact/NUTS), kept draws per chain, NUTS/emcee warm-up.
+        chains, draws, tune: chains (exact/NUTS), kept draws per chain, NUTS/emcee warm-up;
+            emcee with ``draws=None`` runs until its chains are 50 autocorrelation times
+            long, with R-hat ≤ 1.01 and bulk ESS ≥ 400 (first quarter discarded, at most
+            200 000 steps; the verdict fails at the cap). None means 1000 for exact/NUTS.
         walkers: emcee walkers (stored as chains).
     """
-    _check(model, noise, backend, noise_sd, stage_sd_mm, student_nu, chains, draws, tune, walkers)
+    if draws is None and backend != "emcee":
+        draws = 1000
+    _check(model, noise, backend, noise_sd, stage_sd_mm, student_nu, chains, draws if draws is not None else 4,
+           tune, walkers)
     rp = prior.for_direction("forward" if model == "forward" else "inverse")
-    if model == "forward":
-        x, y = data.f_n, data.u_mm
-        weak_directions(x, what="force", unit="N")
-    else:
-        x, y = data.u_mm, data.f_n
-        weak_directions(x, what="displacement", unit="mm")
+    what, unit = ("force", "N") if model == "forward" else ("displacement", "mm")
+    x, y = (data.f_n, data.u_mm) if model == "forward" else (data.u_mm, data.f_n)
+    if np.any(x):
+        weak_directions(x, what=what, unit=unit)
+    problems = design_problems(x, matrix=rp.matrix, what=what, unit=unit)
+    if not problems:
+        b_unit = "mm/N" if model == "forward" else "N/mm"
+        problems += unit_problems(x, y, prior.c0, forward=model == "forward")
+        problems += conflict_problems(x, y, rp.b0, rp.sd, matrix=rp.matrix, unit=b_unit)
     known = None if noise_sd is None else np.asarray(noise_sd, dtype=float)
     seed = int(rng.integers(2**31 - 1))
     t0 = time.perf_counter()
@@ -81,10 +95,13 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
                                  tune=tune, seed=seed, progress=progress)
         B, S = out["B"], out["sigma"]
     else:
-        out, stats = sample_emcee(x, y, rp, noise=noise, nu=student_nu, noise_sd=known,
-                                  walkers=walkers, draws=draws, tune=tune, seed=seed, progress=progress)
+        out, stats, notes = sample_emcee(x, y, rp, noise=noise, nu=student_nu, noise_sd=known,
+                                         walkers=walkers, draws=draws, tune=tune, seed=seed, progress=progress)
         B, S = out["B"], out["sigma"]
+        problems += notes
     seconds = time.perf_counter() - t0
+    problems += ppc_problems(x, y, B.reshape(-1, 3, 3), S.reshape(-1, 3), rng, matrix=rp.matrix, noise=noise,
+                             nu=student_nu)
     attrs = dict(model=model, noise=noise, student_nu=student_nu,
                  noise_sd_known=[] if known is None else [float(v) for v in known])
     posterior = _named_posterior(B, None if known is not None else S, model, data, stats, attrs)
@@ -95,7 +112,7 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
         priors["eps"] = f"stage error per point and axis ~ Normal(0, {stage_sd_mm:g} mm) (latent)"
     if noise == "student":
         priors["noise"] = f"Student-t, {student_nu:g} degrees of freedom (fixed)"
-    return make_result(posterior, backend=backend, priors=priors, seconds=seconds)
+    return make_result(posterior, backend=backend, priors=priors, seconds=seconds, checks=problems)
 
 
 def _named_posterior(B, S, model, data, stats, attrs):

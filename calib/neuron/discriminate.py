@@ -1,18 +1,30 @@
 """M3: the robot's discrimination of step heights from an M2 posterior (DESIGN §6).
 
-Responses to any step height come from the forward model: the scene's scan chain
-(surface → probe → sensor) simulates ``n_scans`` fresh touches of that height, and each
-posterior draw θ_s = (a, τ, h) decodes them to peak pulse densities
-z = max(a·P(τ) − h, 0). The 2AFC proportion correct of δ₁ < δ₂ under θ_s is
-P(z₂ > z₁) + ½ P(z₂ = z₁) over all pairs of scans; its spread over draws is the
-credible interval. Every height is simulated with the same root seed (common random
-touches), so curves over Δδ are smooth; the reference scans use a different seed so
-that the two intervals of a trial are independent touches.
+Responses to any step height come from the forward model: the scan chain of the scene the
+fit was trained on (recorded in the posterior; ``scene_path`` overrides it) simulates
+``n_scans`` fresh touches of that height, and each posterior draw θ_s = (a, τ, h) decodes
+them to peak pulse densities z = max(a·P(τ) − h, 0). The 2AFC proportion correct of
+δ₁ < δ₂ under θ_s is P(z₂ > z₁) + ½ P(z₂ = z₁) over all pairs of touches.
+
+Two sources of uncertainty enter every interval: the posterior (the spread over draws)
+and the Monte Carlo error of the finite set of simulated touches, which is common to all
+draws and so does not average out over them. Each draw is evaluated on its own bootstrap
+resample of the touches (Efron's bootstrap of the two-sample U-statistic), so the spread
+of those values over draws is the posterior spread plus the simulation spread; the
+reported intervals are their quantiles, the estimate the mean over draws on the touches
+as simulated, and ``mcse`` the simulation's standard error (the sd of bootstrap minus
+simulated value). The touches are part of the forward model: by default they are seeded
+from the scene's own seed (every comparison height with the same root seed — common
+random touches, smooth curves over Δδ — and the reference with the next one), so a rerun
+with another ``seed`` (posterior draws and resamples) reproduces the estimate within its
+interval, and ``touch_seed`` gives an independent set of touches, whose estimate the
+interval covers as it covers the large-sample value. One resample of each touch set
+serves a whole curve.
 
 Derived: the difference threshold Δδ₇₅ (the increment over ``reference_mm`` at 75 %
-correct) and Weber fraction Δδ₇₅ / reference; the PSE between scan speeds (the step at
-the test speed that is judged larger than the reference step at the reference speed
-half of the time).
+correct) and Weber fraction, reported as a bound (``> 25 um``) with the fraction of
+draws when the curves of many draws do not reach 75 % in the searched range; the PSE
+between scan speeds.
 """
 from __future__ import annotations
 
@@ -20,87 +32,135 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feeler.calib.neuron.classify import fit_tables
-from feeler.calib.neuron.model import peak_table
-from feeler.calib.neuron.synth import FOUR_PLATES, scene_scans
+from feeler.calib.neuron.classify import peaks_at
+from feeler.calib.neuron.scene_record import fit_scene_path
+from feeler.calib.neuron.synth import scene_scans
 from feeler.errors import ArgumentError
 
-__all__ = ["Interval", "Discriminator", "Threshold"]
+__all__ = ["Interval", "Discriminator", "Threshold", "proportion_correct"]
 
 
 @dataclass(frozen=True)
 class Interval:
-    """Posterior mean, 95 % equal-tailed interval and the per-draw values."""
+    """Estimate, 95 % interval and per-draw values.
+
+    Attributes:
+        mean (float): mean over draws of the value on the touches as simulated (NaN when
+            some draws have no finite value: see ``found``).
+        lo95, hi95 (float): 2.5 and 97.5 % quantiles of the bootstrap-resampled values
+            (posterior and simulation error); +inf when the value is not reached.
+        draws (ndarray[S]): per-draw values on the simulated touches.
+        mcse (float): Monte Carlo standard error of the estimate from the finite touches.
+        median (float): median of the bootstrap-resampled values (+inf allowed).
+        found (float): fraction of draws with a finite value.
+    """
     mean: float
     lo95: float
     hi95: float
     draws: np.ndarray
+    mcse: float = float("nan")
+    median: float = float("nan")
+    found: float = 1.0
 
     @classmethod
-    def of(cls, values) -> "Interval":
+    def of(cls, values, resampled=None) -> "Interval":
+        """From per-draw ``values`` and their bootstrap-resampled twins (non-finite = not
+        reached, counted as +inf in the quantiles)."""
         v = np.asarray(values, float)
-        ok = v[np.isfinite(v)]
-        if ok.size == 0:
-            return cls(np.nan, np.nan, np.nan, v)
-        lo, hi = np.quantile(ok, [0.025, 0.975])
-        return cls(float(ok.mean()), float(lo), float(hi), v)
+        r = v if resampled is None else np.asarray(resampled, float)
+        finite = np.isfinite(v)
+        rq = np.where(np.isnan(r), np.inf, r)
+        lo, med, hi = np.quantile(rq, [0.025, 0.5, 0.975], method="inverted_cdf")
+        both = finite & np.isfinite(r)
+        mcse = float(np.std(r[both] - v[both], ddof=1)) if both.sum() > 2 and resampled is not None else float("nan")
+        mean = float(v.mean()) if finite.all() else float("nan")
+        return cls(mean, float(lo), float(hi), v, mcse, float(med), float(finite.mean()))
 
 
 @dataclass(frozen=True)
 class Threshold:
     """Difference threshold Δδ₇₅ (mm) and Weber fraction around ``reference_mm``;
-    ``found`` is the fraction of draws whose curve reaches 75 % within the searched range."""
+    ``found`` is the fraction of draws whose curve reaches 75 % within ``searched_mm``."""
     reference_mm: float
     delta75_mm: Interval
     weber: Interval
     found: float
+    searched_mm: float = float("nan")
+
+    @property
+    def is_bound(self) -> bool:
+        """True when the upper end of the interval is not reached (report as a bound)."""
+        return not np.isfinite(self.delta75_mm.hi95)
+
+
+def proportion_correct(z_low: np.ndarray, z_high: np.ndarray) -> np.ndarray:
+    """Per draw: P(z_high > z_low) + ½ P(tie) over all pairs, ndarray[n_draws]."""
+    out = np.empty(z_low.shape[0])
+    for s, (lo, hi) in enumerate(zip(z_low, z_high)):
+        lo = np.sort(lo)
+        below = np.searchsorted(lo, hi, side="left")            # lower responses under each higher one
+        tied = np.searchsorted(lo, hi, side="right") - below
+        out[s] = (below.sum() + 0.5 * tied.sum()) / (lo.size * hi.size)
+    return out
 
 
 class Discriminator:
-    """Decodes simulated scans with posterior draws.
+    """Decodes simulated touches with posterior draws.
 
     Args:
-        result (FitResult): an M2 fit; scene_path: the robot-scan scene of the forward model;
-        n_scans (int): touches simulated per height (the Monte-Carlo sd of a proportion
-            correct near 0.5 is about √(2/(12·n_scans)), 0.02 at 400); n_draws (int): posterior draws used;
-        seed (int): root seed of draws and touches.
+        result (FitResult): an M2 fit; scene_path: a robot-scan scene for the forward model
+            (default: the scene recorded in the fit);
+        n_scans (int): touches simulated per height (the Monte Carlo sd of a proportion
+            correct near 0.86 is about 0.02 at 400, and shrinks as 1/√n_scans);
+        n_draws (int): posterior draws used; seed (int): seed of the draws and resamples;
+        touch_seed (int | None): root seed of the simulated touches (default: the scene's seed).
     """
 
-    def __init__(self, result, *, scene_path=FOUR_PLATES, n_scans: int = 400, n_draws: int = 200, seed: int = 0):
+    def __init__(self, result, *, scene_path=None, n_scans: int = 1000, n_draws: int = 200, seed: int = 0,
+                 touch_seed: int | None = None):
         if n_scans < 2 or n_draws < 2:
             raise ArgumentError("n_scans/n_draws", (n_scans, n_draws), "both >= 2")
-        table, _, draws, attrs = fit_tables(result)
-        self.log_tau, self.kernel = table.log_tau, str(attrs.get("kernel", "boxcar"))
+        from feeler.calib.neuron.decoder import DecoderDraws
+
         rng = np.random.default_rng(seed)
-        pick = rng.choice(draws["a"].size, size=min(n_draws, draws["a"].size), replace=False)
-        self.a, self.tau, self.h = (draws[k][pick] for k in ("a", "tau_s", "h"))
-        self.scene_path, self.n_scans, self.seed = scene_path, int(n_scans), int(seed)
+        dec = DecoderDraws.from_result(result, rng=rng, n_draws=n_draws)
+        self.a, self.tau, self.h = dec.a, dec.tau_s, dec.h
+        attrs = result.posterior["posterior"].attrs
+        self.log_tau = np.asarray(result.posterior["observed_data"]["log_tau_grid"].values, float)
+        self.kernel, self.length_mm = str(attrs.get("kernel", "boxcar")), float(attrs.get("length_mm", np.nan))
+        self.scene_path, self._keep = fit_scene_path(result, scene_path)
+        if touch_seed is None:
+            from feeler.scene import load_scene
+            touch_seed = int(load_scene(self.scene_path).scene.seed)
+        self.n_scans, self.seed, self.touch_seed = int(n_scans), int(seed), int(touch_seed)
+        self._boot = rng.integers(0, self.n_scans, size=(2, self.a.size, self.n_scans))   # reference, comparison
+        self._cache: dict = {}
 
     def responses(self, height_mm: float, *, speed_mm_s: float | None = None, reference: bool = False) -> np.ndarray:
-        """Peak z per draw and scan, ndarray[n_draws, n_scans], for one step height (mm)."""
-        seed = self.seed + (1 if reference else 2)
-        _, _, data = scene_scans(self.scene_path, seed=seed, per_plate=self.n_scans,
-                                 heights_mm=(float(height_mm),), speed_mm_s=speed_mm_s)
-        lt = self.log_tau
-        tab = peak_table(data.strain, data.t_s, tau_lo_s=float(np.exp(lt[0])), tau_hi_s=float(np.exp(lt[-1])),
-                         n_grid=lt.size, kernel=self.kernel)
-        return np.maximum(self.a[:, None] * tab.at(self.tau) - self.h[:, None], 0.0)
+        """Peak z per draw and touch, ndarray[n_draws, n_scans], for one step height (mm)."""
+        key = (float(height_mm), speed_mm_s, bool(reference))
+        if key not in self._cache:
+            seed = self.touch_seed + (1 if reference else 0)
+            _, _, data = scene_scans(self.scene_path, seed=seed, per_plate=self.n_scans,
+                                     heights_mm=(float(height_mm),), speed_mm_s=speed_mm_s)
+            p = peaks_at(data.strain, data.t_s, self.log_tau, self.tau, kernel=self.kernel)
+            self._cache[key] = np.maximum(self.a[:, None] * p - self.h[:, None], 0.0)
+        return self._cache[key]
 
-    @staticmethod
-    def proportion_correct(z_low: np.ndarray, z_high: np.ndarray) -> np.ndarray:
-        """Per draw: P(z_high > z_low) + ½ P(tie) over all pairs, ndarray[n_draws]."""
-        out = np.empty(z_low.shape[0])
-        for s, (lo, hi) in enumerate(zip(z_low, z_high)):
-            lo = np.sort(lo)
-            below = np.searchsorted(lo, hi, side="left")            # lower responses under each higher one
-            tied = np.searchsorted(lo, hi, side="right") - below
-            out[s] = (below.sum() + 0.5 * tied.sum()) / (lo.size * hi.size)
-        return out
+    def _resampled(self, z: np.ndarray, which: int) -> np.ndarray:
+        return np.take_along_axis(z, self._boot[which], axis=1)
+
+    def _curve(self, ref: np.ndarray, tests: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Per-draw proportion correct of each test against ``ref``: simulated and resampled, (S, k) each."""
+        ref_b = self._resampled(ref, 0)
+        point = np.stack([proportion_correct(ref, z) for z in tests], axis=1)
+        boot = np.stack([proportion_correct(ref_b, self._resampled(z, 1)) for z in tests], axis=1)
+        return point, boot
 
     def pc(self, lower_mm: float, higher_mm: float) -> Interval:
         """2AFC proportion correct that ``higher_mm`` gives the larger response than ``lower_mm``."""
-        return Interval.of(self.proportion_correct(self.responses(lower_mm, reference=True),
-                                                   self.responses(higher_mm)))
+        point, boot = self._curve(self.responses(lower_mm, reference=True), [self.responses(higher_mm)])
+        return Interval.of(point[:, 0], boot[:, 0])
 
     def threshold(self, reference_mm: float = 0.1, *, max_delta_mm: float | None = None, n_steps: int = 25) -> Threshold:
         """Δδ₇₅ around ``reference_mm`` (searched on ``n_steps`` increments up to
@@ -108,12 +168,15 @@ class Discriminator:
         if not reference_mm > 0:
             raise ArgumentError("reference_mm", reference_mm, "> 0")
         top = 0.25 * reference_mm if max_delta_mm is None else max_delta_mm
+        if not top > 0:
+            raise ArgumentError("max_delta_mm", top, "> 0")
         deltas = np.linspace(0.0, top, n_steps + 1)
         ref = self.responses(reference_mm, reference=True)
-        curve = np.stack([self.proportion_correct(ref, self.responses(reference_mm + d)) for d in deltas], axis=1)
-        d75 = _crossing(deltas, curve, 0.75)
-        return Threshold(reference_mm=float(reference_mm), delta75_mm=Interval.of(d75),
-                         weber=Interval.of(d75 / reference_mm), found=float(np.mean(np.isfinite(d75))))
+        point, boot = self._curve(ref, [self.responses(reference_mm + d) for d in deltas])
+        d75 = Interval.of(_crossing(deltas, point, 0.75), _crossing(deltas, boot, 0.75))
+        weber = Interval.of(d75.draws / reference_mm, _crossing(deltas, boot, 0.75) / reference_mm)
+        return Threshold(reference_mm=float(reference_mm), delta75_mm=d75, weber=weber, found=d75.found,
+                         searched_mm=float(top))
 
     def pse(self, reference_mm: float, speed_ref_mm_s: float, speed_test_mm_s: float, *, span_mm: float | None = None,
             n_steps: int = 16) -> Interval:
@@ -121,19 +184,25 @@ class Discriminator:
         span = reference_mm if span_mm is None else span_mm
         heights = np.linspace(max(reference_mm - span, 0.0), reference_mm + span, n_steps + 1)
         ref = self.responses(reference_mm, speed_mm_s=speed_ref_mm_s, reference=True)
-        curve = np.stack([self.proportion_correct(ref, self.responses(x, speed_mm_s=speed_test_mm_s))
-                          for x in heights], axis=1)
-        return Interval.of(_crossing(heights, curve, 0.5))
+        point, boot = self._curve(ref, [self.responses(x, speed_mm_s=speed_test_mm_s) for x in heights])
+        return Interval.of(_crossing(heights, point, 0.5), _crossing(heights, boot, 0.5))
+
+    # kept for callers of the earlier static method
+    proportion_correct = staticmethod(proportion_correct)
 
 
 def _crossing(x: np.ndarray, curve: np.ndarray, level: float) -> np.ndarray:
     """First upward crossing of ``level`` per row of ``curve (ndarray[n_draws, n_x])``, linear
-    interpolation; NaN where the row starts above or never reaches ``level``."""
-    out = np.full(curve.shape[0], np.nan)
+    interpolation; +inf where the row never reaches ``level`` in the range, −inf where it
+    starts at or above it."""
+    out = np.full(curve.shape[0], np.inf)
     above = curve >= level
     for i, row in enumerate(curve):
         k = int(np.argmax(above[i]))
-        if not above[i, k] or k == 0:
+        if not above[i, k]:
+            continue
+        if k == 0:
+            out[i] = -np.inf
             continue
         y0, y1 = row[k - 1], row[k]
         out[i] = x[k - 1] + (level - y0) / (y1 - y0) * (x[k] - x[k - 1])

@@ -1,13 +1,40 @@
-"""M2 model: δ_k ~ Normal(max(a·P_k(τ) − h, 0), σ) over labelled plate scans.
+"""M2 model: the decoded height of a plate scan, calibrated plate by plate.
 
-P_k(τ) is the peak of the unit-gain window sum u₁ of scan k (strain = U_y / length).
-It is tabulated once on a uniform grid in log τ (one :func:`peak_window_sum` per grid
-point) and interpolated linearly in log τ: the fractional window makes P continuous in
-τ, so every backend (grid, NUTS, emcee) sees the same continuous likelihood.
+Data: labelled scans k with plate steps c_k (mm) and P_k(τ), the peak of the unit-gain
+window sum u₁ of scan k (strain = U_y / length), tabulated once on a uniform grid in
+log τ (one :func:`peak_window_sum` per grid point) and interpolated linearly in log τ.
 
-Units: δ and σ in mm (the label is the plate's step), h in mm (the decoded height is the
-pulse density), a in mm per unit strain, τ in s. Priors are scaled to the data by
-``delta_scale_mm`` = the largest |label| (see :class:`Priors`).
+Model, for a window τ (the "calibration model"; the scans are the response, the
+designed steps the covariate, as in classical calibration):
+
+    P_k(τ) | plate c  ~  Normal(μ_c, σ_c),   μ_c free per plate (flat prior),
+
+with the decoder noise σ_c following one of :data:`NOISE_MODELS`:
+
+- ``constant``:  σ_c = σ;
+- ``growing``:   σ_c = σ₀·exp(g·x_c), x_c = (c − c_min)/(c_max − c_min), g ~ Uniform(±g_max);
+- ``per-plate``: σ_c free.
+
+Priors (:class:`PlatePrior`): σ² (or σ₀²) ~ scaled-inv-χ²(ν₀, s₀²) and μ_c | σ_c ~
+Normal(m₀_c, σ_c²/κ₀); ν₀ = κ₀ = 0 (the default) is the scale-free reference prior
+p(μ, σ) ∝ 1/σ, which makes the fit independent of the units of P. The means are free per
+plate because the peak window sum is not linear in the step near the noise floor (a flat
+plate's P is the rectified noise, a 0.01 mm step's barely more): a line through the
+plates is biased for some of them, which is what the old one-σ regression reported
+("per-plate bias p = 0.000") on every fit.
+
+The window τ is a choice of decoder, not a parameter of the scans: P(τ) are different
+data for each τ, so τ gets no likelihood of its own. Its weights are those of
+pseudo-Bayesian model averaging (pseudo-BMA+, Yao, Vehtari, Simpson & Gelman 2018): prior
+× exp(Σ_k log p(δ_k | scan k, other scans, τ)), the leave-one-out predictive density of
+each label under the continuous decoder, averaged over Bayesian-bootstrap resamples of
+the scans (:mod:`.window`).
+
+Derived per draw: the neuron's gain a (mm per unit strain) and offset h (mm), the
+least-squares line μ_c ≈ (c + h)/a through the plate means, so that the pulse density
+z = a·P − h is the decoded height in mm; the plate means and sds in mm
+(``plate_mean_mm`` = a·μ_c − h, ``plate_sd_mm`` = a·σ_c) and ``sigma_mm``, the root mean
+square of the plate sds.
 """
 from __future__ import annotations
 
@@ -17,10 +44,11 @@ import numpy as np
 
 from feeler.errors import ArgumentError
 
-__all__ = ["PeakTable", "Priors", "peak_table", "make_priors", "log_prior", "log_likelihood",
-           "mean_mm", "PARAMS"]
+__all__ = ["PeakTable", "Plates", "PlatePrior", "Priors", "peak_table", "make_priors", "plate_stats",
+           "decoder_line", "PARAMS", "NOISE_MODELS"]
 
 PARAMS = ("a", "tau_s", "h", "sigma_mm")
+NOISE_MODELS = ("constant", "growing", "per-plate")
 
 
 @dataclass(frozen=True)
@@ -69,74 +97,112 @@ def peak_table(strain, t_s, *, tau_lo_s: float, tau_hi_s: float, n_grid: int = 2
 
 
 @dataclass(frozen=True)
+class Plates:
+    """The plates of a training set.
+
+    Attributes:
+        steps_mm (ndarray[C]): distinct steps, increasing, mm.
+        group (ndarray[n_scans] int): plate index of each scan.
+        counts (ndarray[C] int): scans per plate.
+    """
+    steps_mm: np.ndarray
+    group: np.ndarray
+    counts: np.ndarray
+
+    @classmethod
+    def of(cls, step_mm) -> "Plates":
+        steps, group = np.unique(np.asarray(step_mm, float), return_inverse=True)
+        return cls(steps_mm=steps, group=group, counts=np.bincount(group, minlength=steps.size))
+
+    @property
+    def x(self) -> np.ndarray:
+        """Position of each plate in [0, 1] along the steps (0 for a single plate)."""
+        span = self.steps_mm[-1] - self.steps_mm[0]
+        return (self.steps_mm - self.steps_mm[0]) / span if span > 0 else np.zeros(self.steps_mm.size)
+
+
+def plate_stats(p: np.ndarray, plates: Plates) -> tuple[np.ndarray, np.ndarray]:
+    """Per-plate mean and within-plate sum of squares of ``p (ndarray[..., n_scans])``:
+    two ndarray[..., C]."""
+    onehot = np.eye(plates.steps_mm.size)[plates.group]                 # (n, C)
+    mean = (p @ onehot) / plates.counts
+    resid = p - mean[..., plates.group]
+    return mean, (resid ** 2) @ onehot
+
+
+@dataclass(frozen=True)
+class PlatePrior:
+    """Conjugate prior of the plate parameters (in the units of P).
+
+    σ² ~ scaled-inv-χ²(nu0, s0_sq) (σ₀² for ``growing``, each σ_c² for ``per-plate``);
+    μ_c | σ_c ~ Normal(m0[c], σ_c²/kappa0). ``nu0 = kappa0 = 0`` is the reference prior
+    p(μ, σ) ∝ 1/σ (default: units-free); SBC uses a proper one.
+    """
+    nu0: float = 0.0
+    s0_sq: float = 0.0
+    kappa0: float = 0.0
+    m0: tuple = ()
+
+    def __post_init__(self):
+        for name in ("nu0", "s0_sq", "kappa0"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ArgumentError(name, v, "a finite number >= 0")
+        if self.kappa0 > 0 and not self.m0:
+            raise ArgumentError("m0", self.m0, "one prior mean per plate when kappa0 > 0")
+
+    @property
+    def proper(self) -> bool:
+        return self.nu0 > 0 and self.s0_sq > 0 and self.kappa0 > 0
+
+
+@dataclass(frozen=True)
 class Priors:
     """Priors of M2 (stated in every output).
 
     Attributes:
         tau_lo_s, tau_hi_s (float): ln τ ~ Uniform(ln tau_lo_s, ln tau_hi_s), s.
-        log_a_mu, log_a_sd (float): ln a ~ Normal(log_a_mu, log_a_sd), a in mm/strain.
-        h_scale_mm (float): h ~ HalfNormal(h_scale_mm), mm.
-        sigma_scale_mm (float): σ ~ HalfNormal(sigma_scale_mm), mm.
+        growth_max (float): g ~ Uniform(−growth_max, growth_max) for ``growing`` noise.
+        plate (PlatePrior): prior of the plate means and sds.
     """
     tau_lo_s: float
     tau_hi_s: float
-    log_a_mu: float
-    log_a_sd: float
-    h_scale_mm: float
-    sigma_scale_mm: float
+    growth_max: float = 3.0
+    plate: PlatePrior = PlatePrior()
 
-    def as_text(self) -> dict[str, str]:
-        return {"a": f"ln a ~ Normal({self.log_a_mu:.4g}, {self.log_a_sd:.4g}), a in mm per unit strain",
-                "tau_s": f"ln tau ~ Uniform(ln {self.tau_lo_s:.4g} s, ln {self.tau_hi_s:.4g} s)",
-                "h": f"h ~ HalfNormal({self.h_scale_mm:.4g} mm)",
-                "sigma_mm": f"sigma ~ HalfNormal({self.sigma_scale_mm:.4g} mm)"}
+    def as_text(self, noise: str = "per-plate") -> dict[str, str]:
+        p = self.plate
+        sd = ("reference prior p(mu, sigma) ~ 1/sigma" if not p.proper else
+              f"sigma^2 ~ scaled-inv-chi2({p.nu0:g}, {p.s0_sq:.4g}), mu | sigma ~ Normal(m0, sigma^2/{p.kappa0:g})")
+        out = {"tau_s": f"ln tau ~ Uniform(ln {self.tau_lo_s:.4g} s, ln {self.tau_hi_s:.4g} s); weights by "
+                        f"leave-one-out predictive of the labels (pseudo-BMA)",
+               "plates": f"peak window sum of plate c ~ Normal(mu_c, sigma_c), noise {noise}; {sd}",
+               "a, h": "least-squares line mu_c = (c + h)/a through the plate means (derived)"}
+        if noise == "growing":
+            out["growth"] = f"sigma_c = sigma_0 exp(g x_c), g ~ Uniform(-{self.growth_max:g}, {self.growth_max:g})"
+        return out
 
     def bounds(self) -> dict[str, tuple[float, float]]:
         """Hard prior bounds (for the piling check)."""
         return {"tau_s": (self.tau_lo_s, self.tau_hi_s)}
 
 
-def make_priors(table: PeakTable, delta_mm, *, log_a_sd: float = 1.5) -> Priors:
-    """Weakly informative priors scaled to the data: a centred where the largest peak
-    (at the geometric-mean τ) decodes to the largest label; h, σ on the label scale."""
-    d = np.asarray(delta_mm, dtype=float)
-    scale = float(np.max(np.abs(d)))
-    if not np.isfinite(scale) or scale <= 0:
-        raise ArgumentError("labels step_mm", scale, "at least one non-zero finite step")
-    mid = table.peak[:, len(table.log_tau) // 2]
-    p_max = float(np.max(mid))
-    if not p_max > 0:
-        raise ArgumentError("scans", "peak window sum 0", "scans with some strain change")
+def make_priors(table: PeakTable, *, growth_max: float = 3.0, plate: PlatePrior = PlatePrior()) -> Priors:
+    """Priors of a fit on ``table``: τ over the table's range, the reference plate prior."""
     return Priors(tau_lo_s=float(np.exp(table.log_tau[0])), tau_hi_s=float(np.exp(table.log_tau[-1])),
-                  log_a_mu=float(np.log(scale / p_max)), log_a_sd=float(log_a_sd),
-                  h_scale_mm=scale, sigma_scale_mm=scale)
+                  growth_max=float(growth_max), plate=plate)
 
 
-def mean_mm(table: PeakTable, a, tau_s, h) -> np.ndarray:
-    """max(a·P(τ) − h, 0) per scan, broadcasting draws: ndarray[..., n_scans] in mm."""
-    a, h = np.asarray(a, float)[..., None], np.asarray(h, float)[..., None]
-    return np.maximum(a * table.at(tau_s) - h, 0.0)
-
-
-def log_prior(pri: Priors, log_a, log_tau, h, log_sigma) -> np.ndarray:
-    """log density in the unconstrained coordinates (ln a, ln τ, h, ln σ); −inf outside.
-
-    Each term is computed on its own argument and the four are added by broadcasting,
-    so a product grid costs one addition per cell."""
-    log_a, log_tau, h, log_sigma = (np.asarray(v, float) for v in (log_a, log_tau, h, log_sigma))
-    t_a = -0.5 * ((log_a - pri.log_a_mu) / pri.log_a_sd) ** 2
-    inside = (log_tau >= np.log(pri.tau_lo_s)) & (log_tau <= np.log(pri.tau_hi_s))
-    t_tau = np.where(inside, 0.0, -np.inf)
-    t_h = np.where(h >= 0, -0.5 * (h / pri.h_scale_mm) ** 2, -np.inf)
-    t_s = -0.5 * (np.exp(log_sigma) / pri.sigma_scale_mm) ** 2 + log_sigma      # Jacobian of ln σ
-    return t_a + t_tau + t_h + t_s
-
-
-def log_likelihood(table: PeakTable, delta_mm, a, tau_s, h, sigma_mm) -> np.ndarray:
-    """Σ_k log Normal(δ_k | mean_k, σ), broadcasting draws → ndarray[...]."""
-    d = np.asarray(delta_mm, float)
-    sigma = np.asarray(sigma_mm, float)
-    resid = d - mean_mm(table, a, tau_s, h)
-    ss = np.sum(resid ** 2, axis=-1)
-    n = d.shape[-1]
-    return -n * np.log(sigma) - 0.5 * ss / sigma ** 2 - 0.5 * n * np.log(2 * np.pi)
+def decoder_line(mu: np.ndarray, plates: Plates) -> tuple[np.ndarray, np.ndarray]:
+    """(a, h) of the least-squares line μ_c ≈ (c + h)/a (weights n_c) per row of
+    ``mu (ndarray[..., C])``; a ≤ 0 or a single plate give NaN."""
+    c, w = plates.steps_mm, plates.counts / plates.counts.sum()
+    cbar = float(np.sum(w * c))
+    var_c = float(np.sum(w * (c - cbar) ** 2))
+    mbar = np.sum(w * mu, axis=-1)
+    cov = np.sum(w * (c - cbar) * (mu - mbar[..., None]), axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = cov / var_c if var_c > 0 else np.full(mbar.shape, np.nan)
+        a = np.where(slope > 0, 1.0 / slope, np.nan)
+        h = a * (mbar - slope * cbar)                     # intercept / slope
+    return a, h

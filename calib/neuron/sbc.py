@@ -1,9 +1,14 @@
-"""M2 as an SBC problem: prior draws of (a, τ, h, σ), labels from the model on real scans.
+"""M2 as an SBC problem: prior draws of the plates, peaks simulated at a known window.
 
-The covariates are the scans of a robot-scan scene (default four-plates); the priors are
-fixed before any label is seen (:func:`fixed_priors`: a centred on the nominal label scale
-``scale_mm`` over the largest peak), so the simulator draws exactly from the prior the fit
-uses. The fit is the default grid backend (independent draws).
+The design (plates and scans per plate) is a robot-scan scene's; the prior is fixed
+before any simulated data are seen: a proper conjugate plate prior centred on the scene's
+own plate means and spread at the scene's window τ (:func:`sbc_priors`), so the
+simulator draws exactly from the prior the fit uses. The window is known (the τ weights
+are a model-averaging device over decoders, not a parameter with a likelihood — see
+:mod:`.model`), so the fit reads the simulated peaks at that window and draws the plate
+parameters with the exact backend. Ranks are checked for every plate mean and sd, the
+growth of the spread (``growing``), and for the derived line (a, h), the decoded-height
+means and sds and ``sigma_mm`` (functions of the parameters are rank-uniform too).
 """
 from __future__ import annotations
 
@@ -11,44 +16,77 @@ from functools import partial
 
 import numpy as np
 
-from feeler.calib.neuron.grid import sample_grid
-from feeler.calib.neuron.model import PeakTable, Priors
-from feeler.calib.neuron.synth import FOUR_PLATES, Truth, scene_scans, simulate_labels
+from feeler.calib.neuron.grid import named_draws, sample_grid
+from feeler.calib.neuron.model import PlatePrior, Plates, Priors, plate_stats
+from feeler.calib.neuron.synth import FOUR_PLATES, Truth, scene_scans, simulate_peaks, single_window_table
 
-__all__ = ["neuron_sbc_problem", "fixed_priors", "simulate_neuron", "fit_neuron_draws"]
-
-
-def fixed_priors(table: PeakTable, *, scale_mm: float = 0.2, log_a_sd: float = 1.0) -> Priors:
-    """Label-free priors: ln a ~ N(ln(scale/max P(τ_mid)), log_a_sd), h, σ ~ HalfNormal(scale/4)."""
-    p_max = float(np.max(table.peak[:, len(table.log_tau) // 2]))
-    return Priors(tau_lo_s=float(np.exp(table.log_tau[0])), tau_hi_s=float(np.exp(table.log_tau[-1])),
-                  log_a_mu=float(np.log(scale_mm / p_max)), log_a_sd=log_a_sd,
-                  h_scale_mm=scale_mm / 4, sigma_scale_mm=scale_mm / 4)
+__all__ = ["neuron_sbc_problem", "sbc_priors", "simulate_neuron", "fit_neuron_draws"]
 
 
-def simulate_neuron(rng: np.random.Generator, *, table: PeakTable, priors: Priors):
-    """One (truth, labels) pair from the prior predictive."""
-    p = priors
-    truth = Truth(a=float(np.exp(p.log_a_mu + p.log_a_sd * rng.standard_normal())),
-                  tau_s=float(np.exp(rng.uniform(np.log(p.tau_lo_s), np.log(p.tau_hi_s)))),
-                  h=float(abs(p.h_scale_mm * rng.standard_normal())),
-                  sigma_mm=float(abs(p.sigma_scale_mm * rng.standard_normal())))
-    labels = simulate_labels(table, truth, rng)
-    return {"a": truth.a, "tau_s": truth.tau_s, "h": truth.h, "sigma_mm": truth.sigma_mm}, labels
+def sbc_priors(peaks: np.ndarray, plates: Plates, tau_s: float, *, nu0: float = 6.0, kappa0: float = 1.0,
+               growth_max: float = 1.5) -> Priors:
+    """Proper plate prior from the scene's own peaks at ``tau_s``: m0 = plate means,
+    s0² = pooled within-plate variance, ν₀ = ``nu0``, κ₀ = ``kappa0``."""
+    mean, ss = plate_stats(np.asarray(peaks, float), plates)
+    s0_sq = float(np.sum(ss) / max(plates.counts.sum() - plates.steps_mm.size, 1))
+    return Priors(tau_lo_s=tau_s * (1 - 1e-6), tau_hi_s=tau_s * (1 + 1e-6), growth_max=growth_max,
+                  plate=PlatePrior(nu0=nu0, s0_sq=s0_sq, kappa0=kappa0, m0=tuple(float(v) for v in mean)))
 
 
-def fit_neuron_draws(labels, rng: np.random.Generator, *, table: PeakTable, priors: Priors,
-                     n_draws: int = 999, tau_size: int = 160) -> dict:
-    """Independent grid-posterior draws ``name -> ndarray[n_draws]``."""
-    draws = sample_grid(table, labels, priors, chains=1, draws=n_draws, rng=rng, tau_size=tau_size)
-    return {k: np.ravel(v) for k, v in draws.items()}
+def _named_truth(mu, sigma, growth, plates, noise, tau_s) -> dict:
+    out = named_draws(np.array([tau_s]), mu[None], sigma[None], np.array([growth]), plates, noise)
+    flat = {}
+    for k, v in out.items():
+        if k == "tau_s":
+            continue
+        v = np.asarray(v)[0]
+        if np.ndim(v):
+            flat.update({f"{k}[{c}]": float(x) for c, x in enumerate(v)})
+        else:
+            flat[k] = float(v)
+    return flat
 
 
-def neuron_sbc_problem(scene_path=FOUR_PLATES, *, n_grid: int = 128, tau_size: int = 160):
-    """``(simulate, fit)`` for :func:`feeler.calib.sbc.run_sbc`, picklable (``tau_size``: grid
-    points on the τ axis of the fit; fewer is faster and slightly coarser)."""
-    data = scene_scans(scene_path)[2]
-    table = data.table(n_grid=n_grid)
-    priors = fixed_priors(table)
-    return (partial(simulate_neuron, table=table, priors=priors),
-            partial(fit_neuron_draws, table=table, priors=priors, tau_size=tau_size))
+def simulate_neuron(rng: np.random.Generator, *, plates: Plates, priors: Priors, noise: str, tau_s: float):
+    """One (truth, peaks) pair from the prior predictive."""
+    p = priors.plate
+    C = plates.steps_mm.size
+    growth = float(rng.uniform(-priors.growth_max, priors.growth_max)) if noise == "growing" else 0.0
+    if noise == "per-plate":
+        sigma = np.sqrt(p.nu0 * p.s0_sq / rng.chisquare(p.nu0, size=C))
+    else:
+        sigma = np.sqrt(p.nu0 * p.s0_sq / rng.chisquare(p.nu0)) * np.exp(growth * plates.x)
+    mu = np.asarray(p.m0, float) + sigma / np.sqrt(p.kappa0) * rng.standard_normal(C)
+    peaks = simulate_peaks(plates, Truth(mu=mu, sigma=sigma), rng)
+    return _named_truth(mu, sigma, growth, plates, noise, tau_s), peaks
+
+
+def fit_neuron_draws(peaks, rng: np.random.Generator, *, plates: Plates, priors: Priors, noise: str, tau_s: float,
+                     n_draws: int = 999) -> dict:
+    """Independent exact draws ``name -> ndarray[n_draws]`` at the known window."""
+    table = single_window_table(peaks, tau_s)
+    post = sample_grid(table, plates, priors, noise, np.zeros(2), chains=1, draws=n_draws, rng=rng)
+    out = {}
+    for k, v in post.items():
+        v = np.asarray(v).reshape(n_draws, -1)
+        if k == "tau_s":
+            continue
+        if v.shape[1] > 1 or k.startswith("plate_"):
+            out.update({f"{k}[{c}]": v[:, c] for c in range(v.shape[1])})
+        else:
+            out[k] = v[:, 0]
+    return out
+
+
+def neuron_sbc_problem(scene_path=FOUR_PLATES, *, noise: str = "growing", per_plate: int | None = None):
+    """``(simulate, fit)`` for :func:`feeler.calib.sbc.run_sbc`, picklable: the design of
+    ``scene_path`` (optionally ``per_plate`` scans per plate) at the scene's neuron τ."""
+    from feeler.models import neuron
+
+    scene, _, data = scene_scans(scene_path, per_plate=per_plate)
+    tau = float(scene.neuron.tau_s)
+    plates = Plates.of(data.step_mm)
+    peaks = neuron.peak_window_sum(data.strain, data.t_s, tau=tau, kernel=data.kernel)
+    priors = sbc_priors(peaks, plates, tau)
+    kw = dict(plates=plates, priors=priors, noise=noise, tau_s=tau)
+    return partial(simulate_neuron, **kw), partial(fit_neuron_draws, **kw)

@@ -1,7 +1,8 @@
-"""Synthetic inputs for M2 checks: robot-scan covariates and labels simulated from the model.
+"""Synthetic inputs for M2 checks: robot-scan scans, and peaks simulated from the model.
 
-The scans carry no true (a, τ, h) — the neuron is a decoder — so recovery tests and SBC
-keep real (simulated) scans as covariates and draw the labels from the model itself.
+The scans carry no true decoder — the neuron is a decoder — so recovery tests and SBC
+keep the real (simulated) design, the plates and their counts, and draw the peak window
+sums from the model itself at a fixed window (:func:`simulate_peaks`).
 """
 from __future__ import annotations
 
@@ -11,27 +12,33 @@ from pathlib import Path
 
 import numpy as np
 
-from feeler.calib.neuron.fit import NeuronData, data_from_scans
-from feeler.calib.neuron.model import PeakTable, mean_mm
+from feeler.calib.neuron.data import NeuronData, data_from_scans
+from feeler.calib.neuron.model import PeakTable, Plates
 
-__all__ = ["Truth", "simulate_labels", "scene_scans", "FOUR_PLATES"]
+__all__ = ["Truth", "simulate_peaks", "single_window_table", "scene_scans", "FOUR_PLATES", "HARD_SCENES"]
 
 FOUR_PLATES = Path(__file__).resolve().parents[2] / "datasets-synthetic" / "four-plates.toml"
+HARD_SCENES = Path(__file__).resolve().parents[2] / "datasets-synthetic" / "hard"
 
 
 @dataclass(frozen=True)
 class Truth:
-    """True M2 parameters: a (mm/strain), tau_s (s), h (mm), sigma_mm (mm)."""
-    a: float
-    tau_s: float
-    h: float
-    sigma_mm: float
+    """True plate parameters at one window, in units of P: ``mu``, ``sigma`` (ndarray[C])."""
+    mu: np.ndarray
+    sigma: np.ndarray
 
 
-def simulate_labels(table: PeakTable, truth: Truth, rng: np.random.Generator) -> np.ndarray:
-    """δ_k = max(a·P_k(τ) − h, 0) + σ·N(0, 1) for every scan of ``table`` (ndarray[n_scans], mm)."""
-    mu = mean_mm(table, truth.a, truth.tau_s, truth.h)
-    return mu + truth.sigma_mm * rng.standard_normal(mu.shape)
+def simulate_peaks(plates: Plates, truth: Truth, rng: np.random.Generator) -> np.ndarray:
+    """P_k ~ Normal(μ_c, σ_c) for every scan of the design, ndarray[n_scans]."""
+    g = plates.group
+    return truth.mu[g] + truth.sigma[g] * rng.standard_normal(g.size)
+
+
+def single_window_table(peaks: np.ndarray, tau_s: float) -> PeakTable:
+    """A peak table with two nodes around ``tau_s`` holding the same peaks: the model at a
+    known window (the τ weights are then flat and every draw reads these peaks)."""
+    p = np.asarray(peaks, float)[:, None]
+    return PeakTable(log_tau=np.log(tau_s) + np.array([-1e-6, 1e-6]), peak=np.hstack([p, p]))
 
 
 def scene_scans(scene_path=FOUR_PLATES, *, seed: int | None = None, per_plate: int | None = None,
@@ -50,7 +57,7 @@ def scene_scans(scene_path=FOUR_PLATES, *, seed: int | None = None, per_plate: i
         scene = dataclasses.replace(scene, surface=dataclasses.replace(scene.surface, heights_mm=tuple(heights_mm)))
     if speed_mm_s is not None:
         scene = dataclasses.replace(scene, motion=dataclasses.replace(scene.motion, speed_mm_s=float(speed_mm_s)))
-    scans, _ = simulate_scans(scene)
+    scans, _ = simulate_scans(scene, scene_path=scene_path)
     nrn = scene.neuron
     data: NeuronData = data_from_scans(scans, length_mm=nrn.length_mm, kernel=nrn.kernel)
     return scene, scans, data

@@ -1,11 +1,18 @@
 """Calibrate the neuron's (a, τ, h) and the decoder noise σ from labelled plate scans (M2).
 
 DATASET is a run directory of a robot-scan scene (scans.csv + scene.toml, as written by
-`feeler simulate`), or a scans.csv with --length-mm. Each scan's label is its plate's
-step (mm); the model is δ_k ~ Normal(max(a·P_k(τ) − h, 0), σ) with P_k(τ) the peak window
-sum of strain = U_y / length. Backends: grid (exact posterior on an adaptive grid,
-default, fastest), nuts (PyMC), emcee. The printed posterior predictive check says
-whether the decoder fits the labels.
+`feeler simulate` or `feeler acquire`), or a scans.csv with --length-mm. Each scan's
+label is its plate's step (mm). P_k(τ) is the peak window sum of strain = U_y / length;
+per plate, P ~ Normal(μ_c, σ_c) with the noise σ_c constant, growing with the step, or
+free per plate (--noise; auto picks by leave-one-out prediction of the labels). The
+window τ is weighted by how well the decoder predicts each left-out label; the decoded
+height is z = a·P − h on the least-squares line through the plates. Backends: grid
+(exact, default, fastest), nuts (PyMC), emcee (runs until its chains are 50
+autocorrelation times long, or fails at --emcee-steps). The fit records the scene of
+DATASET, which `feeler discriminate` then simulates. The verdict fails when the data
+cannot pin the decoder down (one plate, noise-free scans, a window any value of which
+fits), when units look wrong (µm for mm, ms for s), or when the leave-one-out check
+finds a plate whose 90 % intervals would not cover 85–95 % of its scans.
 """
 from __future__ import annotations
 
@@ -24,7 +31,11 @@ def register(parser) -> None:
                         help="grid (exact, default), PyMC NUTS, or emcee")
     parser.add_argument("--length-mm", type=float, default=None,
                         help="representative length for strain = U_y / length, mm (default: the scene's)")
-    parser.add_argument("--emcee-steps", type=int, default=8000, help="emcee steps per walker (default 8000)")
+    parser.add_argument("--noise", choices=("auto", "constant", "growing", "per-plate"), default="auto",
+                        help="decoder noise model (default auto: chosen by leave-one-out prediction)")
+    parser.add_argument("--emcee-steps", type=int, default=None,
+                        help="emcee: cap on steps per walker (default: run until 50 autocorrelation times, "
+                             "at most 200000 steps)")
     add_fit_arguments(parser, draws=1000)
     parser.set_defaults(run=run)
 
@@ -35,20 +46,35 @@ def run(args) -> int:
     from feeler.calib.neuron import DecoderMisfitWarning, data_from_scans, fit_neuron
     from feeler.datasets import read_scans
 
+    import json
+
+    from feeler.calib.fit import DiagnosticWarning
+    from feeler.errors import ArgumentError
+
+    if args.emcee_steps is not None and args.emcee_steps < 100:
+        raise ArgumentError("--emcee-steps", args.emcee_steps, ">= 100")
     csv, length_mm, kernel = locate_scans(Path(args.dataset), args.length_mm)
+    scene_path = csv.with_name("scene.toml")
+    scene_toml = scene_path.read_text(encoding="utf-8") if scene_path.is_file() else None
     scans = read_scans(csv)
     data = data_from_scans(scans, length_mm=length_mm, kernel=kernel)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DecoderMisfitWarning)          # printed below instead
-        result = fit_neuron(data, backend=args.backend, seed=args.seed, chains=args.chains, draws=args.draws,
-                            tune=args.tune, emcee_steps=args.emcee_steps, progress=args.progress)
+        warnings.simplefilter("ignore", DiagnosticWarning)
+        result = fit_neuron(data, backend=args.backend, noise=args.noise, seed=args.seed, chains=args.chains,
+                            draws=args.draws, tune=args.tune, emcee_steps=args.emcee_steps, progress=args.progress,
+                            scene_toml=scene_toml, scene_path=str(scene_path.resolve()) if scene_toml else None)
     print(f"M2 neuron: {scans.step_mm.size} scans from {csv}, strain = U_y / {length_mm:g} mm, "
-          f"backend {args.backend}")
+          f"backend {args.backend}" + ("" if scene_toml else "; no scene.toml: discriminate will need --scene"))
     attrs = result.posterior["posterior"].attrs
-    fits = attrs["ppc_coverage90"] >= 0.8 and attrs["ppc_p_value"] >= 0.01
-    print(f"posterior predictive check: {100 * attrs['ppc_coverage90']:.0f} % of labels inside their 90 % "
-          f"interval, per-plate bias p = {attrs['ppc_p_value']:.3f} -> "
-          + ("the decoder fits" if fits else "the decoder is biased for some plates"))
+    scores = json.loads(attrs.get("noise_scores", "{}"))
+    checks = json.loads(attrs.get("checks", "{}"))
+    steps = result.posterior["observed_data"]["plate_steps_mm"].values
+    print(f"decoder noise: {attrs['noise']}" + (" (leave-one-out log score per scan: " + ", ".join(
+        f"{k} {v / scans.step_mm.size:+.3f}" for k, v in scores.items()) + ")" if scores else ""))
+    if "loo_coverage90" in checks:
+        print("posterior predictive check (leave-one-out): labels inside their 90 % interval per plate: " + ", ".join(
+            f"{s:g} mm {100 * c:.0f} %" for s, c in zip(steps, checks["loo_coverage90"])))
     return finish_fit(result, args)
 
 

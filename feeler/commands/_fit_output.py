@@ -1,7 +1,38 @@
 """Shared CLI pieces of every fit: sampler arguments, the summary table, --out, exit code."""
 from __future__ import annotations
 
-__all__ = ["add_fit_arguments", "finish_fit", "print_summary"]
+import math
+
+__all__ = ["add_fit_arguments", "finish_fit", "print_summary", "round_inside", "format_estimate"]
+
+
+def round_inside(mean: float, lo: float, hi: float, decimals: int) -> tuple[str, str, str]:
+    """``mean``, ``lo``, ``hi`` as fixed-point strings with at most ``decimals`` decimals,
+    fewer where needed so that the printed mean never lies outside the printed interval
+    (a mean can sit outside an equal-tailed interval when most draws pile on one value,
+    e.g. P(correct) = 1: 0.9996 [1.0000, 1.0000] prints as 1.000 [1.000, 1.000])."""
+    vals = (float(mean), float(lo), float(hi))
+    if not all(math.isfinite(v) for v in vals):
+        return tuple(f"{v:.{max(decimals, 0)}f}" for v in vals)
+    d = int(decimals)
+    while d > -12:
+        m, a, b = (round(v, d) for v in vals)
+        if a <= m <= b:
+            break
+        d -= 1
+    fmt = (lambda v: f"{round(v, d):.{d}f}") if d >= 0 else (lambda v: f"{round(v, d):.0f}")
+    return fmt(vals[0]), fmt(vals[1]), fmt(vals[2])
+
+
+def format_estimate(mean: float, lo: float, hi: float, decimals: int = 4, scale: float = 1.0) -> str:
+    """``"m [lo, hi]"`` rounded by :func:`round_inside` after multiplying by ``scale``."""
+    m, a, b = round_inside(mean * scale, lo * scale, hi * scale, decimals)
+    return f"{m} [{a}, {b}]"
+
+
+def _significant_decimals(row, digits: int = 5) -> int:
+    top = max(abs(float(row["mean"])), abs(float(row["eti95_lb"])), abs(float(row["eti95_ub"])))
+    return digits - 1 - math.floor(math.log10(top)) if top > 0 and math.isfinite(top) else digits
 
 
 def add_fit_arguments(parser, *, draws: int | None = 1000, tune: int | None = 1000) -> None:
@@ -28,8 +59,15 @@ def print_summary(result, *, skip_prefixes: tuple[str, ...] = ()) -> None:
     table = result.summary[~result.summary["name"].str.startswith(skip_prefixes)] if skip_prefixes \
         else result.summary
     cols = ["name", "mean", "sd", "eti95_lb", "eti95_ub", "r_hat", "ess_bulk", "ess_tail"]
+    shown = table[cols].astype(object).copy()
+    for i, row in table[cols].iterrows():          # mean, interval: same rounding, mean inside
+        shown.loc[i, ["mean", "eti95_lb", "eti95_ub"]] = round_inside(row["mean"], row["eti95_lb"], row["eti95_ub"],
+                                                                      _significant_decimals(row))
+        shown.loc[i, "sd"] = f"{row['sd']:.3g}"
+        shown.loc[i, ["r_hat", "ess_bulk", "ess_tail"]] = (f"{row['r_hat']:.4f}", f"{row['ess_bulk']:.0f}",
+                                                           f"{row['ess_tail']:.0f}")
     with pd.option_context("display.width", 120, "display.max_rows", 200):
-        print(table[cols].to_string(index=False, float_format=lambda v: f"{v:.5g}"))
+        print(shown.to_string(index=False))
     print("priors:")
     for name, text in result.priors.items():
         print(f"  {name}: {text}")

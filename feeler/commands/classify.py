@@ -2,8 +2,9 @@
 
 POSTERIOR is a directory written by `feeler calibrate neuron --out`; SCANS a run directory
 or scans.csv (strain uses the posterior's representative length). For each scan: the
-probability of every training plate and the decoded step height with its 90 % interval,
-integrating over the posterior. A posterior that failed its diagnostics is refused unless
+probability of every training plate and the decoded step height with its 90 % interval
+(inverting each plate's predictive band: at any true step the interval covers it 90 % of
+the time), integrating over the posterior. A posterior that failed its diagnostics is refused unless
 --accept-failed. --out DIR writes classification.csv.
 """
 from __future__ import annotations
@@ -38,8 +39,8 @@ def run(args) -> int:
     path = Path(args.scans)
     scans = read_scans(path / "scans.csv" if path.is_dir() else path)
     length = float(result.posterior["posterior"].attrs["length_mm"])
+    from feeler.calib.neuron.data import shared_times
     from feeler.datasets import strain
-    from feeler.calib.neuron.fit import shared_times
     c = classify(result, strain(scans.uy_mm, length), shared_times(scans.t_s), rng=np.random.default_rng(args.seed),
                  n_draws=args.n_draws)
     table = pd.DataFrame({"scan_id": scans.scan_id, "step_mm": scans.step_mm, "plate_mm": c.plate_mm,

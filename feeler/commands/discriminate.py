@@ -1,18 +1,24 @@
 """Discrimination of step heights by the calibrated robot (M3).
 
 POSTERIOR is a directory written by `feeler calibrate neuron --out`. Responses to any step
-height come from the scene's forward scan model (default: the shipped four-plates scene),
-decoded by each posterior draw. Prints the 2AFC proportion correct for pairs of heights
-(--pair LOW HIGH, repeatable; default the pairs of the four plates), the difference
-threshold at 75 % around --reference (default 0.1 mm) with its Weber fraction, and the
-PSE of the reference step between two scan speeds (--speeds REF TEST). All with 95 %
-credible intervals. A failed posterior is refused unless --accept-failed.
+height come from the forward scan model of the scene the fit was trained on (recorded in
+the fit; --scene overrides it, and a fit made from a bare CSV needs it), decoded by each
+posterior draw. Prints the 2AFC proportion correct for pairs of heights (--pair LOW HIGH,
+repeatable; default the pairs of the scene's plates), the difference threshold at 75 %
+around --reference (default 0.1 mm) with its Weber fraction, and the PSE of the reference
+step between two scan speeds (--speeds REF TEST). 95 % intervals include the posterior
+and the Monte Carlo error of the --n-scans simulated touches (bootstrap per draw; "MC se"
+is the latter alone). The touches belong to the forward model and are seeded from the
+scene's seed, so reruns with another --seed (posterior draws, resamples) agree within
+their intervals; --touch-seed simulates another set of touches. A threshold that many draws do not reach within the searched range
+is printed as a bound ("> 25.00 um") with the fraction of draws. A failed posterior is
+refused unless --accept-failed.
 """
 from __future__ import annotations
 
 from feeler.commands._posterior_use import add_use_arguments, load_checked
 
-__all__ = ["NAME", "HELP", "register", "run"]
+__all__ = ["NAME", "HELP", "register", "run", "threshold_text", "interval_json"]
 
 NAME = "discriminate"
 HELP = "2AFC discrimination probabilities, threshold, Weber fraction and speed PSE from a neuron posterior"
@@ -20,7 +26,7 @@ HELP = "2AFC discrimination probabilities, threshold, Weber fraction and speed P
 
 def register(parser) -> None:
     add_use_arguments(parser, n_draws=200, out_file="discrimination.json")
-    parser.add_argument("--scene", default=None, help="robot-scan scene of the forward model (default four-plates)")
+    parser.add_argument("--scene", default=None, help="robot-scan scene of the forward model (default: the fit's)")
     parser.add_argument("--backend", choices=("forward",), default="forward",
                         help="forward: simulated touches decoded per posterior draw (the only one)")
     parser.add_argument("--pair", type=float, nargs=2, action="append", default=None, metavar=("LOW", "HIGH"),
@@ -28,46 +34,90 @@ def register(parser) -> None:
     parser.add_argument("--reference", type=float, default=0.1, help="reference step for the threshold, mm")
     parser.add_argument("--speeds", type=float, nargs=2, default=None, metavar=("REF", "TEST"),
                         help="scan speeds for the PSE, mm/s (default: the scene's and twice it)")
-    parser.add_argument("--n-scans", type=int, default=400, help="touches simulated per height (default 400)")
+    parser.add_argument("--touch-seed", type=int, default=None,
+                        help="root seed of the simulated touches (default: the scene's seed)")
+    parser.add_argument("--n-scans", type=int, default=1000,
+                        help="touches simulated per height (default 1000; the Monte Carlo error shrinks as 1/sqrt)")
     parser.set_defaults(run=run)
+
+
+def _num(v):
+    import math
+    return float(v) if math.isfinite(v) else None
+
+
+def interval_json(iv, **extra) -> dict:
+    """An :class:`Interval` as JSON (non-finite values as null)."""
+    return {"mean": _num(iv.mean), "lo95": _num(iv.lo95), "hi95": _num(iv.hi95), "mcse": _num(iv.mcse), **extra}
+
+
+def threshold_text(th, scale: float = 1e3, unit: str = "um") -> str:
+    """The threshold as printed: an estimate with its interval, or a bound when draws
+    do not reach 75 % within the searched range."""
+    from feeler.commands._fit_output import format_estimate
+
+    d, top = th.delta75_mm, th.searched_mm * scale
+    missing = f" ({100 * (1 - th.found):.0f} % of draws do not reach 75 % within {top:.2f} {unit})"
+    if d.median == float("inf"):
+        return f"> {top:.2f} {unit}{missing}"
+    est = d.mean if th.found == 1 else d.median
+    if not th.is_bound:
+        return f"{format_estimate(est, d.lo95, d.hi95, 2, scale)} {unit}" + ("" if th.found == 1 else missing)
+    return f"{est * scale:.2f} [{d.lo95 * scale:.2f}, > {top:.2f}] {unit}{missing}"
 
 
 def run(args) -> int:
     from itertools import combinations
 
     from feeler.calib.neuron.discriminate import Discriminator
-    from feeler.calib.neuron.synth import FOUR_PLATES
     from feeler.calib.progress import progress
+    from feeler.commands._fit_output import format_estimate
+    from feeler.errors import ArgumentError
     from feeler.rundir import prepare_out_dir, write_json
     from feeler.scene import load_scene
 
+    if args.n_scans < 2:
+        raise ArgumentError("--n-scans", args.n_scans, ">= 2")
     result = load_checked(args)
-    scene_path = args.scene or FOUR_PLATES
-    scene = load_scene(scene_path)
-    disc = Discriminator(result, scene_path=scene_path, n_scans=args.n_scans, n_draws=args.n_draws, seed=args.seed)
+    disc = Discriminator(result, scene_path=args.scene, n_scans=args.n_scans, n_draws=args.n_draws, seed=args.seed,
+                         touch_seed=args.touch_seed)
+    scene = load_scene(disc.scene_path)
+    print(f"forward model: {args.scene or 'the scene recorded in the fit'} ({scene.surface.heights_mm} mm plates), "
+          f"{args.n_scans} touches per height, {disc.a.size} posterior draws")
     pairs = args.pair or list(combinations(sorted(scene.surface.heights_mm), 2))
     rows = []
-    print(f"{'low mm':>8} {'high mm':>8} {'P(correct)':>10}  95 % interval")
+    print(f"{'low mm':>8} {'high mm':>8}  P(correct) [95 % interval]   MC se")
     for lo, hi in progress(pairs, desc="pairs"):
         p = disc.pc(lo, hi)
-        rows.append({"low_mm": lo, "high_mm": hi, "pc": p.mean, "lo95": p.lo95, "hi95": p.hi95})
-        print(f"{lo:8.4g} {hi:8.4g} {p.mean:10.4f}  [{p.lo95:.4f}, {p.hi95:.4f}]")
+        rows.append({"low_mm": lo, "high_mm": hi, "pc": p.mean, "lo95": p.lo95, "hi95": p.hi95, "mcse": p.mcse})
+        print(f"{lo:8.4g} {hi:8.4g}  {format_estimate(p.mean, p.lo95, p.hi95, 4):28s} {p.mcse:.4f}")
     th = disc.threshold(args.reference)
-    d = th.delta75_mm
-    print(f"threshold at 75 % around {args.reference:g} mm: {d.mean * 1e3:.2f} um [{d.lo95 * 1e3:.2f}, "
-          f"{d.hi95 * 1e3:.2f}]; Weber fraction {th.weber.mean:.4f} [{th.weber.lo95:.4f}, {th.weber.hi95:.4f}]"
-          + ("" if th.found == 1 else f" ({100 * (1 - th.found):.0f} % of draws never reach 75 %)"))
+    w = th.weber
+    weber = (f"> {th.searched_mm / args.reference:.4f}" if w.median == float("inf") else
+             format_estimate(w.mean if th.found == 1 else w.median, w.lo95, w.hi95, 4) if not th.is_bound else
+             f"{w.median:.4f} [{w.lo95:.4f}, > {th.searched_mm / args.reference:.4f}]")
+    print(f"threshold at 75 % around {args.reference:g} mm: {threshold_text(th)}; Weber fraction {weber}")
     v_ref, v_test = args.speeds or (scene.motion.speed_mm_s, 2 * scene.motion.speed_mm_s)
     pse = disc.pse(args.reference, v_ref, v_test)
     print(f"PSE of {args.reference:g} mm at {v_ref:g} mm/s when scanned at {v_test:g} mm/s: "
-          f"{pse.mean:.4f} mm [{pse.lo95:.4f}, {pse.hi95:.4f}]")
+          + (f"{format_estimate(pse.mean, pse.lo95, pse.hi95, 4)} mm" if pse.found == 1 else
+             f"outside the searched 0-{2 * args.reference:g} mm for {100 * (1 - pse.found):.0f} % of draws"))
     if args.out:
         out = prepare_out_dir(args.out, ("discrimination.json",), force=args.force)
+        d = th.delta75_mm
+        est = d.mean if th.found == 1 else d.median
+        bound = th.is_bound
         write_json(out / "discrimination.json", {
-            "pairs": rows, "reference_mm": args.reference,
-            "threshold_mm": {"mean": d.mean, "lo95": d.lo95, "hi95": d.hi95, "found": th.found},
-            "weber": {"mean": th.weber.mean, "lo95": th.weber.lo95, "hi95": th.weber.hi95},
-            "pse": {"speed_ref_mm_s": v_ref, "speed_test_mm_s": v_test, "mean_mm": pse.mean,
-                    "lo95": pse.lo95, "hi95": pse.hi95}})
+            "pairs": [{k: (_num(v) if isinstance(v, float) else v) for k, v in r.items()} for r in rows],
+            "reference_mm": args.reference, "n_scans": args.n_scans, "n_draws": int(disc.a.size),
+            "scene": str(args.scene or "recorded in the fit"),
+            "threshold_mm": {"mean": _num(est) if _num(est) is not None else th.searched_mm,
+                             "lo95": _num(d.lo95) if _num(d.lo95) is not None else th.searched_mm,
+                             "hi95": th.searched_mm if bound else _num(d.hi95), "found": th.found,
+                             "median": _num(d.median), "mcse": _num(d.mcse), "searched_mm": th.searched_mm,
+                             "hi95_is_bound": bound, "estimate_is_bound": d.median == float("inf")},
+            "weber": interval_json(w, median=_num(w.median), hi95_is_bound=bound),
+            "pse": {"speed_ref_mm_s": v_ref, "speed_test_mm_s": v_test, "mean_mm": _num(pse.mean),
+                    "lo95": _num(pse.lo95), "hi95": _num(pse.hi95), "mcse": _num(pse.mcse), "found": pse.found}})
         print(f"wrote {out / 'discrimination.json'}")
     return 0

@@ -5,6 +5,11 @@
         draws is uniform (chi-square and simultaneous ECDF band). Datasets fan out over
         dask.distributed: a LocalCluster (2 workers) by default, or an existing scheduler
         with --scheduler tcp://HOST:PORT; --scheduler serial runs in this process.
+        matrix: K, the noise sds, C = K^-1 and cond(C) on the sensor-calibration design
+        (exact posterior). neuron: the plate means and spreads ("growing" noise) at the
+        four-plates design and window, and the derived a, h, decoded-height means and
+        sds (exact posterior; the window's weights are a model-averaging device over
+        decoders, not a parameter with a likelihood, so it is held at the scene's).
 
 Writes ranks.csv (one row per dataset) and sbc.csv (p-values per parameter) with --out;
 the exit status is 1 when a parameter fails (Bonferroni-corrected level 0.01).

@@ -1,13 +1,17 @@
-"""Classification with an M2 posterior: calibrated probabilities, covering intervals, log space."""
+"""Classification with an M2 posterior: coverage per plate on hard plates, Bayes' rule by
+hand, the statistic a streaming decoder needs, log space, refusals."""
+
+import warnings
+
 import numpy as np
 import pandas as pd
 import pytest
-from scipy.stats import t as student_t
+from scipy import stats
 
-from feeler.calib.neuron.classify import classify, expected_calibration_error
 from feeler.calib.fit import FitResult, Verdict, posterior_from_draws
 from feeler.calib.neuron import fit_neuron
-from feeler.calib.neuron.synth import scene_scans
+from feeler.calib.neuron.classify import classify, expected_calibration_error, log_loss, peaks_at
+from feeler.calib.neuron.synth import HARD_SCENES, scene_scans
 from feeler.errors import ArgumentError
 from feeler.models import neuron
 
@@ -15,51 +19,88 @@ from feeler.models import neuron
 @pytest.fixture(scope="module")
 def fitted():
     data = scene_scans()[2]
-    with pytest.warns(UserWarning):          # the PPC reports the per-plate bias of the decoder
-        return data, fit_neuron(data, seed=2)
+    return data, fit_neuron(data, seed=2, draws=500)
 
 
-def _fixed_posterior(data, a, tau_s, h, sigma_mm, n=3):
-    tab = data.table(n_grid=32)
-    draws = {k: np.full((1, n), v) for k, v in (("a", a), ("tau_s", tau_s), ("h", h), ("sigma_mm", sigma_mm))}
-    tree = posterior_from_draws(draws, observed={"step_mm": data.step_mm, "peak_u1": tab.peak,
+def _fixed_posterior(steps, tab, mean_mm, sd_mm, a, tau_s, h, n=3):
+    C = len(steps)
+    draws = {"a": np.full((1, n), a), "tau_s": np.full((1, n), tau_s), "h": np.full((1, n), h),
+             "plate_mean_mm": np.tile(np.asarray(mean_mm, float), (1, n, 1)),
+             "plate_sd_mm": np.tile(np.asarray(sd_mm, float), (1, n, 1))}
+    tree = posterior_from_draws(draws, observed={"plate_steps_mm": np.asarray(steps, float), "peak_u1": tab.peak,
                                                  "log_tau_grid": tab.log_tau},
-                                dims={"step_mm": ["scan"], "peak_u1": ["scan", "tau_grid"],
+                                dims={"plate_mean_mm": ["plate"], "plate_sd_mm": ["plate"],
+                                      "plate_steps_mm": ["plate"], "peak_u1": ["scan", "tau_grid"],
                                       "log_tau_grid": ["tau_grid"]}, attrs={"kernel": "boxcar"})
-    return FitResult(posterior=tree, summary=pd.DataFrame(), verdict=Verdict(True)), tab
+    assert C == len(mean_mm)
+    return FitResult(posterior=tree, summary=pd.DataFrame(), verdict=Verdict(True))
 
 
-def test_ece_and_coverage_on_400_fresh_scans(fitted):
-    _, res = fitted
-    new = scene_scans(seed=777, per_plate=100)[2]
-    c = classify(res, new.strain, new.t_s, rng=np.random.default_rng(0))
+def _hard_case(path, seed, fresh):
+    scene, _, train = scene_scans(path, seed=seed)
+    _, _, new = scene_scans(path, seed=10 ** 6 + seed, per_plate=fresh)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = fit_neuron(train, seed=seed)
+    c = classify(res, new.strain, new.t_s, rng=np.random.default_rng(seed), n_draws=200)
     true = np.searchsorted(c.plates_mm, new.step_mm)
-    ece = expected_calibration_error(c.prob, true)
     inside = (new.step_mm >= c.lo90_mm) & (new.step_mm <= c.hi90_mm)
-    per_plate = {float(v): float(inside[new.step_mm == v].mean()) for v in c.plates_mm}
-    print(f"\n{new.step_mm.size} fresh scans: accuracy {np.mean(c.prob.argmax(1) == true):.3f}, "
-          f"ECE {ece:.4f}, 90 % interval coverage {inside.mean():.3f}, per plate {per_plate}")
-    assert new.step_mm.size >= 400
-    assert ece <= 0.05
-    assert 0.85 <= inside.mean() <= 0.95
+    cover = [inside[new.step_mm == v].mean() for v in c.plates_mm]
+    z = neuron.peak_window_sum(train.strain, train.t_s, tau=scene.neuron.tau_s)
+    zn = neuron.peak_window_sum(new.strain, new.t_s, tau=scene.neuron.tau_s)
+    ll = np.stack([stats.norm.logpdf(zn, z[train.step_mm == v].mean(), z[train.step_mm == v].std())
+                   for v in c.plates_mm], axis=1)
+    plug = ll - np.logaddexp.reduce(ll, axis=1, keepdims=True)
+    print(f"\naccuracy {np.mean(c.prob.argmax(1) == true):.3f}, ECE {expected_calibration_error(c.prob, true):.3f} "
+          f"(plug-in {expected_calibration_error(np.exp(plug), true):.3f}), log-loss {log_loss(c.log_prob, true):.3f} "
+          f"(plug-in {log_loss(plug, true):.3f}), coverage per plate {np.round(cover, 3)}")
+    assert np.all(c.lo90_mm <= c.height_mm) and np.all(c.height_mm <= c.hi90_mm)
+    return np.mean(c.prob.argmax(1) == true), np.array(cover), log_loss(c.log_prob, true), log_loss(plug, true)
+
+
+def test_hard_plates_one_fit():
+    """One fit on a hard scene (plates 0.01 mm apart, 12 touches each), 400 fresh touches:
+    accuracy in the 60–95 % the scene was built for, 90 % intervals covering each plate
+    within what one training set of 12 scans per plate allows (its sd estimate is off by
+    ~20 %: coverage 0.75–1; the replicates below and benchmarks/test_bench_confidence.py
+    average over training sets), and log-loss below the plug-in Gaussian's."""
+    acc, cover, ll, ll_plugin = _hard_case(HARD_SCENES / "close-steps.toml", 11, 100)
+    assert 0.6 <= acc <= 0.95 and np.all((cover >= 0.75) & (cover <= 1.0))
+    assert ll < ll_plugin
+
+
+@pytest.mark.slow
+def test_hard_plates_coverage_per_plate_over_training_sets():
+    """Coverage per plate averaged over training sets (FEELER_FULL: 8 sets) lies in 0.85–0.95
+    up to the spread of that average (±0.03 at 4 sets)."""
+    import os
+    n = 8 if os.environ.get("FEELER_FULL") == "1" else 4
+    runs = [_hard_case(HARD_SCENES / "near-floor.toml", 20 + k, 100) for k in range(n)]
+    cover = np.mean([r[1] for r in runs], axis=0)
+    print("\nmean coverage per plate", np.round(cover, 3))
+    assert np.all((cover >= 0.82) & (cover <= 0.98))
+    assert np.mean([r[2] for r in runs]) < np.mean([r[3] for r in runs])
 
 
 def test_single_draw_matches_bayes_rule_by_hand(fitted):
     data, _ = fitted
-    tau = float(np.exp(data.table(n_grid=32).log_tau[20]))       # a grid node: P(τ) exact
-    res, tab = _fixed_posterior(data, a=3.0, tau_s=tau, h=0.03, sigma_mm=0.01)
+    tab = data.table(n_grid=32)
+    tau = float(np.exp(tab.log_tau[20]))                       # a grid node: P(τ) exact
+    mean, sd = [0.004, 0.05, 0.1, 0.2], [0.003, 0.005, 0.005, 0.004]
+    res = _fixed_posterior([0.0, 0.05, 0.1, 0.2], tab, mean, sd, a=3.0, tau_s=tau, h=0.01)
     new = scene_scans(seed=5, per_plate=2)[2]
     c = classify(res, new.strain, new.t_s, rng=np.random.default_rng(1), n_draws=3)
-    z_tr = 3.0 * neuron.peak_window_sum(data.strain, data.t_s, tau=tau) - 0.03
-    z_new = 3.0 * neuron.peak_window_sum(new.strain, new.t_s, tau=tau) - 0.03
-    dens = []
-    for v in np.unique(data.step_mm):
-        zc = z_tr[data.step_mm == v]
-        n = zc.size
-        dens.append(student_t.pdf(z_new, n - 1, zc.mean(), zc.std(ddof=1) * np.sqrt(1 + 1 / n)))
-    dens = np.array(dens).T
+    z = 3.0 * neuron.peak_window_sum(new.strain, new.t_s, tau=tau) - 0.01
+    dens = np.array([stats.norm.pdf(z, m, s) for m, s in zip(mean, sd)]).T
     np.testing.assert_allclose(c.prob, dens / dens.sum(axis=1, keepdims=True), rtol=1e-6, atol=1e-12)
-    np.testing.assert_allclose(c.height_mm, np.maximum(z_new, 0), atol=4 * 0.01 / np.sqrt(60))
+
+
+def test_peaks_at_reads_the_scans_like_the_full_table(fitted):
+    data, res = fitted
+    grid = res.posterior["observed_data"]["log_tau_grid"].values
+    taus = np.exp(np.random.default_rng(2).uniform(grid[0], grid[-1], 7))
+    tab = data.table()
+    np.testing.assert_allclose(peaks_at(data.strain[:9], data.t_s, grid, taus), tab.at(taus)[:, :9], rtol=1e-12)
 
 
 def test_far_out_scan_stays_finite_in_log_space(fitted):
@@ -69,31 +110,37 @@ def test_far_out_scan_stays_finite_in_log_space(fitted):
     assert np.all(np.isfinite(c.log_prob))
     np.testing.assert_allclose(np.exp(c.log_prob).sum(axis=1), 1.0, rtol=1e-9)
     clean = classify(res, data.strain[-1:], data.t_s, rng=np.random.default_rng(3))   # a 0.2 mm scan
-    print("\nlog P(plate | 0.2 mm scan):", clean.log_prob[0])
     assert clean.log_prob[0, 0] < -20 and np.isfinite(clean.log_prob).all()   # resolved, not rounded to 0
     assert c.lo90_mm[1] > 10 * c.plates_mm.max()       # the decoded height shows it is off every plate
 
 
-def test_ece_exact_small_case():
+def test_ece_and_log_loss_exact_small_cases():
     prob = np.array([[0.9, 0.1], [0.9, 0.1], [0.6, 0.4], [0.3, 0.7]])
     true = np.array([0, 1, 0, 1])
     # bins: 0.9 (2 scans, accuracy 0.5), 0.6 (accuracy 1), 0.7 (accuracy 1)
     expected = 0.5 * abs(0.5 - 0.9) + 0.25 * abs(1 - 0.6) + 0.25 * abs(1 - 0.7)
     assert expected_calibration_error(prob, true) == pytest.approx(expected)
+    assert log_loss(np.log(prob), true) == pytest.approx(-np.mean(np.log([0.9, 0.1, 0.6, 0.7])))
 
 
-def test_posterior_without_training_table_is_refused(fitted):
-    data, res = fitted
+def test_posterior_of_another_model_or_version_is_refused(fitted):
+    data, _ = fitted
     bare = FitResult(posterior=posterior_from_draws({"a": np.ones((1, 2))}), summary=pd.DataFrame(),
                      verdict=Verdict(True))
-    with pytest.raises(ArgumentError, match="observed_data"):
+    with pytest.raises(ArgumentError, match="refit older ones"):
         classify(bare, data.strain, data.t_s, rng=np.random.default_rng(0))
 
 
-def test_single_plate_posterior_is_refused(fitted):
+def test_degenerate_posteriors_are_refused_not_nan(fitted):
     data, _ = fitted
-    import dataclasses
-    one = dataclasses.replace(data, step_mm=np.full_like(data.step_mm, 0.1))
-    res, _ = _fixed_posterior(one, a=3.0, tau_s=2.0, h=0.0, sigma_mm=0.01)
-    with pytest.raises(ArgumentError, match="plates"):
-        classify(res, data.strain, data.t_s, rng=np.random.default_rng(0))
+    tab = data.table(n_grid=8)
+    one = _fixed_posterior([0.1], tab, [0.1], [0.01], a=3.0, tau_s=2.0, h=0.0)
+    with pytest.raises(ArgumentError, match="plate"):
+        classify(one, data.strain, data.t_s, rng=np.random.default_rng(0))
+    flat = _fixed_posterior([0.0, 0.1], tab, [0.0, 0.1], [0.0, 0.01], a=3.0, tau_s=2.0, h=0.0)
+    with pytest.raises(ArgumentError, match="zero-spread"):
+        classify(flat, data.strain, data.t_s, rng=np.random.default_rng(0))
+    nan = _fixed_posterior([0.0, 0.1], tab, [0.0, 0.1], [0.01, 0.01], a=np.nan, tau_s=2.0, h=0.0)
+    with pytest.raises(ArgumentError, match="non-finite"):
+        classify(nan, data.strain, data.t_s, rng=np.random.default_rng(0))
+

@@ -74,3 +74,26 @@ def test_validate_sbc_matrix(tmp_path, capsys):
     ranks = pd.read_csv(tmp_path / "ranks.csv")
     assert ranks.shape == (20, 23) and ranks.drop(columns="dataset").to_numpy().max() <= 99
     assert set(pd.read_csv(tmp_path / "sbc.csv").columns) == {"name", "chi2_p", "ecdf_p"}
+
+
+def test_printed_means_never_lie_outside_their_printed_intervals(capsys):
+    from feeler.calib.fit import FitResult, Verdict
+    from feeler.commands._fit_output import format_estimate, print_summary, round_inside
+    assert round_inside(0.9996, 0.99995, 1.0, 4) == ("1.000", "1.000", "1.000")
+    assert round_inside(0.5, 0.4, 0.6, 4) == ("0.5000", "0.4000", "0.6000")
+    m, lo, hi = round_inside(0.95, 0.99, 1.0, 4)                   # really outside: rounded until inside
+    assert float(lo) <= float(m) <= float(hi)
+    assert format_estimate(0.0245, 0.0238, 0.0249, 2, 1e3) == "24.50 [23.80, 24.90]"
+    row = {"name": "pc", "mean": 0.99962, "sd": 0.001, "eti95_lb": 0.99995, "eti95_ub": 1.0, "r_hat": 1.0,
+           "ess_bulk": 4000.0, "ess_tail": 4000.0}
+    print_summary(FitResult(posterior=None, summary=pd.DataFrame([row]), verdict=Verdict(True)))
+    line = [s for s in capsys.readouterr().out.splitlines() if s.strip().startswith("pc")][0].split()
+    assert float(line[3]) <= float(line[1]) <= float(line[4])          # name mean sd lb ub ...
+
+
+def test_validate_sbc_neuron(tmp_path, capsys):
+    rc = main(["validate", "sbc", "--model", "neuron", "--n", "20", "--draws", "19", "--scheduler", "serial",
+               "--out", str(tmp_path)])
+    assert rc == 0 and "SBC ok" in capsys.readouterr().out
+    ranks = pd.read_csv(tmp_path / "ranks.csv")
+    assert {"a", "h", "growth", "plate_sd_mm[3]"} <= set(ranks.columns)

@@ -1,0 +1,132 @@
+"""What M1's verdict checks beyond sampling: design, units, prior–data conflict, fit.
+
+Every function returns one-line problems naming the matrix; any problem fails the
+verdict (:func:`feeler.calib.fit.make_result`). The regression is Y = X Bᵀ + E with
+rows b_i of B per output axis (K for the inverse model, C for the forward one).
+
+- design (:func:`design_problems`): directions of the design that carry no information
+  (all-zero displacements: every direction), where B would be the prior's;
+- units (:func:`unit_problems`): the least-squares compliance against the nominal C₀;
+  a ratio beyond ×30 is no sensor tolerance but a unit (×10³: µm for mm, mN for N);
+- prior–data conflict (:func:`conflict_problems`): the least-squares row b̂_i against
+  its prior N(b0_i, s²I): under the model b̂_i ~ N(b0_i, s²I + σ̂_i²(XᵀX)⁻¹), so its
+  Mahalanobis distance is χ²₃; a tail probability below 0.01/3 says prior and data
+  disagree (the prior then drags the fit and inflates the noise, as it did on a
+  near-singular sensor: σ_n 14× the truth);
+- posterior predictive (:func:`ppc_problems`): replicated data from posterior draws,
+  with two discrepancies per axis — lack of fit (replicated points: between-point over
+  within-point scatter of the residuals) and the largest standardised residual
+  (outliers, wrong noise law). Posterior predictive p < 0.01/6 fails. An axis whose
+  least-squares residuals vanish (noise-free data: the matrix is pinned exactly) has
+  nothing to check and is skipped.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from feeler.calib.matrix.data import AXES, weak_directions
+
+__all__ = ["design_problems", "unit_problems", "conflict_problems", "ppc_problems", "ALPHA", "UNIT_FACTOR"]
+
+ALPHA = 0.01
+UNIT_FACTOR = 30.0
+
+
+def design_problems(x: np.ndarray, *, matrix: str, what: str, unit: str) -> list[str]:
+    """Unidentified directions of the design ``x (ndarray[n, 3])``."""
+    if not np.any(x):
+        return [f"{matrix}: the {what}s are all zero: the data pin no entry of {matrix} (its posterior is its prior)"]
+    out = []
+    for v in weak_directions(x, what=what, unit=unit, warn=False):
+        coords = ", ".join(f"{a}={c:+.3f}" for a, c in zip(AXES, v))
+        out.append(f"{matrix}: the data do not pin {matrix} along the {what} direction ({coords}) [{unit}]; "
+                   f"there it is the prior's")
+    return out
+
+
+def _lstsq(x, y):
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)                 # (3, p)
+    return coef.T
+
+
+def unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool) -> list[str]:
+    """The data's compliance against the nominal one, by the Frobenius norm."""
+    b = _lstsq(x, y)
+    try:
+        c = b if forward else np.linalg.inv(b)
+    except np.linalg.LinAlgError:
+        return []
+    ratio = float(np.linalg.norm(c) / np.linalg.norm(c0))
+    if ratio > UNIT_FACTOR:
+        return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: displacements probably in um "
+                f"(expected mm) or forces in kN (expected N)"]
+    if ratio < 1 / UNIT_FACTOR:
+        return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: forces probably in mN "
+                f"(expected N) or displacements in m (expected mm)"]
+    return []
+
+
+def conflict_problems(x: np.ndarray, y: np.ndarray, b0: np.ndarray, s: float, *, matrix: str, unit: str) -> list[str]:
+    """Rows of B whose least-squares estimate is implausible under the prior."""
+    n = x.shape[0]
+    if n <= 3:
+        return []
+    b = _lstsq(x, y)
+    gram_inv = np.linalg.pinv(x.T @ x)
+    out = []
+    for i in range(y.shape[1]):
+        resid = y[:, i] - x @ b[i]
+        s2 = float(resid @ resid) / (n - 3)
+        cov = s ** 2 * np.eye(3) + s2 * gram_inv
+        d = b[i] - b0[i]
+        d2 = float(d @ np.linalg.solve(cov, d))
+        p = float(stats.chi2.sf(d2, 3))
+        if p < ALPHA / y.shape[1]:
+            out.append(f"{matrix}: row {i} by least squares {np.array2string(b[i], precision=3)} {unit} lies "
+                       f"{np.sqrt(d2):.1f} prior sd from the prior's {np.array2string(b0[i], precision=3)} "
+                       f"(prior-data conflict, p = {p:.1g}): the prior drags the fit; widen --rel-sd or check C0")
+    return out
+
+
+def _groups(x: np.ndarray) -> np.ndarray:
+    _, inv = np.unique(np.round(x, 12), axis=0, return_inverse=True)
+    return np.ravel(inv)
+
+
+def ppc_problems(x: np.ndarray, y: np.ndarray, B: np.ndarray, sigma: np.ndarray, rng: np.random.Generator, *,
+                 matrix: str, noise: str = "gaussian", nu: float = 4.0, n_draws: int = 400) -> list[str]:
+    """Posterior predictive checks from draws ``B (ndarray[d, p, 3])``, ``sigma (ndarray[d, p])``."""
+    d = B.shape[0]
+    pick = rng.choice(d, size=min(n_draws, d), replace=False)
+    B, sigma = B[pick], sigma[pick]
+    mu = np.einsum("nk,dpk->dnp", x, B)                                       # (d, n, p)
+    eps = rng.standard_t(nu, size=mu.shape) if noise == "student" else rng.standard_normal(mu.shape)
+    y_rep = mu + sigma[:, None, :] * eps
+    g = _groups(x)
+    onehot = np.eye(g.max() + 1)[g]
+    counts = onehot.sum(axis=0)
+    replicated = np.any(counts > 1) and counts.size > 3
+
+    def lack_of_fit(yy):                                                        # (d, n, p) → (d, p)
+        r = yy - mu
+        means = np.einsum("dnp,ng->dgp", r, onehot) / counts[None, :, None]
+        between = np.einsum("g,dgp->dp", counts, means ** 2)
+        within = np.sum((r - np.einsum("ng,dgp->dnp", onehot, means)) ** 2, axis=1)
+        return between / np.maximum(within, 1e-300)
+
+    def extreme(yy):
+        return np.max(np.abs(yy - mu) / sigma[:, None, :], axis=1)
+
+    resid = y - x @ _lstsq(x, y).T
+    noisy = np.sqrt(np.mean(resid ** 2, axis=0)) > 1e-9 * np.sqrt(np.mean(y ** 2, axis=0))
+    out = []
+    checks = [("lack of fit (between / within replicated points)", lack_of_fit)] if replicated else []
+    checks.append(("largest standardised residual", extreme))
+    level = ALPHA / (len(checks) * y.shape[1])
+    for name, stat in checks:
+        p = np.mean(stat(y_rep) >= stat(np.broadcast_to(y, y_rep.shape)), axis=0)
+        for i in np.flatnonzero((p < level) & noisy):
+            out.append(f"{matrix}: posterior predictive check of axis {AXES[i]}: {name}, p = {p[i]:.3g}; the "
+                       f"{noise} linear model does not describe these data")
+    return out

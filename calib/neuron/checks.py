@@ -1,0 +1,171 @@
+"""What M2's verdict checks beyond sampling: identifiability, units, and the decoder's fit.
+
+Each check returns one-line problems naming the parameter and what the data cannot
+support; any problem fails the verdict (:func:`feeler.calib.fit.make_result`).
+
+- identifiability (:func:`data_problems`): one plate (no gain, offset or window can be
+  pinned), a plate with one scan (no spread), identical scans within a plate (noise-free
+  data: zero spread);
+- units (:func:`unit_problems`): the decoder's gain compares the rise of U_y with the
+  labelled steps, which should agree within a factor of ~30 (the tip follows the
+  surface); ~10³ off names µm vs mm. The stage speed measured from ``x_mm`` and ``t_s``
+  against the commanded one, and a sample interval over a minute, name ms vs s;
+- the decoder's fit (:func:`posterior_problems`): leave-one-out predictive integral
+  transforms (PIT) of every training scan under its plate, mixed over the τ weights.
+  Per plate: the fraction inside the central 90 % band must be compatible with
+  0.85–0.95 (the interval coverage the decoder promises), and the mean PIT with ½ (a
+  plate whose scans sit high or low: bias). Then: adjacent plates whose order the
+  posterior cannot tell, and a window τ the data do not pin (its posterior spread over
+  70 % of the prior's, on a prior range wider than ×1.5).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
+from feeler.calib.neuron.model import PeakTable, PlatePrior, Plates, plate_stats
+
+__all__ = ["data_problems", "unit_problems", "posterior_problems", "loo_pit", "ALPHA", "UNIT_FACTOR"]
+
+ALPHA = 0.01          # family-wise level of each check (Bonferroni over plates)
+UNIT_FACTOR = 30.0    # a scale further off than this is a units mistake, not physics
+
+
+def _mm(v) -> str:
+    return f"{v:g} mm"
+
+
+def data_problems(table: PeakTable, plates: Plates) -> list[str]:
+    """What the design cannot pin down, before any sampling."""
+    out = []
+    if plates.steps_mm.size < 2:
+        out.append(f"a, h, tau_s: one plate ({_mm(plates.steps_mm[0])}) in the data: the decoder's gain, offset "
+                   f"and window need scans of at least two different steps")
+    single = plates.steps_mm[plates.counts < 2]
+    if single.size:
+        out.append(f"plate_sd_mm: plate(s) {', '.join(_mm(v) for v in single)} have one scan; a plate's spread "
+                   f"needs at least 2")
+    p = table.peak.T                                                         # (G, n)
+    _, ss = plate_stats(p, plates)
+    tiny = (1e-9 * np.max(np.abs(p), axis=1, keepdims=True)) ** 2 * plates.counts
+    flat = np.all(ss <= tiny, axis=0) & (plates.counts >= 2)
+    if flat.any():
+        out.append(f"plate_sd_mm: the scans of plate(s) {', '.join(_mm(v) for v in plates.steps_mm[flat])} are "
+                   f"identical at every window (zero spread, noise-free data): the decoder noise cannot be estimated")
+    return out
+
+
+def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_mm=None,
+                  speed_mm_s=None) -> list[str]:
+    """Scales off by ~10³: displacements vs steps, times vs the stage's speed."""
+    out = []
+    if plates.steps_mm.size >= 2:
+        mean, _ = plate_stats(table.peak[:, -1], plates)                   # longest window: the whole rise
+        c = plates.steps_mm
+        gain = float(np.polyfit(c, mean * length_mm, 1)[0])
+        if gain > UNIT_FACTOR or 0 < gain < 1 / UNIT_FACTOR:
+            likely = ("U_y probably in um (or steps in m)" if gain > UNIT_FACTOR
+                      else "steps probably in um (or U_y in m)")
+            out.append(f"a: the scans' rise in U_y is {gain:.3g} times the labelled steps (expected about 1, both "
+                       f"in mm): {likely}")
+    t = np.atleast_2d(np.asarray(t_s, float))
+    dt = float(np.median(np.diff(t, axis=-1)))
+    if dt > 60.0:
+        out.append(f"tau_s: the sample interval is {dt:g} s (over a minute): times probably in ms (expected s)")
+    if x_mm is not None and speed_mm_s is not None:
+        x = np.atleast_2d(np.asarray(x_mm, float))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            moved = np.abs(x[:, -1] - x[:, 0]) / (t[:, -1] - t[:, 0])
+            ratio = float(np.median(moved / np.asarray(speed_mm_s, float)))
+        if np.isfinite(ratio) and ratio > 0 and not 1 / UNIT_FACTOR < ratio < UNIT_FACTOR:
+            likely = "times probably in ms (expected s)" if ratio < 1 else "times probably in min or x in um"
+            out.append(f"tau_s: by x_mm and t_s the stage moved at {ratio:.3g} times its commanded speed: {likely}")
+    return out
+
+
+def loo_pit(table: PeakTable, plates: Plates, noise: str, log_w: np.ndarray, *, growth_max: float = 3.0,
+            max_nodes: int = 48) -> np.ndarray:
+    """Leave-one-out PIT of every training scan under its own plate (Student-t
+    predictive of the plate fitted without it), mixed over the heaviest τ nodes:
+    ndarray[n_scans] in [0, 1]."""
+    w = np.exp(log_w - np.max(log_w))
+    nodes = np.argsort(w)[::-1][:max_nodes]
+    nodes = nodes[w[nodes] > 1e-6 * w.max()]
+    w = w[nodes] / w[nodes].sum()
+    p = table.peak.T[nodes]                                                 # (J, n)
+    mean, ss = plate_stats(p, plates)
+    n_c = plates.counts.astype(float)
+    C, n = n_c.size, p.shape[1]
+    g = plates.group
+    own_n = n_c[g]
+    loo_mean = (own_n * mean[:, g] - p) / (own_n - 1)
+    removed = (p - mean[:, g]) ** 2 * own_n / (own_n - 1)
+    if noise == "per-plate":
+        var, df = (ss[:, g] - removed) / (own_n - 2), own_n - 2
+    else:
+        shape = np.ones((p.shape[0], C))
+        extra = 0
+        if noise == "growing":
+            grid = np.linspace(-growth_max, growth_max, G_NODES)
+            gh = grid[np.argmax(growth_log_density(grid, ss, n_c - 1, plates.x, PlatePrior()), axis=1)]
+            shape = np.exp(gh[:, None] * plates.x[None, :])
+            extra = 1
+        df = n - 1 - C - extra
+        s0 = (np.sum(ss / shape ** 2, axis=1)[:, None] - removed / shape[:, g] ** 2) / df
+        var = s0 * shape[:, g] ** 2
+    scale = np.sqrt(np.maximum(var, 1e-300) * (1 + 1 / (own_n - 1)))
+    pit = stats.t.cdf((p - loo_mean) / scale, df)
+    return np.sum(w[:, None] * pit, axis=0)
+
+
+def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.ndarray, post: dict, *,
+                       growth_max: float = 3.0) -> tuple[list[str], dict]:
+    """Problems of the decoder's fit, and what was measured (for the output)."""
+    out, info = [], {}
+    C = plates.steps_mm.size
+    if C < 2:
+        return out, info
+    level = ALPHA / C
+    if plates.counts.min() >= 3 or noise != "per-plate":
+        pit = loo_pit(table, plates, noise, log_w, growth_max=growth_max)
+        cover, bias, pvals = [], [], []
+        for j, step in enumerate(plates.steps_mm):
+            u = pit[plates.group == j]
+            k, m = int(np.sum((u >= 0.05) & (u <= 0.95))), u.size
+            cover.append(k / m)
+            bias.append(float(np.mean(u)))
+            z = (np.mean(u) - 0.5) / np.sqrt(1 / (12 * m))
+            pvals += [stats.binom.cdf(k, m, 0.85), stats.binom.sf(k - 1, m, 0.95), 2 * stats.norm.sf(abs(z))]
+            if stats.binom.cdf(k, m, 0.85) < level:
+                out.append(f"plate_sd_mm: plate {_mm(step)}: only {k} of {m} scans inside their 90 % interval "
+                           f"(leave-one-out); the decoder's {noise} noise is too narrow for this plate")
+            elif stats.binom.sf(k - 1, m, 0.95) < level:
+                out.append(f"plate_sd_mm: plate {_mm(step)}: all but {m - k} of {m} scans inside their 90 % "
+                           f"interval (leave-one-out); the decoder's {noise} noise is too wide for this plate")
+            if 2 * stats.norm.sf(abs(z)) < level:
+                side = "high" if z > 0 else "low"
+                out.append(f"plate_mean_mm: plate {_mm(step)}: its scans sit {side} in their predictive "
+                           f"(mean leave-one-out PIT {np.mean(u):.2f}): the decoder is biased for this plate")
+        info.update(loo_coverage90=cover, loo_mean_pit=bias, p_min=float(min(pvals)))
+    sd = np.median(np.asarray(post["plate_sd_mm"]).reshape(-1, C), axis=0)
+    flat = sd < 1e-6 * (plates.steps_mm[-1] - plates.steps_mm[0])
+    if flat.any():
+        out.append(f"plate_sd_mm, tau_s: plate(s) {', '.join(_mm(v) for v in plates.steps_mm[flat])} decode with "
+                   f"(numerically) zero spread at the windows the fit uses (noise-free data): neither the decoder "
+                   f"noise nor the window can be pinned")
+    means = np.asarray(post["plate_mean_mm"]).reshape(-1, C)
+    order = np.mean(np.diff(means, axis=1) > 0, axis=0)
+    info["p_ordered"] = order.tolist()
+    for j in np.flatnonzero(order < 0.9):
+        out.append(f"plate_mean_mm: the decoder cannot order plates {_mm(plates.steps_mm[j])} and "
+                   f"{_mm(plates.steps_mm[j + 1])} (P = {order[j]:.2f}); their scans overlap too much to decode "
+                   f"heights between them")
+    lt = np.log(np.ravel(post["tau_s"]))
+    prior_sd = (table.log_tau[-1] - table.log_tau[0]) / np.sqrt(12)
+    info["tau_spread_of_prior"] = float(np.std(lt) / prior_sd)
+    if np.std(lt) > 0.7 * prior_sd and table.log_tau[-1] - table.log_tau[0] > np.log(1.5):
+        lo, hi = np.exp(np.quantile(lt, [0.05, 0.95]))
+        out.append(f"tau_s: not pinned by these data: windows from {lo:.3g} to {hi:.3g} s decode them about "
+                   f"equally well (posterior spread {100 * np.std(lt) / prior_sd:.0f} % of the prior's)")
+    return out, info

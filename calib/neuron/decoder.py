@@ -1,0 +1,141 @@
+"""The M2 decoder, draw by draw: plate probabilities and the decoded step height of a scan.
+
+Everything a scan contributes is its peak window sum P at each draw's window τ_s; with
+the draw's line z = a_s·P − h_s (mm) and the plates' decoded-height means m_cs and sds
+s_cs (mm):
+
+- plate probabilities: p(c | scan) = mean_s  N(z_s; m_cs, s_cs) / Σ_c' N(z_s; m_c's, s_c's)
+  (equal plate priors; in log space, so nothing underflows) — :meth:`DecoderDraws.class_log_prob`;
+- decoded height: the calibration curve m_s(δ) runs piecewise linearly through the plates
+  (step c_j, mean m_js) and on past the end plates with the end segments' slopes; its
+  spread s_s(δ) is interpolated the same way and held constant past the ends. The
+  predictive CDF of the scan's decoded height at a true step δ is
+  F(δ) = mean_s Φ((z_s − m_s(δ)) / s_s(δ)), decreasing in δ. The 90 % interval is
+  {δ : 0.05 ≤ F(δ) ≤ 0.95} and the estimate F(δ) = 0.5 (inverting the predictive band,
+  the classical-calibration confidence belt): at a true step δ the interval covers δ
+  exactly when the scan falls inside δ's own 90 % predictive band, so coverage holds
+  plate by plate, not only on average — :meth:`DecoderDraws.height`.
+
+A streaming decoder that keeps P(τ_s) of a scan for every draw reproduces both at the end
+of the scan by calling these two methods.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import logsumexp, ndtr
+
+from feeler.errors import ArgumentError
+
+__all__ = ["DecoderDraws", "curve_at"]
+
+
+def curve_at(delta: np.ndarray, steps: np.ndarray, mean: np.ndarray, sd: np.ndarray):
+    """m_s(δ) and s_s(δ) for ``delta (ndarray[n])`` and per-draw plates ``mean, sd
+    (ndarray[S, C])`` → two ndarray[S, n] (mm)."""
+    seg = np.clip(np.searchsorted(steps, delta) - 1, 0, steps.size - 2)         # (n,)
+    c0, dc = steps[seg], steps[seg + 1] - steps[seg]
+    slope = (mean[:, seg + 1] - mean[:, seg]) / dc
+    m = mean[:, seg] + (delta - c0) * slope
+    frac = np.clip((delta - c0) / dc, 0.0, 1.0)
+    s = sd[:, seg] + frac * (sd[:, seg + 1] - sd[:, seg])
+    return m, s
+
+
+@dataclass(frozen=True)
+class DecoderDraws:
+    """Posterior draws of the decoder.
+
+    Attributes:
+        steps_mm (ndarray[C]): training plates' steps, increasing, mm.
+        tau_s, a, h (ndarray[S]): window (s), gain (mm per unit strain), offset (mm).
+        mean_mm, sd_mm (ndarray[S, C]): each plate's decoded-height mean and sd, mm.
+    """
+    steps_mm: np.ndarray
+    tau_s: np.ndarray
+    a: np.ndarray
+    h: np.ndarray
+    mean_mm: np.ndarray
+    sd_mm: np.ndarray
+
+    @classmethod
+    def from_result(cls, result, *, rng: np.random.Generator | None = None, n_draws: int | None = None):
+        """The decoder of an M2 :class:`FitResult` (a seeded subsample of ``n_draws``)."""
+        tree = result.posterior
+        post = tree["posterior"]
+        need = ("a", "tau_s", "h", "plate_mean_mm", "plate_sd_mm")
+        obs = tree["observed_data"] if "observed_data" in tree.children else None
+        if any(k not in post.data_vars for k in need) or obs is None or "plate_steps_mm" not in obs.data_vars:
+            raise ArgumentError("posterior", "no plate_mean_mm/plate_sd_mm/plate_steps_mm",
+                                "a posterior written by this version's neuron fit (refit older ones)")
+
+        def flat(name):
+            v = np.asarray(post[name].transpose("chain", "draw", ...).values, float)
+            return v.reshape((-1,) + v.shape[2:])
+
+        out = cls(steps_mm=np.asarray(obs["plate_steps_mm"].values, float), tau_s=flat("tau_s"), a=flat("a"),
+                  h=flat("h"), mean_mm=flat("plate_mean_mm"), sd_mm=flat("plate_sd_mm"))
+        if n_draws is not None and n_draws < out.a.size:
+            if rng is None:
+                raise ArgumentError("rng", None, "a numpy Generator to subsample draws")
+            out = out.take(rng.choice(out.a.size, size=n_draws, replace=False))
+        if out.steps_mm.size < 2:
+            raise ArgumentError("posterior labels", f"{out.steps_mm.size} plate", ">= 2 plates to decode")
+        bad = ~np.isfinite(np.column_stack([out.tau_s, out.a, out.h, out.mean_mm, out.sd_mm])).all(axis=1)
+        if bad.any() or np.any(out.sd_mm <= 0):
+            raise ArgumentError("posterior", f"{int(bad.sum())} draws with a non-finite or zero-spread decoder",
+                                "a fit whose plates can be decoded (see its verdict)")
+        return out
+
+    def take(self, idx) -> "DecoderDraws":
+        return DecoderDraws(self.steps_mm, self.tau_s[idx], self.a[idx], self.h[idx], self.mean_mm[idx],
+                            self.sd_mm[idx])
+
+    @property
+    def size(self) -> int:
+        return int(self.a.size)
+
+    def decoded(self, p_at_tau: np.ndarray) -> np.ndarray:
+        """z = a_s·P − h_s (mm) for ``p_at_tau (ndarray[S, n])``, P at each draw's τ."""
+        return self.a[:, None] * np.asarray(p_at_tau, float) - self.h[:, None]
+
+    def class_log_prob(self, p_at_tau: np.ndarray) -> np.ndarray:
+        """log P(plate | scan), ndarray[n, C], from ``p_at_tau (ndarray[S, n])``."""
+        z = self.decoded(p_at_tau)[..., None]                                 # (S, n, 1)
+        m, s = self.mean_mm[:, None, :], self.sd_mm[:, None, :]
+        ll = -0.5 * ((z - m) / s) ** 2 - np.log(s)
+        cond = ll - logsumexp(ll, axis=2, keepdims=True)
+        return logsumexp(cond, axis=0) - np.log(self.size)
+
+    def predictive_cdf(self, z: np.ndarray, delta: np.ndarray) -> np.ndarray:
+        """F(δ) = mean_s Φ((z_s − m_s(δ))/s_s(δ)) for ``z (ndarray[S, n])``, ``delta (ndarray[n])``."""
+        m, s = curve_at(delta, self.steps_mm, self.mean_mm, self.sd_mm)
+        return ndtr((z - m) / s).mean(axis=0)
+
+    def height(self, p_at_tau: np.ndarray, *, prob: float = 0.9, iterations: int = 60):
+        """Decoded step (F = ½) and its central ``prob`` interval, three ndarray[n] (mm).
+
+        Found by bisection on the monotone F; heights are clipped at 0 when every
+        training step is ≥ 0 (the interval then still holds 0 whenever it did)."""
+        z = self.decoded(p_at_tau)
+        n = z.shape[1]
+        span = self.steps_mm[-1] - self.steps_mm[0]
+        slope = np.min(np.diff(self.mean_mm, axis=1) / np.diff(self.steps_mm), axis=1)         # (S,)
+        reach = 12 * np.max(self.sd_mm, axis=1) / np.maximum(slope, 1e-12 * span)             # mm
+        guess = self.steps_mm[0] + (z - self.mean_mm[:, :1]) / np.maximum(slope, 1e-12)[:, None]
+        lo0 = np.min(np.minimum(guess, self.steps_mm[0]) - reach[:, None] - span, axis=0)
+        hi0 = np.max(np.maximum(guess, self.steps_mm[-1]) + reach[:, None] + span, axis=0)
+        targets = np.array([0.5 + prob / 2, 0.5, 0.5 - prob / 2])                          # lo, centre, hi
+        lo = np.repeat(lo0[:, None], 3, axis=1)
+        hi = np.repeat(hi0[:, None], 3, axis=1)
+        for _ in range(iterations):
+            mid = 0.5 * (lo + hi)
+            f = self.predictive_cdf(np.repeat(z, 3, axis=1), mid.reshape(-1)).reshape(n, 3)
+            above = f > targets                                 # F decreases: the crossing lies right of mid
+            lo = np.where(above, mid, lo)
+            hi = np.where(above, hi, mid)
+        out = 0.5 * (lo + hi)
+        if self.steps_mm[0] >= 0:
+            out = np.maximum(out, 0.0)
+        return out[:, 1], out[:, 0], out[:, 2]

@@ -1,0 +1,54 @@
+"""The scene an M2 fit was trained on: recorded in the posterior, found again for M3.
+
+``feeler calibrate neuron RUN`` stores the text of ``RUN/scene.toml`` and its path in the
+posterior's attributes (``scene_toml``, ``scene_path``). :func:`fit_scene_path` gives the
+scene file ``discriminate`` simulates: an explicit ``--scene`` first, else the recorded
+path when it still holds the recorded text (relative paths inside it, e.g. an optics
+layout, keep working), else the recorded text written to a temporary file, kept as long
+as the returned handle lives. A fit without a scene (a bare CSV) needs ``--scene``.
+"""
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+from feeler.errors import ArgumentError
+
+__all__ = ["fit_scene_path", "check_scene_matches"]
+
+
+def fit_scene_path(result, override=None):
+    """(scene file, keep-alive handle or None) for the forward model of ``result``."""
+    attrs = result.posterior["posterior"].attrs
+    if override is not None:
+        path = Path(override)
+        check_scene_matches(path, attrs)
+        return path, None
+    text = attrs.get("scene_toml")
+    if not text:
+        raise ArgumentError("--scene", None, "the fit records no scene (it was fitted from a bare CSV); "
+                                             "give the robot-scan scene of its scans")
+    recorded = Path(str(attrs.get("scene_path", "")))
+    if str(recorded) and recorded.is_file() and recorded.read_text(encoding="utf-8") == text:
+        check_scene_matches(recorded, attrs)
+        return recorded, None
+    keep = tempfile.TemporaryDirectory(prefix="feeler-scene-")
+    path = Path(keep.name) / "scene.toml"
+    path.write_text(text, encoding="utf-8")
+    check_scene_matches(path, attrs)
+    return path, keep
+
+
+def check_scene_matches(path: Path, attrs) -> None:
+    """The scene's neuron must read strain the way the fit did (length and kernel)."""
+    from feeler.scene import load_scene
+
+    scene = load_scene(path)
+    if not hasattr(scene, "neuron"):
+        raise ArgumentError("--scene", str(path), "a robot-scan scene")
+    length, kernel = attrs.get("length_mm"), attrs.get("kernel")
+    if length is not None and abs(float(scene.neuron.length_mm) - float(length)) > 1e-9 * float(length):
+        raise ArgumentError("--scene", str(path), f"a scene with neuron.length_mm = {float(length):g} mm like "
+                                                  f"the fit (it has {scene.neuron.length_mm:g})")
+    if kernel is not None and scene.neuron.kernel != kernel:
+        raise ArgumentError("--scene", str(path), f"a scene with neuron.kernel = {kernel!r} like the fit")

@@ -1,0 +1,172 @@
+"""Weights of the window τ and the choice of the noise model, by leave-one-out prediction.
+
+For each τ of the peak table and each noise model, every training scan k is decoded by
+the plates fitted without it: the continuous decoder's density of its label,
+
+    p(δ_k | P_k) = N(P_k; μ_c, s_c) / ∫ N(P_k; μ(δ), s(δ)) dδ,   c = δ_k,
+
+with μ(δ), s(δ) the calibration curve (piecewise linear through the plates, extended
+linearly past the end plates with constant spread; :mod:`.decoder`) and s_c the
+predictive spread s·√(1 + 1/n_c) of the plate's plug-in fit (the integral per segment by
+Gauss–Legendre, see :func:`continuous_log_density`). The sum over scans is the
+expected log predictive density (elpd) of the labels; it compares windows on the same
+data (the labels), unlike the density of P(τ), which differs with τ. Weights
+∝ prior × exp(elpd), averaged over Bayesian-bootstrap resamples of the scans, are
+pseudo-BMA+ (Yao et al. 2018; :func:`tau_log_weights`). A decoder whose curve is flat
+or turns down somewhere cannot be inverted and gets elpd = −∞ there. The noise model is
+chosen by the total (log Σ_τ prior·exp(elpd)); per-plate spreads must earn their extra
+parameters by two standard errors (:func:`choose_noise`).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import logsumexp, ndtr
+
+from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
+from feeler.calib.neuron.model import NOISE_MODELS, PeakTable, PlatePrior, Plates, plate_stats
+
+__all__ = ["loo_elpd", "choose_noise", "tau_log_weights", "continuous_log_density", "usable_noise_models"]
+
+
+def usable_noise_models(plates: Plates) -> tuple[str, ...]:
+    """Noise models the counts allow: per-plate needs ≥ 3 scans on every plate (a
+    leave-one-out spread needs 2); the pooled ones ≥ 2 degrees of freedom overall."""
+    out = []
+    if plates.steps_mm.size >= 2 and plates.counts.sum() - plates.steps_mm.size >= 3:
+        out += ["constant", "growing"]
+    if plates.steps_mm.size >= 2 and plates.counts.min() >= 3:
+        out.append("per-plate")
+    return tuple(m for m in NOISE_MODELS if m in out)
+
+
+_GL_T, _GL_W = np.polynomial.legendre.leggauss(24)
+
+
+def _segment_integral(lo, hi, kappa):
+    """∫_lo^hi φ(t)/(1 − κt) dt (Gauss–Legendre on the part within ±10), elementwise."""
+    a, b = np.clip(lo, -10.0, 10.0), np.clip(hi, -10.0, 10.0)
+    half, mid = 0.5 * (b - a), 0.5 * (b + a)
+    t = mid[..., None] + half[..., None] * _GL_T
+    f = np.exp(-0.5 * t * t) / np.sqrt(2 * np.pi) / (1.0 - kappa[..., None] * t)
+    return half * np.sum(_GL_W * f, axis=-1)
+
+
+def continuous_log_density(p, c_index, mu, s, steps) -> np.ndarray:
+    """log p(δ = steps[c_index] | P = p) under the calibration curve through (steps, mu)
+    with spreads s; broadcast over leading axes. ``mu, s`` ndarray[..., C]; ``p``,
+    ``c_index`` ndarray[...]. −inf where the curve is not increasing.
+
+    Per segment the curve u = μ(δ) and its spread are linear, so with t = (u − p)/s(u)
+    the integral ∫ N(p; u, s(u)) du equals ∫ φ(t)/(1 − κt) dt, κ = ds/du: a smooth
+    integrand, done by Gauss–Legendre; past the end plates the spread is constant and the
+    integral is a difference of Φ."""
+    steps = np.asarray(steps, float)
+    dc = np.diff(steps)
+    dm = np.diff(mu, axis=-1)
+    beta = dm / dc                                                              # P per mm, (..., C-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kappa = np.where(dm > 0, np.diff(s, axis=-1) / dm, 0.0)
+        lo = (mu[..., :-1] - p[..., None]) / s[..., :-1]
+        hi = (mu[..., 1:] - p[..., None]) / s[..., 1:]
+        seg = np.where(beta > 0, _segment_integral(lo, hi, kappa) / beta, np.inf)
+        tail_lo = np.where(beta[..., 0] > 0, ndtr((mu[..., 0] - p) / s[..., 0]) / beta[..., 0], np.inf)
+        tail_hi = np.where(beta[..., -1] > 0, ndtr((p - mu[..., -1]) / s[..., -1]) / beta[..., -1], np.inf)
+        z = np.sum(seg, axis=-1) + tail_lo + tail_hi
+        m_c = np.take_along_axis(mu, c_index[..., None], axis=-1)[..., 0]
+        s_c = np.take_along_axis(s, c_index[..., None], axis=-1)[..., 0]
+        num = -0.5 * ((p - m_c) / s_c) ** 2 - np.log(s_c) - 0.5 * np.log(2 * np.pi)
+        out = num - np.log(z)
+    return np.where(np.isfinite(out), out, -np.inf)
+
+
+def _growth_hat(q, r, x, prior: PlatePrior, growth_max: float) -> np.ndarray:
+    nodes = np.linspace(-growth_max, growth_max, G_NODES)
+    lp = growth_log_density(nodes, q, r, x, prior)
+    return nodes[np.argmax(lp, axis=1)]
+
+
+def loo_elpd(table: PeakTable, plates: Plates, noise: str, *, growth_max: float = 3.0,
+             pointwise: bool = False) -> np.ndarray:
+    """Leave-one-out elpd of the labels per τ node (ndarray[n_grid]) for one noise model
+    (``pointwise``: per node and scan, ndarray[n_grid, n_scans])."""
+    p = table.peak.T                                                        # (G, n)
+    mean, ss = plate_stats(p, plates)                                       # (G, C)
+    n_c = plates.counts.astype(float)
+    C, G, n = n_c.size, p.shape[0], p.shape[1]
+    g_idx = plates.group
+    # remove scan k from its plate (Welford): (G, n) for the scan's own plate
+    own_mean, own_n = mean[:, g_idx], n_c[g_idx]
+    loo_mean_own = (own_n * own_mean - p) / (own_n - 1)
+    loo_ss_own = np.maximum(ss[:, g_idx] - (p - own_mean) ** 2 * own_n / (own_n - 1), 0.0)
+    mu = np.repeat(mean[:, None, :], n, axis=1)                             # (G, n, C)
+    ssk = np.repeat(ss[:, None, :], n, axis=1)
+    nk = np.repeat(n_c[None, :], n, axis=0)                                 # (n, C)
+    rows = np.arange(n)
+    mu[:, rows, g_idx] = loo_mean_own
+    ssk[:, rows, g_idx] = loo_ss_own
+    nk[rows, g_idx] -= 1
+    floor = (1e-12 * np.max(np.abs(mean), axis=1))[:, None, None] ** 2
+    if noise == "per-plate":
+        var = np.maximum(ssk / (nk - 1), floor)
+    else:
+        dof = n - 1 - C
+        if noise == "growing":
+            g = _growth_hat(ss, n_c - 1, plates.x, PlatePrior(), growth_max)          # (G,)
+            shape = np.exp(g[:, None] * plates.x[None, :])                           # (G, C)
+            s0 = np.sum(ssk / shape[:, None, :] ** 2, axis=-1) / dof               # (G, n)
+            var = np.maximum(s0[..., None] * shape[:, None, :] ** 2, floor)
+        else:
+            var = np.maximum(np.sum(ssk, axis=-1, keepdims=True) / dof, floor) * np.ones(C)
+    s = np.sqrt(var * (1 + 1 / nk))
+    dens = continuous_log_density(p, np.broadcast_to(g_idx, (G, n)), mu, s, plates.steps_mm)
+    return dens if pointwise else np.sum(dens, axis=1)
+
+
+def tau_log_weights(pointwise: np.ndarray, rng: np.random.Generator, n_boot: int = 400) -> np.ndarray:
+    """Normalised log weights of the τ nodes from the pointwise LOO densities
+    ``pointwise (ndarray[n_grid, n_scans])``: pseudo-BMA+ (Yao et al. 2018), the mean of
+    softmax(n·Σ_k α_k·log p_k(τ)) over Bayesian-bootstrap weights α ~ Dirichlet(1, …, 1)
+    (uniform prior in ln τ). Plain exp(elpd) puts all weight on whichever window the
+    training scans happen to favour by a few nats; the bootstrap spreads it over the
+    windows that the scans cannot tell apart."""
+    G, n = pointwise.shape
+    if not np.any(np.isfinite(pointwise)):
+        return np.full(G, -np.log(G))
+    d = np.where(np.isfinite(pointwise), pointwise, -1e300)
+    alpha = rng.dirichlet(np.ones(n), size=n_boot)                           # (B, n)
+    elpd = n * alpha @ d.T                                                   # (B, G)
+    w = np.exp(elpd - logsumexp(elpd, axis=1, keepdims=True)).mean(axis=0)
+    with np.errstate(divide="ignore"):
+        return np.log(w)
+
+
+def choose_noise(table: PeakTable, plates: Plates, *, growth_max: float = 3.0,
+                 candidates: tuple[str, ...] | None = None) -> tuple[str, dict[str, float], np.ndarray]:
+    """(chosen model, total log score per model, pointwise LOO densities of the chosen
+    one, ndarray[n_grid, n_scans]).
+
+    The better of the pooled models (constant, growing); ``per-plate`` only when it beats
+    that by more than two standard errors: its extra spread parameters, fitted to ~10
+    scans per plate, otherwise mostly fit chance — and the window is then weighted towards
+    wherever a plate happens to look tight (cf. Vehtari, Gelman & Gabry 2017 on LOO
+    differences within their noise). The standard error of the difference is that of the
+    pointwise differences at each model's heaviest window, × √n."""
+    models = candidates or usable_noise_models(plates)
+    scores, curves, points = {}, {}, {}
+    for m in models:
+        dens = loo_elpd(table, plates, m, growth_max=growth_max, pointwise=True)
+        e = np.sum(dens, axis=1)
+        curves[m] = dens
+        scores[m] = float(logsumexp(e) - np.log(e.size)) if np.any(np.isfinite(e)) else -np.inf
+        points[m] = dens[int(np.argmax(e))]
+    pooled = [m for m in models if m != "per-plate"]
+    if not pooled:
+        return "per-plate", scores, curves["per-plate"]
+    best = max(pooled, key=scores.get)
+    if "per-plate" in scores and np.isfinite(scores["per-plate"]):
+        diff = points["per-plate"] - points[best]
+        se = float(np.sqrt(diff.size) * np.std(diff)) if np.all(np.isfinite(diff)) else np.inf
+        if scores["per-plate"] - scores[best] > 2 * se:
+            best = "per-plate"
+    return best, scores, curves[best]
+

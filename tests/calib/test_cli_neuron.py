@@ -1,0 +1,69 @@
+"""`feeler calibrate neuron`, `classify` and `discriminate` end to end on the shipped scene."""
+import json
+
+import pytest
+
+from feeler.calib.neuron.synth import FOUR_PLATES
+from feeler.cli import main
+
+
+@pytest.fixture(scope="module")
+def run_and_fit(tmp_path_factory):
+    root = tmp_path_factory.mktemp("m2")
+    run, fit = root / "run", root / "fit"
+    assert main(["simulate", str(FOUR_PLATES), "--out", str(run)]) == 0
+    assert main(["calibrate", "neuron", str(run), "--out", str(fit), "--draws", "300", "--no-progress"]) == 0
+    return run, fit
+
+
+def test_calibrate_prints_the_checks_and_records_the_scene(run_and_fit, capsys):
+    from feeler.calib.fit import load
+    run, fit = run_and_fit
+    attrs = load(fit).posterior["posterior"].attrs
+    assert attrs["scene_toml"] == (run / "scene.toml").read_text()
+    assert main(["calibrate", "neuron", str(run), "--draws", "300", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "decoder noise:" in out and "labels inside their 90 % interval per plate" in out and "verdict: ok" in out
+
+
+def test_classify_and_discriminate_use_the_fit(run_and_fit, tmp_path, capsys):
+    import pandas as pd
+    run, fit = run_and_fit
+    assert main(["classify", str(fit), str(run), "--n-draws", "50", "--out", str(tmp_path / "cls")]) == 0
+    assert "classified as their labelled plate" in capsys.readouterr().out
+    table = pd.read_csv(tmp_path / "cls" / "classification.csv")
+    assert {"scan_id", "step_mm", "plate_mm", "p_0mm", "height_mm", "lo90_mm", "hi90_mm"} <= set(table.columns)
+    assert ((table.lo90_mm <= table.height_mm) & (table.height_mm <= table.hi90_mm)).all()
+    assert main(["discriminate", str(fit), "--pair", "0.1", "0.12", "--n-scans", "40", "--n-draws", "10",
+                 "--speeds", "0.5", "0.5", "--out", str(tmp_path / "d")]) == 0
+    out = capsys.readouterr().out
+    assert "the scene recorded in the fit" in out and "MC se" in out and "Weber fraction" in out
+    d = json.loads((tmp_path / "d" / "discrimination.json").read_text())
+    assert set(d["threshold_mm"]) >= {"mean", "lo95", "hi95", "found", "median", "mcse", "hi95_is_bound"}
+    assert set(d["pairs"][0]) >= {"low_mm", "high_mm", "pc", "lo95", "hi95", "mcse"}
+    assert d["pairs"][0]["lo95"] <= d["pairs"][0]["pc"] <= d["pairs"][0]["hi95"]
+
+
+def test_refusals_and_errors(run_and_fit, tmp_path, capsys):
+    run, fit = run_and_fit
+    (fit / "verdict.json").write_text(json.dumps({"ok": False, "problems": ["a: R-hat 1.2 > 1.01"]}))
+    try:
+        assert main(["classify", str(fit), str(run)]) != 0                       # a failed fit is refused
+        assert main(["classify", str(fit), str(run), "--n-draws", "20", "--accept-failed"]) == 0
+        assert main(["classify", str(fit), str(run), "--n-draws", "1", "--accept-failed"]) == 2
+    finally:
+        (fit / "verdict.json").write_text(json.dumps({"ok": True, "problems": []}))
+    assert main(["calibrate", "neuron", str(run), "--out", str(fit)]) == 2      # refuses to overwrite
+    assert main(["calibrate", "neuron", str(tmp_path / "nothing.txt")]) == 2
+    assert main(["calibrate", "neuron", str(run), "--emcee-steps", "5"]) == 2
+    csv = tmp_path / "bare" / "scans.csv"
+    csv.parent.mkdir()
+    csv.write_text((run / "scans.csv").read_text())
+    bare = tmp_path / "bare-fit"
+    assert main(["calibrate", "neuron", str(csv), "--length-mm", "3", "--draws", "300", "--out", str(bare),
+                 "--no-progress"]) == 0
+    capsys.readouterr()
+    assert main(["discriminate", str(bare), "--n-scans", "10", "--n-draws", "5"]) == 2
+    assert "--scene" in capsys.readouterr().err
+    assert main(["discriminate", str(bare), "--scene", str(FOUR_PLATES), "--pair", "0.1", "0.2", "--n-scans", "10",
+                 "--n-draws", "5", "--speeds", "0.5", "0.5"]) == 0

@@ -1,0 +1,59 @@
+"""emcee runs until its chains pass the verdict's diagnostics, or stops at a cap that fails clearly."""
+import numpy as np
+import pytest
+
+from feeler.calib.diagnostics import diagnose
+from feeler.calib.emcee_run import converged, run_until_converged
+from feeler.calib.posterior import posterior_from_draws
+
+
+def _sampler(seed=0, walkers=16):
+    import emcee
+
+    cov = np.eye(2)
+    prec = np.linalg.inv(cov)
+
+    def log_prob(x):
+        return -0.5 * np.einsum("wi,ij,wj->w", x, prec, x)
+
+    s = emcee.EnsembleSampler(walkers, 2, log_prob, vectorize=True)
+    s.random_state = np.random.RandomState(seed).get_state()
+    return s, np.random.default_rng(seed).normal(size=(walkers, 2))
+
+
+def _verdict(sampler, burn):
+    chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
+    tree = posterior_from_draws({"x": chain[..., 0], "y": chain[..., 1]})
+    return diagnose(tree, backend="emcee")
+
+
+def test_converged_tells_independent_from_sticky_chains():
+    rng = np.random.default_rng(3)
+    iid = rng.normal(size=(4000, 16, 2))
+    assert converged(iid)[0]
+    sticky = np.cumsum(rng.normal(size=(4000, 16, 2)), axis=0)          # random walks: never converged
+    ok, tau = converged(sticky)
+    assert not ok and tau > 50
+
+
+@pytest.mark.slow
+def test_runs_until_the_verdict_passes():
+    s, p0 = _sampler()
+    burn, notes = run_until_converged(s, p0, chunk=500)
+    assert notes == []
+    assert converged(s.get_chain(discard=burn))[0]
+    verdict = _verdict(s, burn)
+    assert verdict.ok, verdict.problems
+
+
+def test_a_cap_fails_clearly():
+    s, p0 = _sampler(1)
+    burn, notes = run_until_converged(s, p0, max_steps=300, chunk=100)
+    assert len(notes) == 1 and "cap of 300 steps" in notes[0] and "autocorrelation" in notes[0]
+    assert not _verdict(s, burn).ok
+
+
+def test_a_fixed_number_of_steps_runs_exactly():
+    s, p0 = _sampler(2)
+    burn, notes = run_until_converged(s, p0, steps=400)
+    assert (burn, notes) == (100, []) and s.iteration == 400

@@ -1,0 +1,88 @@
+"""M1's verdict checks, one failing case per branch, and the shipped campaigns passing them."""
+import dataclasses
+import warnings
+
+import numpy as np
+import pytest
+
+from feeler.calib.matrix import CalibrationData, MatrixPrior, fit_matrix
+from feeler.calib.matrix.checks import conflict_problems, design_problems, ppc_problems, unit_problems
+from feeler.scene import load_scene
+from feeler.simulate.calibration import draw_campaign
+
+SCENE = load_scene("datasets-synthetic/sensor-calibration.toml")
+PRIOR = MatrixPrior(c0_mm_per_n=SCENE.prior.c0_mm_per_n, rel_sd=SCENE.prior.rel_sd,
+                    sigma_f_scale_n=SCENE.prior.sigma_f_scale_n)
+
+
+def _campaign(scene=SCENE, seed=1):
+    u, _, f = draw_campaign(scene, np.random.default_rng(seed))
+    return CalibrationData(u, f, np.arange(len(u)))
+
+
+def _fit(data, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fit_matrix(data, PRIOR, rng=np.random.default_rng(0), draws=500, **kw)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_shipped_design_on_fresh_seeds_passes(seed):
+    scene = dataclasses.replace(SCENE, scene=dataclasses.replace(SCENE.scene, seed=seed))
+    res = _fit(_campaign(scene))
+    assert res.verdict.ok, res.verdict.problems
+
+
+def test_near_singular_sensor_is_a_prior_data_conflict():
+    c = ((0.30, 0.012, 0.29), (0.015, 0.15, 0.010), (0.29, 0.008, 0.30))          # cond(C) = 59
+    scene = dataclasses.replace(SCENE, sensor=dataclasses.replace(SCENE.sensor, c_mm_per_n=c))
+    res = _fit(_campaign(scene))
+    text = "; ".join(res.verdict.problems)
+    assert not res.verdict.ok and "K: row 0 by least squares" in text and "prior-data conflict" in text
+    wide = fit_matrix(_campaign(scene), dataclasses.replace(PRIOR, rel_sd=50.0), rng=np.random.default_rng(0))
+    assert wide.verdict.ok, wide.verdict.problems                   # a prior that lets the data speak passes
+
+
+def test_units_um_and_mn_are_named():
+    d = _campaign()
+    um = _fit(CalibrationData(1000 * d.u_mm, d.f_n, d.point_id))
+    assert not um.verdict.ok and "displacements probably in um" in um.verdict.problems[0]
+    mn = unit_problems(d.u_mm, 1000 * d.f_n, PRIOR.c0, forward=False)
+    assert len(mn) == 1 and "forces probably in mN" in mn[0]
+    assert unit_problems(d.u_mm, d.f_n, PRIOR.c0, forward=False) == []
+    assert unit_problems(d.f_n, 1000 * d.u_mm, PRIOR.c0, forward=True)[0].startswith("C: the data's compliance is")
+
+
+def test_all_zero_and_unidentified_designs():
+    d = _campaign()
+    zero = _fit(CalibrationData(0 * d.u_mm, d.f_n, d.point_id))
+    assert zero.verdict.problems[0].startswith("K: the displacements are all zero")
+    u = d.u_mm.copy()
+    u[:, 2] = 0.0
+    assert any("z=+1.000" in q for q in design_problems(u, matrix="K", what="displacement", unit="mm"))
+
+
+def test_conflict_check_exact_on_a_constructed_case():
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(40, 3))
+    b0 = np.eye(3)
+    y = x @ (b0 + 10.0).T + 0.1 * rng.normal(size=(40, 3))           # every row 10 from the prior mean
+    assert len(conflict_problems(x, y, b0, 1.0, matrix="K", unit="N/mm")) == 3
+    assert conflict_problems(x, y, b0, 100.0, matrix="K", unit="N/mm") == []
+
+
+def test_posterior_predictive_checks_catch_a_nonlinear_sensor_and_an_outlier():
+    d = _campaign()
+    k = np.linalg.inv(np.asarray(SCENE.sensor.c_mm_per_n))
+    rng = np.random.default_rng(4)
+    curved = d.u_mm @ k.T + 40.0 * d.u_mm ** 2 + 0.02 * rng.normal(size=d.u_mm.shape)   # stiffening
+    res = _fit(CalibrationData(d.u_mm, curved, d.point_id))
+    assert any("lack of fit" in q for q in res.verdict.problems), res.verdict.problems
+    spike = d.f_n.copy()
+    spike[7, 1] += 0.5                                                               # one 25-sigma reading
+    res = _fit(CalibrationData(d.u_mm, spike, d.point_id))
+    assert any("largest standardised residual" in q and "axis y" in q for q in res.verdict.problems)
+    clean = _fit(d)
+    assert clean.verdict.ok
+    B = np.tile(np.linalg.lstsq(d.u_mm, d.f_n, rcond=None)[0].T, (50, 1, 1))
+    assert ppc_problems(d.u_mm, d.f_n, B, np.full((50, 3), 0.02), np.random.default_rng(5), matrix="K") == []

@@ -1,0 +1,134 @@
+"""M2's verdict checks, one failing case per branch: identifiability, units, the decoder's fit."""
+import dataclasses
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from feeler.calib.neuron import fit_neuron
+from feeler.calib.neuron.checks import data_problems, posterior_problems, unit_problems
+from feeler.calib.neuron.grid import sample_grid
+from feeler.calib.neuron.model import PeakTable, Plates, make_priors
+from feeler.calib.neuron.synth import Truth, scene_scans, simulate_peaks
+from feeler.calib.neuron.window import choose_noise
+
+
+@pytest.fixture(scope="module")
+def data():
+    return scene_scans(per_plate=10)[2]
+
+
+def _table(p, n_nodes=2, spread=1e-6):
+    """Peaks that do not depend on τ (flat τ weights)."""
+    return PeakTable(log_tau=np.linspace(0.0, spread, n_nodes), peak=np.repeat(np.asarray(p)[:, None], n_nodes, 1))
+
+
+def _fit(table, plates, noise, rng, log_w=None):
+    lw = np.zeros(table.log_tau.size) if log_w is None else log_w
+    post = sample_grid(table, plates, make_priors(table), noise, lw, chains=1, draws=400, rng=rng)
+    return posterior_problems(table, plates, noise, lw, post)
+
+
+def _quiet_fit(d, **kw):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = fit_neuron(d, draws=200, **kw)
+    leaked = [w for w in caught if issubclass(w.category, RuntimeWarning)]
+    assert not leaked, [str(w.message) for w in leaked]            # no raw numpy warning reaches a user
+    return res
+
+
+def test_constant_noise_on_unequal_plates_is_too_narrow_for_the_wide_plate():
+    rng = np.random.default_rng(4)
+    plates = Plates.of(np.repeat([0.0, 0.05, 0.1, 0.2], 60))
+    p = simulate_peaks(plates, Truth(mu=np.array([1.0, 2.0, 3.0, 4.0]), sigma=np.array([0.1, 0.1, 0.1, 0.25])), rng)
+    problems, info = _fit(_table(p), plates, "constant", rng)
+    assert any("plate 0.2 mm" in q and "too narrow" in q for q in problems), problems
+    good, info = _fit(_table(p), plates, "per-plate", rng)
+    assert good == [] and min(info["loo_coverage90"]) > 0.8
+    assert choose_noise(_table(p), plates)[0] != "constant"       # leave-one-out rejects the pooled spread
+    odd = simulate_peaks(plates, Truth(mu=np.array([1.0, 2.0, 3.0, 4.0]), sigma=np.array([0.25, 0.1, 0.1, 0.25])),
+                         rng)
+    assert choose_noise(_table(odd), plates)[0] == "per-plate"    # and no log-linear trend fits these
+
+
+def test_a_plate_whose_scans_never_leave_the_band_is_too_wide():
+    rng = np.random.default_rng(5)
+    plates = Plates.of(np.repeat([0.0, 0.1], 200))
+    p = np.where(np.arange(400) % 2 == 0, 1.0, -1.0) * 0.1 + np.repeat([1.0, 2.0], 200)   # two points, ±1 sd
+    problems, _ = _fit(_table(p), plates, "per-plate", rng)
+    assert any("too wide" in q for q in problems), problems
+
+
+def test_skewed_plate_is_reported_as_biased():
+    rng = np.random.default_rng(6)
+    plates = Plates.of(np.repeat([0.0, 0.1, 0.2], 600))
+    p = np.repeat([1.0, 2.0, 3.0], 600) + 0.1 * rng.standard_normal(1800)
+    p[1200:] = 3.0 + 0.1 * (rng.lognormal(0.0, 1.5, 600) - np.exp(1.125))     # right-skewed top plate
+    problems, info = _fit(_table(p), plates, "per-plate", rng)
+    print("\n", info["loo_mean_pit"], problems)
+    assert any("plate 0.2 mm" in q and "biased" in q for q in problems)
+
+
+def test_plates_the_decoder_cannot_order():
+    rng = np.random.default_rng(7)
+    plates = Plates.of(np.repeat([0.0, 0.05, 0.1], 12))
+    p = np.repeat([1.0, 1.0, 2.0], 12) + 0.1 * rng.standard_normal(36)
+    problems, info = _fit(_table(p), plates, "per-plate", rng)
+    assert any("cannot order plates 0 mm and 0.05 mm" in q for q in problems), info
+
+
+def test_a_window_the_data_do_not_pin():
+    rng = np.random.default_rng(8)
+    plates = Plates.of(np.repeat([0.0, 0.1], 12))
+    p = np.repeat([1.0, 2.0], 12) + 0.1 * rng.standard_normal(24)
+    table = _table(p, n_nodes=64, spread=2.0)                               # every τ reads the same peaks
+    problems, _ = _fit(table, plates, "per-plate", rng)
+    assert any(q.startswith("tau_s: not pinned") for q in problems)
+
+
+def test_one_plate_fails_naming_what_it_cannot_pin(data):
+    one = dataclasses.replace(data, step_mm=np.full(data.step_mm.size, 0.1))
+    res = _quiet_fit(one)
+    assert not res.verdict.ok
+    assert any("one plate (0.1 mm)" in q and "a, h, tau_s" in q for q in res.verdict.problems)
+
+
+def test_noise_free_scans_fail_with_zero_spread(data):
+    first = np.searchsorted(data.step_mm, np.unique(data.step_mm))           # one scan per plate, repeated
+    idx = np.repeat(first, 10)
+    same = dataclasses.replace(data, strain=data.strain[idx], step_mm=data.step_mm[idx], x_mm=data.x_mm[idx],
+                               speed_mm_s=data.speed_mm_s[idx])
+    res = _quiet_fit(same)
+    assert not res.verdict.ok and any("identical" in q and "noise-free" in q for q in res.verdict.problems)
+    assert any(q.startswith("plate_sd_mm, tau_s:") and "zero spread" in q for q in res.verdict.problems)
+    assert np.all(np.isfinite(res.summary["mean"]))
+
+
+def test_a_plate_with_one_scan(data):
+    keep = np.r_[0:30, 30]                                                  # plate 3 keeps one scan
+    one = dataclasses.replace(data, strain=data.strain[keep], step_mm=data.step_mm[keep], x_mm=data.x_mm[keep],
+                              speed_mm_s=data.speed_mm_s[keep])
+    problems = data_problems(one.table(n_grid=16), Plates.of(one.step_mm))
+    assert any("0.2 mm have one scan" in q for q in problems)
+
+
+def test_units_micrometres_and_milliseconds(data):
+    table = data.table(n_grid=32)
+    plates = Plates.of(data.step_mm)
+    assert unit_problems(table, plates, length_mm=3.0, t_s=data.t_s, x_mm=data.x_mm, speed_mm_s=data.speed_mm_s) == []
+    um = unit_problems(PeakTable(table.log_tau, 1000 * table.peak), plates, length_mm=3.0, t_s=data.t_s)
+    assert len(um) == 1 and "U_y probably in um" in um[0]
+    tiny = unit_problems(PeakTable(table.log_tau, table.peak / 1000), plates, length_mm=3.0, t_s=data.t_s)
+    assert "steps probably in um" in tiny[0]
+    ms = unit_problems(table, plates, length_mm=3.0, t_s=1000 * data.t_s, x_mm=data.x_mm, speed_mm_s=data.speed_mm_s)
+    assert len(ms) == 2 and all("times probably in ms" in q for q in ms)
+    res = _quiet_fit(dataclasses.replace(data, strain=1000 * data.strain))
+    assert not res.verdict.ok and "U_y probably in um" in res.verdict.problems[0]
+
+
+def test_checks_are_recorded(data):
+    res = _quiet_fit(data)
+    checks = json.loads(res.posterior["posterior"].attrs["checks"])
+    assert set(checks) >= {"loo_coverage90", "loo_mean_pit", "p_ordered", "tau_spread_of_prior"}

@@ -1,0 +1,144 @@
+"""M2 maths: plate statistics, the decoder line, conjugate draws, the leave-one-out score,
+the MCMC target, and the decoder's probabilities and belt — each against a reference."""
+import numpy as np
+import pytest
+from scipy import integrate, stats
+
+from feeler.calib.neuron.conjugate import draw_plate_parameters, growth_log_density
+from feeler.calib.neuron.decoder import DecoderDraws
+from feeler.calib.neuron.model import PeakTable, PlatePrior, Plates, decoder_line, plate_stats
+from feeler.calib.neuron.target import log_conditional, node_stats
+from feeler.calib.neuron.window import continuous_log_density, loo_elpd
+
+def _design(rng, n=6, mu=(1.0, 2.0, 3.2, 5.5), sd=(0.2, 0.3, 0.3, 0.5)):
+    plates = Plates.of(np.repeat([0.0, 0.05, 0.1, 0.2], n))
+    g = plates.group
+    return plates, np.asarray(mu)[g] + np.asarray(sd)[g] * rng.standard_normal(g.size)
+
+
+def test_plate_stats_and_line_exact():
+    plates = Plates.of([0.1, 0.0, 0.1, 0.0, 0.2])
+    np.testing.assert_array_equal(plates.steps_mm, [0.0, 0.1, 0.2])
+    np.testing.assert_array_equal(plates.counts, [2, 2, 1])
+    mean, ss = plate_stats(np.array([3.0, 1.0, 5.0, 2.0, 9.0]), plates)
+    np.testing.assert_allclose(mean, [1.5, 4.0, 9.0])
+    np.testing.assert_allclose(ss, [0.5, 2.0, 0.0])
+    mu = np.array([[1.0, 3.0, 5.0]])                     # μ = (c + h)/a with a = 0.05, h = 0.05
+    a, h = decoder_line(mu, Plates.of([0.0, 0.1, 0.2]))
+    assert a[0] == pytest.approx(0.05) and h[0] == pytest.approx(0.05)
+    a, _ = decoder_line(np.array([[3.0, 2.0, 1.0]]), Plates.of([0.0, 0.1, 0.2]))
+    assert np.isnan(a[0])                                # decreasing plates: no gain
+
+
+@pytest.mark.parametrize("noise", ["constant", "per-plate", "growing"])
+def test_conjugate_draws_match_closed_form_moments(noise):
+    rng = np.random.default_rng(1)
+    plates, p = _design(rng)
+    mean, ss = plate_stats(p, plates)
+    S = 40000
+    par = draw_plate_parameters(rng, np.tile(mean, (S, 1)), np.tile(ss, (S, 1)), plates, noise, PlatePrior(), 3.0)
+    r = plates.counts - 1.0
+    np.testing.assert_allclose(par["mu"].mean(axis=0), mean, atol=4 * par["sigma"].max() / np.sqrt(6 * S))
+    if noise == "per-plate":                             # σ² ~ scaled-inv-χ²(r, SS/r): E σ² = SS/(r − 2)
+        np.testing.assert_allclose((par["sigma"] ** 2).mean(axis=0), ss / (r - 2), rtol=0.05)
+    elif noise == "constant":
+        assert (par["sigma"][:, 0] ** 2).mean() == pytest.approx(ss.sum() / (r.sum() - 2), rel=0.03)
+    else:                                                # g's density against a direct 2-D integral
+        g = par["growth"]
+        lp = lambda v: growth_log_density(np.array([v]), ss[None], r, plates.x, PlatePrior())[0, 0]  # noqa: E731
+        z = integrate.quad(lambda v: np.exp(lp(v) - lp(0.0)), -3, 3)[0]
+        m1 = integrate.quad(lambda v: v * np.exp(lp(v) - lp(0.0)), -3, 3)[0] / z
+        assert g.mean() == pytest.approx(m1, abs=4 * g.std() / np.sqrt(S) + 0.01)
+
+        def joint(v, s0):                               # p(g, σ₀ | data) ∝ likelihood × 1/σ₀
+            sig = s0 * np.exp(v * plates.x)
+            return np.exp(np.sum(-r * np.log(sig) - ss / (2 * sig ** 2)) - np.log(s0) + 40)
+        ref = integrate.dblquad(lambda s0, v: v * joint(v, s0), -3, 3, 0.01, 3)[0] / \
+            integrate.dblquad(lambda s0, v: joint(v, s0), -3, 3, 0.01, 3)[0]
+        assert m1 == pytest.approx(ref, abs=1e-3)
+
+
+def test_continuous_density_equals_numerical_integral():
+    steps = np.array([0.0, 0.05, 0.1, 0.2])
+    mu = np.array([1.0, 2.0, 3.2, 5.5])
+    s = np.array([0.4, 0.5, 0.5, 0.8])
+    for p, c in ((1.7, 1), (5.0, 3), (0.2, 0)):
+        got = continuous_log_density(np.array(p), np.array(c), mu, s, steps)
+        # reference: the flat-prior posterior density of δ on a fine grid, curve extended linearly
+        grid = np.linspace(-2.0, 2.5, 400001)
+        seg = np.clip(np.searchsorted(steps, grid) - 1, 0, 2)
+        m = mu[seg] + (grid - steps[seg]) * (mu[seg + 1] - mu[seg]) / (steps[seg + 1] - steps[seg])
+        frac = np.clip((grid - steps[seg]) / (steps[seg + 1] - steps[seg]), 0, 1)
+        sd = s[seg] + frac * (s[seg + 1] - s[seg])
+        dens = stats.norm.pdf(p, m, sd)
+        ref = np.log(stats.norm.pdf(p, mu[c], s[c]) / np.trapezoid(dens, grid))
+        assert got == pytest.approx(ref, abs=1e-6)
+    assert continuous_log_density(np.array(2.0), np.array(1), np.array([1.0, 3.0, 2.0, 4.0]), s, steps) == -np.inf
+
+
+def test_loo_elpd_equals_refitting_without_each_scan():
+    rng = np.random.default_rng(2)
+    plates, p = _design(rng, n=5)
+    table = PeakTable(log_tau=np.log([1.0, 2.0]), peak=np.column_stack([p, 1.3 * p + 0.1]))
+    got = loo_elpd(table, plates, "per-plate")
+    for j in range(2):
+        ref = 0.0
+        for k in range(p.size):
+            keep = np.arange(p.size) != k
+            pk = Plates.of(plates.steps_mm[plates.group[keep]])
+            mean, ss = plate_stats(table.peak[keep, j], pk)
+            s = np.sqrt(ss / (pk.counts - 1) * (1 + 1 / pk.counts))
+            ref += continuous_log_density(np.array(table.peak[k, j]), np.array(plates.group[k]), mean, s,
+                                          plates.steps_mm)
+        assert got[j] == pytest.approx(ref, rel=1e-10)
+
+
+@pytest.mark.parametrize("noise, k", [("per-plate", 4), ("constant", 1), ("growing", 2)])
+def test_mcmc_target_is_a_normalised_density(noise, k):
+    """log_conditional integrates to 1 over (m, spreads) — checked by importance sampling
+    from the exact backend's draws (the ratio of densities must average 1)."""
+    rng = np.random.default_rng(3)
+    plates, p = _design(rng)
+    table = PeakTable(log_tau=np.log([1.0, 1.0 + 1e-9]), peak=np.column_stack([p, p]))
+    st = node_stats(table, plates, np.log([1.0]), np.zeros(1), noise)
+    # proposal: wide normal around the sample statistics in mm
+    zbar, q = st.zbar[0], st.q[0]
+    sd0 = np.sqrt(q / plates.counts)
+    centre = np.concatenate([zbar, np.log(np.sqrt(q / (plates.counts - 1)))[:k] if noise != "growing"
+                             else [np.log(np.sqrt(q.sum() / 20)), 0.0]])
+    scale = np.concatenate([3 * sd0 / np.sqrt(plates.counts), np.full(k, 0.6)])
+    n = 400000
+    x = centre + scale * rng.standard_normal((n, centre.size))
+    if noise == "growing":
+        x = x[np.abs(x[:, -1]) <= 3.0]
+    logq = np.sum(stats.norm.logpdf(x, centre, scale), axis=1)
+    lp = log_conditional(x[:, :4], x[:, 4:], zbar, q, st.k[0], plates, noise)
+    w = np.exp(lp - logq)
+    total = w.sum() / n
+    assert total == pytest.approx(1.0, rel=0.03)
+
+
+def _fixed(mean_mm, sd_mm, a=2.0, h=0.1, tau=3.0, steps=(0.0, 0.05, 0.1, 0.2)):
+    mean_mm, sd_mm = np.atleast_2d(mean_mm), np.atleast_2d(sd_mm)
+    S = mean_mm.shape[0]
+    return DecoderDraws(np.asarray(steps), np.full(S, tau), np.full(S, a), np.full(S, h), mean_mm, sd_mm)
+
+
+def test_class_probabilities_by_bayes_rule():
+    dec = _fixed([0.003, 0.05, 0.1, 0.2], [0.004, 0.005, 0.006, 0.008])
+    p = np.array([[0.04, 0.06, 0.2]])                        # P at τ; z = 2P − 0.1
+    z = 2 * p[0] - 0.1
+    dens = np.array([stats.norm.pdf(z, m, s) for m, s in zip(dec.mean_mm[0], dec.sd_mm[0])]).T
+    np.testing.assert_allclose(np.exp(dec.class_log_prob(p)), dens / dens.sum(axis=1, keepdims=True), rtol=1e-10)
+
+
+def test_height_belt_on_a_straight_curve_is_z_plus_minus_1645_sd():
+    steps = (0.0, 0.1, 0.2)
+    dec = _fixed([0.0, 0.1, 0.2], [0.01, 0.01, 0.01], a=1.0, h=0.0, steps=steps)
+    z = np.array([[0.05, 0.13, 0.5]])
+    est, lo, hi = dec.height(z)
+    np.testing.assert_allclose(est, z[0], atol=1e-9)
+    np.testing.assert_allclose(lo, z[0] - stats.norm.ppf(0.95) * 0.01, atol=1e-9)
+    np.testing.assert_allclose(hi, z[0] + stats.norm.ppf(0.95) * 0.01, atol=1e-9)
+    low = dec.height(np.array([[-0.01]]))                   # below the flat plate: clipped at 0, 0 covered
+    assert low[1][0] == 0.0 and low[0][0] == 0.0 and low[2][0] > 0
