@@ -50,7 +50,7 @@ def curves_gallery(inv, part) -> Gallery | None:
                                            "comparison_speed_mm_s", "file"))
     items = []
     for r in index.itertuples(index=False):
-        png = part.path(f"curves/{r.file}")
+        png = part.path(str(r.file))  # relative to the fit directory, as the fit writes it
         path = inv.run_dir / png
         data = path.read_bytes() if path.is_file() else b""
         if not data.startswith(b"\x89PNG\r\n\x1a\n"):

@@ -112,7 +112,7 @@ def test_m4_curve_images_and_new_threshold_columns_are_shown(run_dir, tmp_path):
     rows = ["subject,standard_um,standard_speed_mm_s,comparison_speed_mm_s,file"]
     for s in ("S1", "S2", "all"):
         (m4 / "curves" / f"{s}-20.png").write_bytes(png)
-        rows.append(f"{s},10,20,20,{s}-20.png")
+        rows.append(f"{s},10,20,20,curves/{s}-20.png")
     (m4 / "curves" / "index.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
     report = build_report(tmp_path / "run", tmp_path / "out", pdf=False)
     html = report.html.read_text(encoding="utf-8")
@@ -128,7 +128,7 @@ def test_a_listed_curve_that_is_not_a_png_is_named(run_dir, tmp_path):
     m4 = shutil.copytree(run_dir / "m4", tmp_path / "run" / "m4")
     (m4 / "curves").mkdir()
     (m4 / "curves" / "index.csv").write_text("subject,standard_um,standard_speed_mm_s,comparison_speed_mm_s,file\n"
-                                             "S1,10,20,20,gone.png\n", encoding="utf-8")
+                                             "S1,10,20,20,curves/gone.png\n", encoding="utf-8")
     with pytest.raises(DataFileError, match=r"gone\.png: listed in m4/curves/index\.csv but not a readable PNG"):
         build_report(tmp_path / "run", tmp_path / "out", pdf=False)
 
