@@ -218,3 +218,15 @@ def test_acquire_on_the_real_firmware_with_a_replayed_camera(firmware, tmp_path,
     assert np.all((rows.stage_x_mm >= -1.0) & (rows.stage_x_mm <= -0.4))
     assert np.all(rows.stage_z_mm == -0.552)                 # -0.55 mm is -137.5 steps: Grbl rounds to -138
     assert np.all(np.isclose(rows.stage_x_mm * 250, np.round(rows.stage_x_mm * 250)))
+
+
+def test_the_stall_probe_tells_a_running_firmware_from_a_stuck_one(firmware):
+    """The condition under which a failed firmware test is run again: idle is not stalled,
+    a move in progress is not stalled (its position changes between the probes)."""
+    assert not firmware.stalled(probe_s=0.5)
+    settings(firmware, **FAST)
+    with open_stage(firmware) as stage:
+        stage.move_to(x_mm=-30.0, feed_mm_min=600.0)                           # 3 s of motion
+        next(s for s in stage.track() if s.state == "Run")
+        assert not firmware.stalled(probe_s=0.5)       # the driver reads nothing meanwhile
+        assert stage.wait_idle().mpos_mm == (-30.0, 0.0, 0.0)
