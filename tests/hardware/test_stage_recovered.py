@@ -30,12 +30,14 @@ def test_damage_of_each_kind_and_a_real_error_is_no_damage():
     (Fault("drop", reply="status", nth=2), {"status_lost": 1}),    # open read status #1
     (Fault("garble", reply="status", nth=2), {"status_malformed": 1}),
     (Fault("truncate", reply="status", nth=2), {"status_short_read": 1}),
-    (Fault("delay", reply="status", nth=2, delay_s=0.5), {"status_lost": 1}),
+    (Fault("delay", reply="status", nth=2, delay_s=1.5), {"status_lost": 1}),
 ], ids=["none", "dropped ok", "garbled ok", "truncated ok", "dropped status", "garbled status",
         "truncated status", "late status"])
 def test_each_recovered_reply_is_counted_once(fault, counted):
+    # a reply timeout of 1 s: long enough that a loaded host never makes an honest reply
+    # late (exact counts), short enough that the injected losses cost little time
     with emulator_process(FAST, faults=() if fault is None else (fault,)) as emu, \
-            Stage.open(emu.path, reply_timeout_s=0.3, poll_s=0.005) as stage:
+            Stage.open(emu.path, reply_timeout_s=1.0, poll_s=0.005) as stage:
         stage.move_to(x_mm=-7.0, feed_mm_min=30000.0)
         assert stage.wait_idle().mpos_mm == (-7.0, 0.0, -20.0)
         for _ in range(3):
