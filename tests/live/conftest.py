@@ -27,3 +27,9 @@ def scans_frame(small_fit):
     return pd.DataFrame({"scan_id": np.repeat(idx, data.strain.shape[1]), "t_s": t[idx].ravel(),
                          "x_mm": x[idx].ravel(), "uy_mm": data.strain[idx].ravel() * length,
                          "step_mm": np.repeat(data.step_mm[idx], data.strain.shape[1])})
+
+
+@pytest.fixture(scope="session")
+def fit_dir(small_fit, tmp_path_factory):
+    """The small fit saved as `feeler calibrate neuron --out` does."""
+    return small_fit[1].save(tmp_path_factory.mktemp("fit") / "fit")
