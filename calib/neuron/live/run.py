@@ -89,6 +89,10 @@ class RunDecoder:
             self.on_scan(row)
         return row
 
+    def discard(self) -> None:
+        """Forget the scan in progress (cut short: it gets no row)."""
+        self._key = None
+
     def table(self):
         """The rows so far as a DataFrame in ``decisions.csv`` order (by scan_id)."""
         import pandas as pd

@@ -26,13 +26,14 @@ class LiveView:
     """
 
     def __init__(self, plates_mm, *, stream=None, live: bool | None = None, every_s: float = 0.1,
-                 clock=time.monotonic):
+                 clock=time.monotonic, before_line=None):
         self.plates = [float(v) for v in plates_mm]
         self.stream = stream or sys.stderr
         self.live = self.stream.isatty() if live is None else bool(live)
         self.every_s, self.clock = every_s, clock
         self._last = -math.inf
         self._width = 0
+        self.before_line = before_line
 
     def _probs(self, prob) -> str:
         return " ".join(f"{v:g}:{p:.2f}" for v, p in zip(self.plates, prob))
@@ -71,5 +72,7 @@ class LiveView:
             self._line(end)
 
     def _line(self, text: str) -> None:
+        if self.before_line is not None:
+            self.before_line()
         self.stream.write(text + "\n")
         self.stream.flush()
