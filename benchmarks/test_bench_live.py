@@ -35,6 +35,7 @@ import pytest
 from _ratios import LOADS, busy_loops, record_ratio
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.live import LiveDecoder
+from feeler.calib.neuron.live.trade import decision_index, end_row, record_pass, trade_rows
 from feeler.calib.neuron.synth import HARD_SCENES, scene_scans
 
 FULL = os.environ.get("FEELER_FULL") == "1"
@@ -102,15 +103,20 @@ def test_decision_latency_against_accuracy(benchmark, setup):
 
     scene, fresh, fit = setup
     step_x = scene.surface.position_mm
-    rows = []
+    rows, passes = [], None
     for drop in DROPS:
-        rows += _trade(LiveDecoder(fit, seed=0, threshold=0.9, drop=drop), fresh, step_x, drop)
-    final = LiveDecoder(fit, seed=0)
-    end = np.array([np.isclose(_stream(final, fresh, k)[-1, 3], fresh.step_mm[k]) for k in range(fresh.t_s.shape[0])])
-    t_step = np.array([np.interp(step_x, x, t) for x, t in zip(fresh.x_mm, fresh.t_s)])
-    rows.append({"option": "end of scan (classify)", "latency_s": float(np.median(fresh.t_s[:, -1] - t_step)),
-                 "latency_mm": float(np.median(fresh.x_mm[:, -1] - step_x)), "accuracy": float(end.mean()),
-                 "decided": 1.0, "accuracy_decided": float(end.mean())})
+        dec = LiveDecoder(fit, seed=0, threshold=0.9, drop=drop)
+        passes = [record_pass(dec, fresh.t_s[k], fresh.uy_mm[k], fresh.x_mm[k]) for k in range(fresh.t_s.shape[0])]
+        for k in range(3):                   # the decoder's own decision is the rule on the recorded pass
+            dec.reset()
+            for t, uy in zip(fresh.t_s[k], fresh.uy_mm[k]):
+                s = dec.push(t, uy)
+            d = dec.finish().decision
+            assert (None if d is None else d.index) == decision_index(passes[k], dec.threshold)
+        rows += [{**r, "drop": drop} for r in trade_rows(passes, fresh.step_mm, step_x, THRESHOLDS,
+                                                          label=f"drop {drop:g}, ")]
+    end = end_row(passes, fresh.step_mm, step_x)
+    rows.append(end)
     table = pd.DataFrame(rows)
     OUT.mkdir(parents=True, exist_ok=True)
     table.to_csv(OUT / "decoder.csv", index=False)
@@ -119,38 +125,8 @@ def test_decision_latency_against_accuracy(benchmark, setup):
     for r in rows:
         benchmark.extra_info[f"{r['option']}: accuracy"] = r["accuracy"]
         benchmark.extra_info[f"{r['option']}: latency_s"] = r["latency_s"]
-    assert 0.3 < end.mean() < 0.99, "the scene must not be trivially separable (the condition of the trade)"
+    assert 0.3 < end["accuracy"] < 0.99, "the scene must not be trivially separable (the condition of the trade)"
     benchmark.pedantic(lambda: None, rounds=1, iterations=1)
-
-
-def _trade(dec, fresh, step_x, drop):
-    """Rows of the trade at every threshold for one ``drop``; the decoder's own decision
-    (at its threshold) is checked to be the rule applied to the recorded pass."""
-    runs = [_stream(dec, fresh, k) for k in range(fresh.t_s.shape[0])]
-    for k in range(3):
-        dec.reset()
-        for t, uy in zip(fresh.t_s[k], fresh.uy_mm[k]):
-            s = dec.push(t, uy)
-        first = np.flatnonzero((runs[k][:, 1] > 0) & (runs[k][:, 2] >= dec.threshold))
-        assert (None if s.decision is None else s.decision.index) == (int(first[0]) if first.size else None)
-    rows = []
-    for th in THRESHOLDS:
-        hit, lat_s, lat_mm = [], [], []
-        for k, r in enumerate(runs):
-            ok = np.flatnonzero((r[:, 1] > 0) & (r[:, 2] >= th))
-            if not ok.size:
-                hit.append(False)
-                continue
-            i = int(ok[0])
-            hit.append(bool(np.isclose(r[i, 3], fresh.step_mm[k])))
-            lat_s.append(r[i, 4] - float(np.interp(step_x, fresh.x_mm[k], fresh.t_s[k])))
-            lat_mm.append(r[i, 5] - step_x)
-        rows.append({"option": f"drop {drop:g}, threshold {th:g}", "drop": drop, "threshold": th,
-                     "latency_s": float(np.median(lat_s)) if lat_s else np.nan,
-                     "latency_mm": float(np.median(lat_mm)) if lat_mm else np.nan,
-                     "accuracy": float(np.mean(hit)), "decided": len(lat_s) / len(runs),
-                     "accuracy_decided": float(np.sum(hit) / len(lat_s)) if lat_s else np.nan})
-    return rows
 
 
 def _plot(table, path):

@@ -64,18 +64,30 @@ def test_window_sums_equal_the_core_uniform_or_not(kernel):
 def test_decision_waits_for_the_peak_then_the_threshold(small_fit):
     data, res = small_fit
     k = int(np.argmax(data.step_mm))
-    states, end = _stream(LiveDecoder(res, seed=0, n_draws=60, threshold=0.9), data.strain[k], data.t_s)
+    dec = LiveDecoder(res, seed=0, n_draws=60, threshold=0.9)
+    states, end = _stream(dec, data.strain[k], data.t_s)
     made = [s for s in states if s.new_decision]
     assert len(made) == 1
     first = made[0].decision
     before = states[: first.index]
     assert all(s.decision is None for s in before)
     assert states[first.index].peaked and states[first.index].prob.max() >= 0.9
-    assert not any(s.peaked and s.prob.max() >= 0.9 for s in before)
-    assert end.decision == first and first.plate_mm == pytest.approx(data.step_mm[k])
-    # a threshold no scan reaches: no decision, final probabilities still there
-    _, never = _stream(LiveDecoder(res, seed=0, n_draws=60, threshold=1.0), data.strain[0][:3], data.t_s[:3])
-    assert never.decision is None and never.prob.sum() == pytest.approx(1.0)
+    top = [int(np.argmax(s.prob)) for s in before]
+    assert not any(s.peaked and s.prob.max() >= 0.9 and j > 0 for s, j in zip(before, top))
+    assert end.decision == first and not end.new_decision and first.plate_mm == pytest.approx(data.step_mm[k])
+    # a scan outside the training envelope (3 samples of a 41-sample fit): flagged, never decided,
+    # its final probabilities still there
+    _, never = _stream(LiveDecoder(res, seed=0, n_draws=60, threshold=0.5), data.strain[0][:3], data.t_s[:3])
+    assert never.flags and never.decision is None and never.prob.sum() == pytest.approx(1.0)
+
+
+def test_the_lowest_plate_is_decided_only_at_the_end(small_fit):
+    data, res = small_fit
+    k = int(np.argmin(data.step_mm))
+    states, end = _stream(LiveDecoder(res, seed=0, n_draws=60, threshold=0.9), data.strain[k], data.t_s)
+    assert all(s.decision is None for s in states)
+    assert end.new_decision and end.decision.index == len(states) - 1
+    assert end.decision.plate_mm == pytest.approx(data.step_mm.min()) and end.decision.p >= 0.9
 
 
 def test_displacement_vector_is_its_uy(small_fit):

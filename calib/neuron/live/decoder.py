@@ -16,10 +16,17 @@ scan is decided at the first sample where
 
 1. the response has peaked: the current u₁ at the draws' windows has fallen below
    ``1 − drop`` of its running maximum (median over draws), with that maximum above the
-   training scans' smallest peak times ``drop`` (a response, not noise), and
-2. the most probable plate's probability is ≥ ``threshold``.
+   training scans' smallest peak times ``drop`` (a response, not noise),
+2. the most probable plate's probability is ≥ ``threshold``, and
+3. that plate is not the lowest training plate: a response the lowest plate explains may
+   be the lead-in before the step (a flat stretch, a noise bump), so the lowest plate is
+   decided only when the scan ends (:meth:`LiveDecoder.finish`), if its probability is
+   then ≥ ``threshold``;
+4. the scan so far lies inside the fit's training envelope (no flags): a scan at another
+   speed, period, length or response scale is never decided, only flagged.
 
-A scan that ends undecided has no decision (its final probabilities are still given).
+A scan that ends below the threshold stays undecided (its final probabilities are still
+given).
 """
 from __future__ import annotations
 
@@ -190,12 +197,12 @@ class LiveDecoder:
         peak = np.median(self.p_at_tau)
         peaked = bool(peak > self._floor and now < (1.0 - self.drop) * peak)
         new = False
-        if self._decision is None and peaked and prob.max() >= self.threshold:
-            k = int(np.argmax(prob))
+        flags = tuple(self._flags(t, final=False))
+        k = int(np.argmax(prob))
+        if self._decision is None and peaked and k > 0 and prob[k] >= self.threshold and not flags:
             self._decision = Decision(float(self.plates_mm[k]), float(prob[k]), self.sums.n - 1, t, self._x1)
             new = True
-        self._state = LiveState(self.sums.n, t, prob, height, z, peaked, self._decision, new,
-                                tuple(self._flags(t, final=False)))
+        self._state = LiveState(self.sums.n, t, prob, height, z, peaked, self._decision, new, flags)
         return self._state
 
     def _flags(self, t: float, *, final: bool) -> list[str]:
@@ -205,10 +212,16 @@ class LiveDecoder:
                                     speed_mm_s=self.speed_label, final=final)
 
     def finish(self) -> LiveState:
-        """The scan's final state, with the envelope checks only the whole scan allows."""
+        """The scan's final state: the envelope checks only the whole scan allows, and the
+        decision at the last sample if none was made, the scan is not flagged and the top
+        plate's probability is ≥ ``threshold`` (``new_decision`` then True)."""
         if self._state is None:
             raise ArgumentError("scan", "no samples", "at least one sample before finish()")
         s = self._state
         flags = tuple(self._flags(s.t_s, final=True))
-        return LiveState(s.n, s.t_s, s.prob, s.interval, s.z_mm, s.peaked, s.decision,
-                         False, flags)
+        new = False
+        k = int(np.argmax(s.prob))
+        if self._decision is None and s.prob[k] >= self.threshold and not flags:
+            self._decision = Decision(float(self.plates_mm[k]), float(s.prob[k]), s.n - 1, s.t_s, self._x1)
+            new = True
+        return LiveState(s.n, s.t_s, s.prob, s.interval, s.z_mm, s.peaked, self._decision, new, flags)

@@ -75,6 +75,8 @@ class RunDecoder:
             return None
         end = self.live.finish()
         sid, self._key = self._key[0], None
+        if end.new_decision and self.on_state is not None:
+            self.on_state(sid, end)
         d = end.decision
         step = self._labels.get("step_mm")
         self.labelled |= step is not None
