@@ -4,11 +4,13 @@ POSTERIOR is a directory written by `feeler calibrate neuron --out`; RUN a run d
 (`feeler simulate`, `feeler acquire`) or a scan CSV (README, "Scan CSV format"). Each
 scan is fed to the streaming decoder one sample at a time; a scan is decided at the
 first sample where its response has passed its peak (fallen below 1 − --drop of its
-maximum) and the most probable plate has probability >= --threshold. Writes
-RUN/decisions.csv (or --out DIR): per scan the probability of every plate and the decoded
-height with its 90 % interval at the scan's end (equal to `feeler classify`), the decision
+maximum) and the most probable plate has probability >= --threshold; the lowest plate
+only at the scan's end (before the step the response looks like it), a scan flagged as
+unlike the fit's training scans never. Writes RUN/decisions.csv (or into --out DIR; next
+to a CSV given as RUN): per scan the probability of every plate and the decoded height
+with its 90 % interval at the scan's end (equal to `feeler classify`), the decision
 (plate, probability, time and stage position; empty if none), and whether the scan was
-flagged as unlike the fit's training scans, with the reason.
+flagged, with the reason.
 
 --follow decodes a run another process is still acquiring: it tails RUN/samples.csv
 (a partial last line waits for its end) and stops when the acquisition lets go of the
@@ -29,7 +31,7 @@ HELP = "decode a run's scans sample by sample (decisions.csv), also while it is 
 
 
 def register(parser) -> None:
-    add_use_arguments(parser, n_draws=400, out_file="decisions.csv (default: into RUN)")
+    add_use_arguments(parser, n_draws=400, out_file="decisions.csv")
     parser.add_argument("run_dir", metavar="RUN", help="run directory (scans.csv or samples.csv), or a scan CSV")
     parser.add_argument("--follow", action="store_true", help="tail RUN/samples.csv until the acquisition ends")
     parser.add_argument("--threshold", type=float, default=0.9,
