@@ -15,7 +15,7 @@ import numpy as np
 
 from feeler.calib.neuron.decoder import DecoderDraws
 
-__all__ = ["Classification", "classify", "peaks_at", "expected_calibration_error", "log_loss"]
+__all__ = ["Classification", "classify", "peaks_at", "peaks_of", "expected_calibration_error", "log_loss"]
 
 
 @dataclass(frozen=True)
@@ -27,12 +27,16 @@ class Classification:
         log_prob (ndarray[n_scans, n_plates]): log P(plate | scan).
         height_mm, lo90_mm, hi90_mm (ndarray[n_scans]): decoded step height (the median of
             the predictive belt, always inside its interval) and its 90 % interval, mm.
+        p_at_tau (ndarray[S, n_scans]): each scan's P at each draw's window; tau_s (ndarray[S]):
+            those windows, s (for the training-envelope checks).
     """
     plates_mm: np.ndarray
     log_prob: np.ndarray
     height_mm: np.ndarray
     lo90_mm: np.ndarray
     hi90_mm: np.ndarray
+    p_at_tau: np.ndarray | None = None
+    tau_s: np.ndarray | None = None
 
     @property
     def prob(self) -> np.ndarray:
@@ -71,22 +75,39 @@ def peaks_at(strain, t_s, log_tau_grid: np.ndarray, tau_s: np.ndarray, *, kernel
     return PeakTable(log_tau=lt, peak=full).at(tau_s)
 
 
+def peaks_of(strain, t_s, log_tau_grid, tau_s, *, kernel: str = "boxcar") -> np.ndarray:
+    """:func:`peaks_at` of scans that may differ in length: ``strain`` and ``t_s`` as for
+    :func:`peaks_at`, or two lists of ndarray[n_time_i] → ndarray[S, n_scans]."""
+    if not isinstance(strain, (list, tuple)):
+        return peaks_at(strain, t_s, log_tau_grid, tau_s, kernel=kernel)
+    out = np.zeros((np.asarray(tau_s).size, len(strain)))
+    lengths = np.array([np.size(s) for s in strain])
+    for n in np.unique(lengths):
+        idx = np.flatnonzero(lengths == n)
+        t = np.stack([np.asarray(t_s[i], float) for i in idx])
+        t = t[0] if np.all(t == t[:1]) else t
+        out[:, idx] = peaks_at(np.stack([np.asarray(strain[i], float) for i in idx]), t, log_tau_grid, tau_s,
+                               kernel=kernel)
+    return out
+
+
 def classify(result, strain, t_s, *, rng: np.random.Generator, n_draws: int = 400) -> Classification:
     """Plate probabilities and decoded heights of scans ``strain (ndarray[n_scans, n_time])``.
 
     Args:
         result (FitResult): an M2 fit (its observed data hold the training plates and τ grid).
         t_s (ndarray[n_time] | ndarray[n_scans, n_time]): sample times, s (shared, or
-            each scan's own).
+            each scan's own). Scans of different lengths come as two lists of
+            ndarray[n_time_i] (``strain`` and ``t_s``).
         n_draws (int): posterior draws used (a seeded subsample).
     """
     dec = DecoderDraws.from_result(result, rng=rng, n_draws=n_draws)
     grid = np.asarray(result.posterior["observed_data"]["log_tau_grid"].values, float)
     kernel = str(result.posterior["posterior"].attrs.get("kernel", "boxcar"))
-    p = peaks_at(strain, t_s, grid, dec.tau_s, kernel=kernel)
+    p = peaks_of(strain, t_s, grid, dec.tau_s, kernel=kernel)
     height, lo, hi = dec.height(p)
     return Classification(plates_mm=dec.steps_mm, log_prob=dec.class_log_prob(p), height_mm=height,
-                          lo90_mm=lo, hi90_mm=hi)
+                          lo90_mm=lo, hi90_mm=hi, p_at_tau=p, tau_s=dec.tau_s)
 
 
 def expected_calibration_error(prob, true_index, *, n_bins: int = 10) -> float:

@@ -61,6 +61,9 @@ def register(parser) -> None:
                         help="a sample read more than F sample periods after its schedule is late (default 0.25)")
     parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                         help="progress on stderr (default: live on a terminal, a line per scan otherwise)")
+    parser.add_argument("--decode", metavar="FIT_DIR", default=None,
+                        help="decode every scan while acquiring with this neuron fit (feeler calibrate neuron "
+                             "--out): RUN/decisions.csv, as `feeler decode`, and a line per decision")
     parser.set_defaults(run=run)
 
 
@@ -81,6 +84,10 @@ def run(args) -> int:
     if args.emulate and args.stage is not None:
         raise ArgumentError("--stage", args.stage, "no port with --emulate (the emulator provides one)")
     observers = () if args.progress is False else (Progress(live=None if args.progress is None else True),)
+    decoding = ()
+    if args.decode:                                # the fit is checked before anything moves
+        from feeler.calib.neuron.live.observer import decode_observer
+        decoding = (decode_observer(args.decode, args.out, observers, force=args.force or args.resume),)
     handlers = logging.getLogger().handlers
     for progress in observers:
         for handler in handlers:
@@ -91,7 +98,7 @@ def run(args) -> int:
                           calibration=args.calibration,
                           emulator_faults=tuple(parse_fault(spec) for spec in args.fault),
                           unlock=args.unlock, home=args.home, late_fraction=args.late_fraction,
-                          observers=observers)
+                          observers=observers + decoding)
     finally:
         for progress in observers:
             for handler in handlers:

@@ -1,7 +1,11 @@
 """Classify new plate scans with a calibrated neuron (M2 posterior).
 
 POSTERIOR is a directory written by `feeler calibrate neuron --out`; SCANS a run directory
-or scans.csv (strain uses the posterior's representative length). For each scan: the
+or a scan CSV: scan_id, t_s (s), uy_mm (mm) are required; x_mm (mm) checks the stage speed;
+step_mm and speed_mm_s are labels that add the accuracy and coverage summary (README,
+"Scan CSV format"). Strain uses the posterior's representative length. A scan unlike the
+fit's training scans (speed, sampling period, length, response scale) is flagged with the
+reason; one whose times or displacements look like the wrong units is refused. For each scan: the
 probability of every training plate and the decoded step height with its 90 % interval
 (inverting each plate's predictive band: at any true step the interval covers it 90 % of
 the time), integrating over the posterior. A posterior that failed its diagnostics is refused unless
@@ -32,26 +36,34 @@ def run(args) -> int:
     import pandas as pd
 
     from feeler.calib.neuron.classify import classify
-    from feeler.datasets import read_scans
+    from feeler.calib.neuron.live.envelope import Envelope
+    from feeler.calib.neuron.live.scan_csv import read_scan_records
+    from feeler.calib.neuron.live.table import labelled_summary, plate_column, unit_mistake
     from feeler.rundir import prepare_out_dir
 
-    result = load_checked(args)
     path = Path(args.scans)
-    scans = read_scans(path / "scans.csv" if path.is_dir() else path)
+    records = read_scan_records(path)              # before the fit: a bad CSV fails at once
+    result = load_checked(args)
     length = float(result.posterior["posterior"].attrs["length_mm"])
-    from feeler.calib.neuron.data import shared_times
-    from feeler.datasets import strain
-    c = classify(result, strain(scans.uy_mm, length), shared_times(scans.t_s), rng=np.random.default_rng(args.seed),
-                 n_draws=args.n_draws)
-    table = pd.DataFrame({"scan_id": scans.scan_id, "step_mm": scans.step_mm, "plate_mm": c.plate_mm,
-                          **{f"p_{v:g}mm": c.prob[:, i] for i, v in enumerate(c.plates_mm)},
-                          "height_mm": c.height_mm, "lo90_mm": c.lo90_mm, "hi90_mm": c.hi90_mm})
-    with pd.option_context("display.width", 160, "display.max_rows", 60):
-        print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    hit = np.isclose(c.plate_mm, scans.step_mm)
-    inside = (scans.step_mm >= c.lo90_mm) & (scans.step_mm <= c.hi90_mm)
-    print(f"{hit.mean() * 100:.1f} % classified as their labelled plate; "
-          f"{inside.mean() * 100:.1f} % of labels inside their 90 % interval")
+    c = classify(result, [r.uy_mm / length for r in records], [r.t_s for r in records],
+                 rng=np.random.default_rng(args.seed), n_draws=args.n_draws)
+    env = Envelope.of_fit(result, c.tau_s)
+    flags = [env.problems(r.t_s, c.p_at_tau[:, k], x_mm=r.x_mm, speed_mm_s=r.speed_mm_s)
+             for k, r in enumerate(records)]
+    unit_mistake(path, [r.scan_id for r in records], flags)
+    labels = {"step_mm": [np.nan if r.step_mm is None else r.step_mm for r in records]}
+    table = pd.DataFrame({"scan_id": [r.scan_id for r in records],
+                          **(labels if any(r.step_mm is not None for r in records) else {}),
+                          "plate_mm": c.plate_mm, **{plate_column(v): c.prob[:, i] for i, v in enumerate(c.plates_mm)},
+                          "height_mm": c.height_mm, "lo90_mm": c.lo90_mm, "hi90_mm": c.hi90_mm,
+                          "flagged": [bool(f) for f in flags], "flag": ["; ".join(f) for f in flags]})
+    with pd.option_context("display.width", 160, "display.max_rows", 60, "display.max_colwidth", 60):
+        print(table.drop(columns="flag").to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    for sid, f in zip(table.scan_id, flags):
+        if f:
+            print(f"scan {sid} flagged: {'; '.join(f)}")
+    summary = labelled_summary(table, c.plates_mm)
+    print(summary or f"{len(table)} unlabelled scans (no step_mm column): no accuracy to report")
     if args.out:
         out = prepare_out_dir(args.out, ("classification.csv",), force=args.force)
         table.to_csv(out / "classification.csv", index=False)

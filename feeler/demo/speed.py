@@ -12,6 +12,8 @@ labelled so:
 - ``OUT/speed/fidelity.csv``: M1 on the sensor-calibration scene simulated at the
   displacement, areas and images fidelities, error against the true C (unless
   ``benchmarks/fidelity.csv`` exists);
+- ``OUT/speed/decoder.csv``: the live decoder's decision latency against accuracy over
+  thresholds on the held-out scans (unless ``benchmarks/decoder.csv`` exists);
 - ``OUT/speed/speed.json``: when and how these were measured.
 
 Seconds are wall time on the machine running the demo.
@@ -144,6 +146,10 @@ def measure_trades(out: Path, data_dir: Path, echo=print) -> dict:
     if "fidelity" not in bench:
         tables["fidelity"] = _fidelity(data_dir / "sensor-calibration.toml", speed / "fidelity.csv")
         echo("  sensor fidelities: speed/fidelity.csv")
+    if "decoder" not in bench and (out / "m2").is_dir() and (out / "held-out" / "scene.toml").is_file():
+        from feeler.calib.neuron.live.trade import demo_table
+        tables["decoder"] = demo_table(out / "m2", out / "held-out", speed / "decoder.csv")
+        echo("  live decoder latency/accuracy: speed/decoder.csv")
     index = {"measured": measured + " (wall seconds on this machine)", "tables": tables}
     write_json(speed / "speed.json", index)
     return index

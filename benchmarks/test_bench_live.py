@@ -1,0 +1,152 @@
+"""The live decoder (issue 13): per-sample cost against the sample period, idle and under
+load, and the decision latency / accuracy trade over decision thresholds.
+
+Scene: ``datasets-synthetic/hard/close-steps.toml`` (steps 0.05–0.08 mm, 0.5 s frames;
+plates not trivially separable: batch accuracy well below 100 %). One fit on the scene's
+training touches (the default grid backend); ``FRESH`` fresh touches per plate (seed + 10⁶)
+streamed sample by sample through :class:`~feeler.calib.neuron.live.LiveDecoder` at the
+default 400 draws.
+
+- Cost: wall time of every ``push`` (probabilities, decoded z, decision rule, envelope
+  flags; the height interval is computed lazily — its cost when read at every sample is
+  the second figure), as a fraction of the scene's 0.5 s sample period: median and p99,
+  idle and with two busy-loop processes on the two cores. Goals: p99 ≤ 1 % idle; p99
+  under load within 2× of idle. Recorded, not asserted (a shared machine's timings).
+- Trade: per fall from the peak ``drop`` in :data:`DROPS` and threshold θ in :data:`THRESHOLDS`, a scan is decided at the first sample
+  where its response has passed its peak and the top plate's probability is ≥ θ (the
+  decoder's rule, applied to one recorded pass; checked equal to the decoder's own
+  decision at one θ). Accuracy = correct decisions / all scans (an undecided scan counts
+  as wrong); latency = median over decided scans of the time since the stage passed the
+  step (s) and of the travel past it (mm); also the fraction decided and the accuracy of
+  the decisions made. After the peak P no longer changes, so a scan below θ then stays
+  undecided: θ trades decisions made for their accuracy, ``drop`` trades latency for
+  robustness to a second rise. Written to ``runs/benchmarks/decoder.csv`` (columns
+  option, drop, threshold, latency_s, latency_mm, accuracy, decided, accuracy_decided —
+  the report's speed section draws latency_s against accuracy) and ``decoder.png``.
+"""
+import os
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from _ratios import LOADS, busy_loops, record_ratio
+from feeler.calib.neuron import fit_neuron
+from feeler.calib.neuron.live import LiveDecoder
+from feeler.calib.neuron.live.trade import decision_index, end_row, record_pass, trade_rows
+from feeler.calib.neuron.synth import HARD_SCENES, scene_scans
+
+FULL = os.environ.get("FEELER_FULL") == "1"
+FRESH = 150 if FULL else 40
+SCENE = Path(HARD_SCENES) / "close-steps.toml"
+THRESHOLDS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
+DROPS = (0.25, 0.5, 0.75)
+OUT = Path(__file__).resolve().parents[1] / "runs" / "benchmarks"
+if os.environ.get("FEELER_BENCH_UNDER_LOAD"):
+    OUT = OUT / "load"
+
+
+@pytest.fixture(scope="module")
+def setup():
+    from feeler.scene import load_scene
+
+    seed = load_scene(SCENE).scene.seed
+    scene, _, train = scene_scans(SCENE)
+    _, fresh, _ = scene_scans(SCENE, seed=seed + 10 ** 6, per_plate=FRESH)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fit = fit_neuron(train, seed=1)
+    return scene, fresh, fit
+
+
+def _stream(dec, scans, k, *, height: bool = False):
+    """One scan through ``dec``; per sample (seconds, peaked, top p, top plate, t, x)."""
+    dec.reset()
+    rows = []
+    for t, uy, x in zip(scans.t_s[k], scans.uy_mm[k], scans.x_mm[k]):
+        t0 = time.perf_counter()
+        s = dec.push(t, uy, x_mm=x)
+        if height:
+            s.height_mm
+        dt = time.perf_counter() - t0
+        j = int(np.argmax(s.prob))
+        rows.append((dt, s.peaked, float(s.prob[j]), float(dec.plates_mm[j]), t, x))
+    return np.array(rows)
+
+
+def test_per_sample_cost_against_the_sample_period(benchmark, setup):
+    scene, fresh, fit = setup
+    period = scene.motion.dt_s
+    dec = LiveDecoder(fit, seed=0)
+    n = min(fresh.t_s.shape[0], 60)
+    p99 = {}
+    for label, n_busy in LOADS.items():
+        with busy_loops(n_busy):
+            for what, height, m in (("push", False, n), ("push + height", True, max(n // 4, 1))):
+                per = np.concatenate([_stream(dec, fresh, k, height=height)[:, 0] for k in range(m)]) / period
+                med, p99[what, label] = float(np.median(per)), float(np.percentile(per, 99))
+                benchmark.extra_info[f"{what} [{label}]: median fraction of period"] = med
+                benchmark.extra_info[f"{what} [{label}]: p99 fraction of period"] = p99[what, label]
+                record_ratio(benchmark, f"{what} p99 / sample period [{label}]", p99[what, label],
+                             "push: <= 0.01 (1 %)" if what == "push" else "(the height read every sample)")
+    labels = list(LOADS)
+    if len(labels) == 2:
+        for what in ("push", "push + height"):
+            record_ratio(benchmark, f"{what} p99 loaded / idle", p99[what, labels[1]] / p99[what, labels[0]], "<= 2")
+    benchmark.pedantic(lambda: _stream(dec, fresh, 0), rounds=3, iterations=1)
+
+
+def test_decision_latency_against_accuracy(benchmark, setup):
+    import pandas as pd
+
+    scene, fresh, fit = setup
+    step_x = scene.surface.position_mm
+    rows, passes = [], None
+    for drop in DROPS:
+        dec = LiveDecoder(fit, seed=0, threshold=0.9, drop=drop)
+        passes = [record_pass(dec, fresh.t_s[k], fresh.uy_mm[k], fresh.x_mm[k]) for k in range(fresh.t_s.shape[0])]
+        for k in range(3):                   # the decoder's own decision is the rule on the recorded pass
+            dec.reset()
+            for t, uy in zip(fresh.t_s[k], fresh.uy_mm[k]):
+                s = dec.push(t, uy)
+            d = dec.finish().decision
+            assert (None if d is None else d.index) == decision_index(passes[k], dec.threshold)
+        rows += [{**r, "drop": drop} for r in trade_rows(passes, fresh.step_mm, step_x, THRESHOLDS,
+                                                          label=f"drop {drop:g}, ")]
+    end = end_row(passes, fresh.step_mm, step_x)
+    rows.append(end)
+    table = pd.DataFrame(rows)
+    OUT.mkdir(parents=True, exist_ok=True)
+    table.to_csv(OUT / "decoder.csv", index=False)
+    _plot(table, OUT / "decoder.png")
+    print("\n" + table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    for r in rows:
+        benchmark.extra_info[f"{r['option']}: accuracy"] = r["accuracy"]
+        benchmark.extra_info[f"{r['option']}: latency_s"] = r["latency_s"]
+    assert 0.3 < end["accuracy"] < 0.99, "the scene must not be trivially separable (the condition of the trade)"
+    benchmark.pedantic(lambda: None, rounds=1, iterations=1)
+
+
+def _plot(table, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    t = table.dropna(subset=["latency_s"])
+    for drop, g in t.dropna(subset=["drop"]).groupby("drop"):
+        ax.plot(g.latency_s, g.accuracy, "o-", label=f"drop {drop:g}")
+        for r in g.itertuples():
+            ax.annotate(f"θ={r.threshold:g}", (r.latency_s, r.accuracy), fontsize=6, xytext=(3, -7),
+                        textcoords="offset points")
+    e = t[t["drop"].isna()]
+    ax.plot(e.latency_s, e.accuracy, "ks", label="end of scan")
+    ax.legend(fontsize=7)
+    ax.set_xlabel("decision latency after the step (s, median)")
+    ax.set_ylabel("accuracy (undecided = wrong)")
+    ax.set_title("Live decoder: latency against accuracy (close steps)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

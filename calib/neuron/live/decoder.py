@@ -1,0 +1,227 @@
+"""Decode a scan sample by sample, as it is acquired: :class:`LiveDecoder`.
+
+Everything the M2 decoder needs of a scan is its peak window sum P at each posterior
+draw's window τ_s, read as the fit read its training scans: linear in ln τ between the
+two nodes of the fit's τ grid around τ_s (:func:`~feeler.calib.neuron.classify.peaks_at`).
+The live decoder streams u₁ at just those nodes (:class:`.sums.WindowSums`, O(window)
+state and work per sample, none growing with the record) and keeps their running
+maxima; P so far is the same interpolation of the maxima, so at the end of a scan the
+plate probabilities and the decoded height are those of
+:func:`~feeler.calib.neuron.classify.classify` with the same seed and draws (to float
+rounding). Probabilities and height change only when a running maximum grows; between,
+the last answer is returned unchanged.
+
+Decision rule (stated, and the benchmark measures its latency against its accuracy): a
+scan is decided at the first sample where
+
+1. the response has peaked: the current u₁ at the draws' windows has fallen below
+   ``1 − drop`` of its running maximum (median over draws), with that maximum above the
+   training scans' smallest peak times ``drop`` (a response, not noise),
+2. the most probable plate's probability is ≥ ``threshold``, and
+3. that plate is not the lowest training plate: a response the lowest plate explains may
+   be the lead-in before the step (a flat stretch, a noise bump), so the lowest plate is
+   decided only when the scan ends (:meth:`LiveDecoder.finish`), if its probability is
+   then ≥ ``threshold``;
+4. the scan so far lies inside the fit's training envelope (no flags): a scan at another
+   speed, period, length or response scale is never decided, only flagged.
+
+A scan that ends below the threshold stays undecided (its final probabilities are still
+given).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from feeler.errors import ArgumentError
+
+__all__ = ["Decision", "LiveState", "LiveDecoder"]
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The decision of a scan: plate ``plate_mm`` (mm) with probability ``p``, taken at
+    sample ``index`` (0-based), time ``t_s`` (s) and stage position ``x_mm`` (mm, NaN
+    when not given)."""
+    plate_mm: float
+    p: float
+    index: int
+    t_s: float
+    x_mm: float
+
+
+@dataclass(frozen=True)
+class LiveState:
+    """The answer after one sample.
+
+    Attributes:
+        n (int): samples so far. t_s (float): the last one's time, s.
+        prob (ndarray[C]): P(plate | data so far), plates as :attr:`LiveDecoder.plates_mm`.
+        height_mm, lo90_mm, hi90_mm (float, properties): decoded step and its 90 % interval
+            given the data so far, mm — computed on first access (the bisection costs
+            ~40× the probabilities; a display at a few Hz or a decision reads it) and shared
+            by every state of the same P.
+        z_mm (float): the decoded response so far, a·P − h (median over draws), mm.
+        peaked (bool): the response has passed its peak (rule 1).
+        decision (Decision | None): the scan's decision once made (then on every later state).
+        new_decision (bool): the decision was made at this sample.
+        flags (tuple[str, ...]): reasons the scan lies outside the fit's training envelope.
+    """
+    n: int
+    t_s: float
+    prob: np.ndarray
+    interval: "_Height"
+    z_mm: float
+    peaked: bool
+    decision: Decision | None
+    new_decision: bool
+    flags: tuple
+
+    @property
+    def height_mm(self) -> float:
+        return self.interval.get()[0]
+
+    @property
+    def lo90_mm(self) -> float:
+        return self.interval.get()[1]
+
+    @property
+    def hi90_mm(self) -> float:
+        return self.interval.get()[2]
+
+
+class _Height:
+    """The decoded height of one P (ndarray[S]), computed once, when first asked."""
+
+    def __init__(self, dec, p_at_tau):
+        self.dec, self.p, self.value = dec, p_at_tau, None
+
+    def get(self) -> tuple[float, float, float]:
+        if self.value is None:
+            self.value = tuple(float(v[0]) for v in self.dec.height(self.p[:, None]))
+        return self.value
+
+
+class LiveDecoder:
+    """Streaming M2 decoder of one scan at a time.
+
+    Args:
+        fit (FitResult): an M2 fit (``feeler calibrate neuron``).
+        seed (int): seeds the draw subsample exactly as ``classify`` with ``--seed``.
+        n_draws (int): posterior draws used, > 0.
+        threshold (float): decision probability, in (0, 1].
+        drop (float): fraction the response must fall from its peak, in (0, 1).
+        slack, scale_factor (float): the training envelope's tolerances (:class:`.envelope.Envelope`).
+    """
+
+    def __init__(self, fit, *, seed: int = 0, n_draws: int = 400, threshold: float = 0.9, drop: float = 0.5,
+                 slack: float = 1.25, scale_factor: float = 2.0):
+        from feeler.calib.neuron.decoder import DecoderDraws
+        from feeler.calib.neuron.live.envelope import Envelope
+        from feeler.calib.neuron.live.sums import WindowSums
+
+        if not (0.0 < threshold <= 1.0):
+            raise ArgumentError("threshold", threshold, "a probability in (0, 1]")
+        if not (0.0 < drop < 1.0):
+            raise ArgumentError("drop", drop, "a fraction in (0, 1)")
+        if not (isinstance(n_draws, int) and n_draws > 0):
+            raise ArgumentError("n_draws", n_draws, "an integer > 0")
+        post = fit.posterior
+        self.dec = DecoderDraws.from_result(fit, rng=np.random.default_rng(seed), n_draws=n_draws)
+        attrs = post["posterior"].attrs
+        self.length_mm = float(attrs["length_mm"])
+        lt = np.asarray(post["observed_data"]["log_tau_grid"].values, float)
+        step = lt[1] - lt[0]
+        pos = np.clip((np.log(self.dec.tau_s) - lt[0]) / step, 0.0, lt.size - 1.0)
+        i = np.minimum(np.floor(pos).astype(int), lt.size - 2)
+        self._w = pos - i                                   # as PeakTable.at
+        nodes = np.unique(np.concatenate([i, i + 1]))
+        self._i0, self._i1 = np.searchsorted(nodes, i), np.searchsorted(nodes, i + 1)
+        self.sums = WindowSums(np.exp(lt[nodes]), kernel=str(attrs.get("kernel", "boxcar")))
+        self.env = Envelope.of_fit(fit, self.dec.tau_s, slack=slack, scale_factor=scale_factor)
+        self.threshold, self.drop = float(threshold), float(drop)
+        self._floor = float(np.median(self.env.p_lo)) * self.drop
+        self.reset()
+
+    @property
+    def plates_mm(self) -> np.ndarray:
+        """The fit's plates (steps, mm), the order of :attr:`LiveState.prob`."""
+        return self.dec.steps_mm
+
+    def at_draws(self, values_at_nodes: np.ndarray) -> np.ndarray:
+        """Values at the τ nodes → at each draw's τ (ndarray[S]), as :meth:`PeakTable.at`."""
+        return values_at_nodes[self._i0] * (1.0 - self._w) + values_at_nodes[self._i1] * self._w
+
+    def reset(self, *, speed_mm_s: float | None = None) -> None:
+        """Start a new scan (``speed_mm_s``: its commanded speed label, mm/s, if known)."""
+        self.sums.reset()
+        self.speed_label = speed_mm_s
+        self._t0 = self._x0 = None
+        self._x1 = np.nan
+        self._state = None
+        self._decision = None
+        self._answer = self._answer_of(np.zeros(self.dec.size))
+
+    def _answer_of(self, p: np.ndarray):
+        col = p[:, None]
+        prob = np.exp(self.dec.class_log_prob(col)[0])
+        return prob, _Height(self.dec, p), float(np.median(self.dec.decoded(col)))
+
+    @property
+    def p_at_tau(self) -> np.ndarray:
+        """P so far at each draw's window (ndarray[S])."""
+        return self.at_draws(self.sums.peak)
+
+    def push(self, t_s: float, uy_mm, *, x_mm: float | None = None) -> LiveState:
+        """Add one sample: time (s, after the previous), U_y (mm) or a displacement vector
+        (U_x, U_y, U_z) in mm, and optionally the stage position (mm).
+
+        Raises:
+            ArgumentError: non-finite values, time not increasing, a vector not of 3.
+        """
+        u = np.asarray(uy_mm, float)
+        if u.ndim:
+            if u.shape != (3,):
+                raise ArgumentError("displacement", uy_mm, "U_y (mm) or a vector (U_x, U_y, U_z) in mm")
+            u = u[1]
+        grew = self.sums.push(t_s, float(u) / self.length_mm)
+        t = float(t_s)
+        if self._t0 is None:
+            self._t0, self._x0 = t, (np.nan if x_mm is None else float(x_mm))
+        self._x1 = np.nan if x_mm is None else float(x_mm)
+        if grew:
+            self._answer = self._answer_of(self.p_at_tau)
+        prob, height, z = self._answer
+        now = np.median(self.at_draws(self.sums.u))
+        peak = np.median(self.p_at_tau)
+        peaked = bool(peak > self._floor and now < (1.0 - self.drop) * peak)
+        new = False
+        flags = tuple(self._flags(t, final=False))
+        k = int(np.argmax(prob))
+        if self._decision is None and peaked and k > 0 and prob[k] >= self.threshold and not flags:
+            self._decision = Decision(float(self.plates_mm[k]), float(prob[k]), self.sums.n - 1, t, self._x1)
+            new = True
+        self._state = LiveState(self.sums.n, t, prob, height, z, peaked, self._decision, new, flags)
+        return self._state
+
+    def _flags(self, t: float, *, final: bool) -> list[str]:
+        moved = np.isfinite(self._x0) and np.isfinite(self._x1) and self._x1 != self._x0
+        ends = (self._x0, self._x1) if (moved or final) and np.isfinite(self._x0) else None
+        return self.env.problems_of(self.sums.n, self._t0, t, self.p_at_tau, x_ends_mm=ends,
+                                    speed_mm_s=self.speed_label, final=final)
+
+    def finish(self) -> LiveState:
+        """The scan's final state: the envelope checks only the whole scan allows, and the
+        decision at the last sample if none was made, the scan is not flagged and the top
+        plate's probability is ≥ ``threshold`` (``new_decision`` then True)."""
+        if self._state is None:
+            raise ArgumentError("scan", "no samples", "at least one sample before finish()")
+        s = self._state
+        flags = tuple(self._flags(s.t_s, final=True))
+        new = False
+        k = int(np.argmax(s.prob))
+        if self._decision is None and s.prob[k] >= self.threshold and not flags:
+            self._decision = Decision(float(self.plates_mm[k]), float(s.prob[k]), s.n - 1, s.t_s, self._x1)
+            new = True
+        return LiveState(s.n, s.t_s, s.prob, s.interval, s.z_mm, s.peaked, self._decision, new, flags)

@@ -1,0 +1,174 @@
+"""What an M2 fit was trained on, and whether a new scan lies outside it (out of distribution).
+
+A decoder answers for scans like its training scans. A scan at another stage speed, with
+another sampling period, much shorter or longer, or whose response is on another scale is
+decoded all the same — with numbers that mean nothing (a 2 mm/s scan on a 0.5 mm/s fit
+puts no label inside its 90 % interval). So each scan is checked against the fit's
+training envelope and flagged with the reason:
+
+- sampling period: the training scans' median sample interval (the first node of the
+  fit's τ grid, which starts at one sample interval);
+- duration: the shortest training scan's (twice the last node of the τ grid);
+- stage speed: the scene the fit recorded (``scene_toml``: a robot-scan scene's
+  ``motion.speed_mm_s`` or a scan plan's ``scan.speed_mm_s``); not checked for a fit
+  without a scene. The scan's speed is measured from ``x_mm`` and ``t_s`` when given, else
+  its ``speed_mm_s`` label;
+- response scale: the scan's peak window sum P at each draw's window against the
+  training scans' range at that window (the fit's peak table), as the median ratio
+  over draws.
+
+Period, speed and duration may differ by the factor ``slack`` (default 1.25) from
+training; the response by ``scale_factor`` (default 2) beyond the training range. A ratio
+beyond ×30 (:data:`UNIT_FACTOR`) names the likely unit mistake (µm for mm, ms for s).
+"""
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+
+import numpy as np
+
+from feeler.errors import ArgumentError
+
+__all__ = ["Envelope", "UNIT_FACTOR", "training_speed_mm_s"]
+
+UNIT_FACTOR = 30.0     # as calib.neuron.checks: a scale further off than this is a unit mistake
+
+
+def training_speed_mm_s(attrs) -> float | None:
+    """The stage speed (mm/s) of the scene recorded in a fit's attributes, or None."""
+    text = attrs.get("scene_toml")
+    if not text:
+        return None
+    try:
+        scene = tomllib.loads(str(text))
+    except tomllib.TOMLDecodeError:
+        return None
+    for table in ("motion", "scan"):
+        speed = scene.get(table, {}).get("speed_mm_s")
+        if isinstance(speed, (int, float)) and speed > 0:
+            return float(speed)
+    return None
+
+
+def _times(r: float) -> str:
+    return f"{r:.3g}×"
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """The training envelope of a fit, per decoder draw where it depends on the window.
+
+    Attributes:
+        period_s (float): training sample interval (median), s.
+        duration_s (float): shortest training scan, s.
+        speed_mm_s (float | None): training stage speed, mm/s (None: not recorded).
+        p_lo, p_hi (ndarray[S]): smallest and largest training P at each draw's window.
+        slack (float): allowed factor on period, speed and duration, > 1.
+        scale_factor (float): allowed factor beyond the training range of P, > 1.
+    """
+    period_s: float
+    duration_s: float
+    speed_mm_s: float | None
+    p_lo: np.ndarray
+    p_hi: np.ndarray
+    slack: float = 1.25
+    scale_factor: float = 2.0
+
+    def __post_init__(self):
+        for name in ("slack", "scale_factor"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 1.0 < v < float("inf")):
+                raise ArgumentError(name, v, "a factor > 1")
+
+    @classmethod
+    def of_fit(cls, result, tau_s, *, slack: float = 1.25, scale_factor: float = 2.0) -> "Envelope":
+        """The envelope of an M2 fit at the draws' windows ``tau_s (ndarray[S])``."""
+        from feeler.calib.neuron.model import PeakTable
+
+        obs = result.posterior["observed_data"]
+        grid = np.asarray(obs["log_tau_grid"].values, float)
+        table = PeakTable(log_tau=grid, peak=np.atleast_2d(np.asarray(obs["peak_u1"].values, float)))
+        p = table.at(np.asarray(tau_s, float))                                  # (S, n_train)
+        return cls(period_s=float(np.exp(grid[0])), duration_s=float(2.0 * np.exp(grid[-1])),
+                   speed_mm_s=training_speed_mm_s(result.posterior["posterior"].attrs),
+                   p_lo=p.min(axis=1), p_hi=p.max(axis=1), slack=slack, scale_factor=scale_factor)
+
+    def period(self, period_s: float) -> str | None:
+        r = period_s / self.period_s
+        if 1 / self.slack <= r <= self.slack:
+            return None
+        hint = ": times probably in ms (expected s)" if r > UNIT_FACTOR else ""
+        return f"sampling period {period_s:.3g} s, {_times(r)} the fit's {self.period_s:.3g} s{hint}"
+
+    def speed(self, speed_mm_s: float, *, labelled: float | None = None) -> str | None:
+        """The scan's speed (measured, or its label) against training; ``labelled`` (the
+        speed_mm_s label when the speed was measured from x and t) names a unit mistake."""
+        out = []
+        if speed_mm_s == 0:
+            return "the stage did not move (x_mm constant)"
+        if labelled is not None and labelled > 0:
+            r = speed_mm_s / labelled
+            if r < 1 / UNIT_FACTOR:
+                out.append(f"x_mm and t_s give {speed_mm_s:.3g} mm/s, {_times(r)} the labelled {labelled:g} mm/s: "
+                           "times probably in ms (expected s)")
+            elif r > UNIT_FACTOR:
+                out.append(f"x_mm and t_s give {speed_mm_s:.3g} mm/s, {_times(r)} the labelled {labelled:g} mm/s: "
+                           "x probably in um (expected mm)")
+        if self.speed_mm_s is not None and not out:
+            r = speed_mm_s / self.speed_mm_s
+            if not 1 / self.slack <= r <= self.slack:
+                out.append(f"speed {speed_mm_s:.3g} mm/s, {_times(r)} the fit's {self.speed_mm_s:g} mm/s")
+        return "; ".join(out) or None
+
+    def duration(self, duration_s: float, *, final: bool) -> str | None:
+        """Longer than training (seen as soon as it happens) or, at the end, shorter."""
+        r = duration_s / self.duration_s
+        if r > self.slack or (final and r < 1 / self.slack):
+            return f"scan of {duration_s:.3g} s, {_times(r)} the fit's {self.duration_s:.3g} s"
+        return None
+
+    def response(self, p_at_tau, *, final: bool) -> str | None:
+        """P (ndarray[S]) beyond the training range (above at once; below at the end)."""
+        p = np.asarray(p_at_tau, float).ravel()
+        with np.errstate(divide="ignore", invalid="ignore"):
+            hi = float(np.median(p / self.p_hi))
+            lo = float(np.median(p / self.p_lo)) if np.all(self.p_lo > 0) else np.inf
+        if hi > self.scale_factor:
+            hint = ": U_y probably in um (expected mm)" if hi > UNIT_FACTOR else ""
+            return f"response {_times(hi)} the largest training scan's{hint}"
+        if final and lo < 1 / self.scale_factor:
+            hint = ": U_y probably in m (expected mm)" if 0 < lo < 1 / UNIT_FACTOR else ""
+            what = "no response (U_y constant)" if lo == 0 else f"response {_times(lo)} the smallest training scan's"
+            return what + hint
+        return None
+
+    def problems(self, t_s, p_at_tau, *, x_mm=None, speed_mm_s: float | None = None) -> list[str]:
+        """Every reason a whole scan lies outside the envelope (empty: inside).
+
+        Args:
+            t_s (ndarray[n]): sample times, s. x_mm (ndarray[n] | None): stage position, mm.
+            p_at_tau (ndarray[S]): the scan's P at each draw's window.
+            speed_mm_s (float | None): the scan's speed label, mm/s.
+        """
+        t = np.asarray(t_s, float)
+        ends = None if x_mm is None else (float(np.asarray(x_mm, float)[0]), float(np.asarray(x_mm, float)[-1]))
+        return self.problems_of(t.size, float(t[0]) if t.size else 0.0, float(t[-1]) if t.size else 0.0,
+                                p_at_tau, x_ends_mm=ends, speed_mm_s=speed_mm_s, final=True)
+
+    def problems_of(self, n: int, t0_s: float, t1_s: float, p_at_tau, *, x_ends_mm=None,
+                    speed_mm_s: float | None = None, final: bool = True) -> list[str]:
+        """:meth:`problems` from what a stream keeps: ``n`` samples from ``t0_s`` to
+        ``t1_s`` (s; period = their mean interval), the first and last x (mm) or None;
+        ``final=False`` reports only what can be known before the scan ends."""
+        out = []
+        if n >= 2:
+            span = t1_s - t0_s
+            out.append(self.period(span / (n - 1)))
+            out.append(self.duration(span, final=final))
+            if x_ends_mm is not None and all(np.isfinite(x_ends_mm)):
+                out.append(self.speed(abs(x_ends_mm[1] - x_ends_mm[0]) / span, labelled=speed_mm_s))
+            elif speed_mm_s is not None:
+                out.append(self.speed(float(speed_mm_s)))
+        out.append(self.response(p_at_tau, final=final))
+        return [p for p in out if p]

@@ -1,0 +1,77 @@
+"""Decode while acquiring: a campaign observer that feeds every sample to the live decoder
+and keeps ``RUN/decisions.csv`` up to date (``feeler acquire --decode FIT``).
+
+A scan's row is written when its ``scan_done`` event arrives — the moment it enters
+``scans.csv`` — so ``decisions.csv`` always holds exactly the complete scans, like
+``feeler decode RUN`` afterwards. An aborted attempt is dropped when the next begins, a
+scan cut by the end of the run is not written, and on ``--resume`` the rows of the scans
+done before are kept.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from feeler.hardware.acquire.progress import CampaignObserver
+
+__all__ = ["DecodeObserver"]
+
+
+class DecodeObserver(CampaignObserver):
+    """Args:
+        decoder (RunDecoder): the run decoder (its ``on_state``/``on_scan`` print, if set).
+        out (Path): ``decisions.csv`` to keep written.
+    """
+
+    def __init__(self, decoder, out):
+        self.decoder, self.out = decoder, Path(out)
+
+    def started(self, scans_planned: int, scans_done: int, samples_per_scan: int) -> None:
+        if scans_done and self.out.exists():
+            import pandas as pd
+
+            earlier = pd.read_csv(self.out, keep_default_na=True)
+            earlier["flag"] = earlier["flag"].fillna("")
+            for row in earlier.to_dict("records"):
+                self.decoder.rows[int(row["scan_id"])] = row
+            self.decoder.labelled |= "step_mm" in earlier.columns
+
+    def sample(self, row: dict) -> None:
+        self.decoder.sample(row)
+
+    def event(self, kind: str, fields: dict) -> None:
+        if kind == "scan_done":
+            self.decoder.end_scan()
+            self.decoder.write(self.out)
+
+    def finished(self, summary: dict) -> None:
+        self.decoder.discard()
+        self.decoder.write(self.out)
+
+
+def decode_observer(fit_dir, run_dir, others=(), *, force: bool = False, seed: int = 0, n_draws: int = 400,
+                    threshold: float = 0.9) -> DecodeObserver:
+    """The observer of ``acquire --decode``: loads and checks the fit (a failed fit is
+    refused), prints a line per decision (wiping the progress line of ``others`` first).
+
+    Raises:
+        InputError: an unreadable or failed fit; an earlier decisions.csv without ``force``.
+    """
+    from feeler.calib.fit import load, require_ok
+    from feeler.calib.neuron.live import LiveDecoder
+    from feeler.calib.neuron.live.run import RunDecoder
+    from feeler.calib.neuron.live.show import LiveView
+    from feeler.errors import OverwriteError
+
+    out = Path(run_dir) / "decisions.csv"
+    if out.exists() and not force:
+        raise OverwriteError(out)
+    fit = require_ok(load(fit_dir), what="neuron calibration")
+    live = LiveDecoder(fit, seed=seed, n_draws=n_draws, threshold=threshold)
+
+    def wipe():
+        for o in others:
+            if hasattr(o, "clear"):
+                o.clear()
+
+    view = LiveView(live.plates_mm, live=False, before_line=wipe)
+    return DecodeObserver(RunDecoder(live, on_state=view.on_state, on_scan=view.on_scan), out)

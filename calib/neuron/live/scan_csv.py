@@ -1,0 +1,102 @@
+"""Scans to decode, labelled or not, read from a CSV in long format (one row per sample).
+
+Decoding needs only ``scan_id``, ``t_s`` (s) and ``uy_mm`` (the sensor's tangential
+displacement U_y, mm); ``x_mm`` (stage position, mm) lets the stage speed be checked and
+places a decision along the scan; ``step_mm`` (the plate's step, mm) and ``speed_mm_s``
+(commanded speed, mm/s) are labels: when present they add the accuracy and coverage
+summary. Scans may differ in length; rows of a scan need not be contiguous but its times
+must increase. A run directory written by ``feeler acquire`` holds ``samples.csv`` with
+every attempt of a scan: only each scan's last attempt is kept.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from feeler.errors import DataFileError
+
+__all__ = ["REQUIRED", "OPTIONAL", "ScanRecord", "read_scan_records", "records_from_frame"]
+
+REQUIRED = ("scan_id", "t_s", "uy_mm")
+OPTIONAL = ("x_mm", "step_mm", "speed_mm_s")
+
+
+@dataclass(frozen=True)
+class ScanRecord:
+    """One scan.
+
+    Attributes:
+        scan_id (int): its id.
+        t_s, uy_mm (ndarray[n]): sample times (s, increasing) and U_y (mm).
+        x_mm (ndarray[n] | None): stage position, mm.
+        step_mm, speed_mm_s (float | None): labels (plate step, mm; commanded speed, mm/s).
+    """
+    scan_id: int
+    t_s: np.ndarray
+    uy_mm: np.ndarray
+    x_mm: np.ndarray | None = None
+    step_mm: float | None = None
+    speed_mm_s: float | None = None
+
+
+def read_scan_records(path: str | Path) -> list[ScanRecord]:
+    """Scans of a CSV, or of a run directory's ``scans.csv`` (else its ``samples.csv``).
+
+    Raises:
+        DataFileError: missing file or column (naming the required ones), non-numeric or
+            NaN values, times not increasing within a scan, a label not constant in a scan.
+    """
+    import pandas as pd
+
+    path = Path(path)
+    if path.is_dir():
+        path = path / "scans.csv" if (path / "scans.csv").exists() else path / "samples.csv"
+    try:
+        frame = pd.read_csv(path)
+    except FileNotFoundError:
+        raise DataFileError(path, "no such file") from None
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise DataFileError(path, f"not a readable CSV: {exc}") from None
+    return records_from_frame(frame, path)
+
+
+def records_from_frame(frame, path) -> list[ScanRecord]:
+    """:class:`ScanRecord` s of a long-format frame (``path`` names it in errors)."""
+    import pandas as pd
+
+    missing = [c for c in REQUIRED if c not in frame.columns]
+    if missing:
+        raise DataFileError(path, f"missing column(s) {', '.join(missing)}; required: {', '.join(REQUIRED)} "
+                                  f"(t_s in s, uy_mm in mm); optional: {', '.join(OPTIONAL)}")
+    if len(frame) == 0:
+        raise DataFileError(path, "no rows")
+    cols = [c for c in REQUIRED + OPTIONAL + ("attempt",) if c in frame.columns]
+    frame = frame[cols].copy()
+    for col in cols:
+        values = pd.to_numeric(frame[col], errors="coerce")
+        if values.isna().any() and (col in REQUIRED or col == "x_mm"):
+            row = int(np.flatnonzero(values.isna().to_numpy())[0])
+            raise DataFileError(path, f"column {col}: missing or non-numeric value at data row {row + 1}")
+        frame[col] = values
+    if "attempt" in frame.columns:                   # samples.csv: each scan's last attempt
+        last = frame.groupby("scan_id")["attempt"].transform("max")
+        frame = frame[frame["attempt"] == last]
+    out = []
+    for sid, g in frame.groupby("scan_id", sort=False):
+        t = g["t_s"].to_numpy(float)
+        if np.any(np.diff(t) <= 0):
+            raise DataFileError(path, f"column t_s: not strictly increasing within scan_id {sid:g}")
+        labels = {}
+        for col in ("step_mm", "speed_mm_s"):
+            if col in g.columns:
+                v = g[col].to_numpy(float)
+                if np.isnan(v).all():
+                    continue
+                if np.any(v != v[0]):
+                    raise DataFileError(path, f"column {col}: must be constant within each scan (scan_id {sid:g})")
+                labels[col] = float(v[0])
+        out.append(ScanRecord(scan_id=int(sid), t_s=t, uy_mm=g["uy_mm"].to_numpy(float),
+                              x_mm=g["x_mm"].to_numpy(float) if "x_mm" in g.columns else None, **labels))
+    return out

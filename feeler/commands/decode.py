@@ -1,0 +1,134 @@
+"""Decode a run's scans sample by sample, as a robot would while it scans.
+
+POSTERIOR is a directory written by `feeler calibrate neuron --out`; RUN a run directory
+(`feeler simulate`, `feeler acquire`) or a scan CSV (README, "Scan CSV format"). Each
+scan is fed to the streaming decoder one sample at a time; a scan is decided at the
+first sample where its response has passed its peak (fallen below 1 − --drop of its
+maximum) and the most probable plate has probability >= --threshold; the lowest plate
+only at the scan's end (before the step the response looks like it), a scan flagged as
+unlike the fit's training scans never. Writes RUN/decisions.csv (or into --out DIR; next
+to a CSV given as RUN): per scan the probability of every plate and the decoded height
+with its 90 % interval at the scan's end (equal to `feeler classify`), the decision
+(plate, probability, time and stage position; empty if none), and whether the scan was
+flagged, with the reason.
+
+--follow decodes a run another process is still acquiring: it tails RUN/samples.csv
+(a partial last line waits for its end) and stops when the acquisition lets go of the
+run (finished, stopped or crashed), rewriting decisions.csv after every scan. On a
+terminal a live line shows the scan in progress (decoded z so far, plate
+probabilities, decision); otherwise one line per decision.
+"""
+from __future__ import annotations
+
+import argparse
+
+from feeler.commands._posterior_use import add_use_arguments, load_checked
+
+__all__ = ["NAME", "HELP", "register", "run"]
+
+NAME = "decode"
+HELP = "decode a run's scans sample by sample (decisions.csv), also while it is acquired (--follow)"
+
+
+def register(parser) -> None:
+    add_use_arguments(parser, n_draws=400, out_file="decisions.csv")
+    parser.add_argument("run_dir", metavar="RUN", help="run directory (scans.csv or samples.csv), or a scan CSV")
+    parser.add_argument("--follow", action="store_true", help="tail RUN/samples.csv until the acquisition ends")
+    parser.add_argument("--threshold", type=float, default=0.9,
+                        help="decide when the top plate's probability reaches this, after the peak (default 0.9)")
+    parser.add_argument("--drop", type=float, default=0.5,
+                        help="the peak has passed once the response fell by this fraction (default 0.5)")
+    parser.add_argument("--poll-s", type=float, default=0.2, help="--follow: seconds between looks (default 0.2)")
+    parser.add_argument("--wait-s", type=float, default=30.0,
+                        help="--follow: how long to wait for samples.csv to appear (default 30 s)")
+    parser.add_argument("--live", action=argparse.BooleanOptionalAction, default=None,
+                        help="one live line per scan (default: when stderr is a terminal)")
+    parser.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from feeler.errors import ArgumentError
+    from feeler.rundir import prepare_out_dir
+
+    path = Path(args.run_dir)
+    if args.poll_s <= 0:
+        raise ArgumentError("--poll-s", args.poll_s, "> 0 s")
+    if args.follow and not path.is_dir():
+        raise ArgumentError("RUN", str(path), "a run directory with --follow (one that `feeler acquire` writes)")
+    if not args.follow and not path.exists():
+        raise ArgumentError("RUN", str(path), "an existing run directory or scan CSV")
+    out = Path(args.out) if args.out else (path if path.is_dir() else path.parent)
+    out = prepare_out_dir(out, ("decisions.csv",), force=args.force)
+    records = None
+    if not args.follow:
+        from feeler.calib.neuron.live.scan_csv import read_scan_records
+        records = read_scan_records(path)                 # a bad file fails before the fit loads
+    decoder = _decoder(args)
+    if args.follow:
+        _follow(decoder, path, out, args)
+    else:
+        from feeler.calib.neuron.live.follow import writer_active
+        if path.is_dir() and writer_active(path):
+            print(f"{path} is still being acquired: decoding the scans written so far (--follow keeps up)")
+        for r in records:
+            for k in range(r.t_s.size):
+                decoder.sample({"scan_id": r.scan_id, "t_s": r.t_s[k], "uy_mm": r.uy_mm[k],
+                                "x_mm": None if r.x_mm is None else r.x_mm[k], "step_mm": r.step_mm,
+                                "speed_mm_s": r.speed_mm_s})
+            decoder.end_scan()
+        decoder.write(out / "decisions.csv")
+    _summary(decoder)
+    print(f"wrote {out / 'decisions.csv'}")
+    return 0
+
+
+def _decoder(args):
+    from feeler.calib.neuron.live import LiveDecoder
+    from feeler.calib.neuron.live.run import RunDecoder
+    from feeler.calib.neuron.live.show import LiveView
+
+    live = LiveDecoder(load_checked(args), seed=args.seed, n_draws=args.n_draws, threshold=args.threshold,
+                       drop=args.drop)
+    view = LiveView(live.plates_mm, live=args.live)
+    return RunDecoder(live, on_state=view.on_state, on_scan=view.on_scan)
+
+
+def _follow(decoder, path, out, args) -> None:
+    from feeler.calib.neuron.live.follow import follow_rows
+
+    stats: dict = {}
+    write = decoder.on_scan
+
+    def on_scan(row):
+        write(row)
+        decoder.write(out / "decisions.csv")
+
+    decoder.on_scan = on_scan
+    try:
+        for row in follow_rows(path, poll_s=args.poll_s, wait_s=args.wait_s, stats=stats):
+            decoder.sample(row)
+    except KeyboardInterrupt:
+        print("\ninterrupted: the scan in progress is decoded as far as it went")
+    decoder.end_scan()
+    decoder.write(out / "decisions.csv")
+    if stats.get("partial_lines_dropped"):
+        print("the run ended with a cut last line in samples.csv: that sample was not decoded")
+
+
+def _summary(decoder) -> None:
+    import numpy as np
+
+    t = decoder.table()
+    if t.empty:
+        print("no scans decoded")
+        return
+    decided = np.isfinite(t["decided_mm"].to_numpy(float))
+    line = f"{len(t)} scans: {decided.sum()} decided"
+    if "step_mm" in t.columns and decided.any():
+        hit = np.isclose(t["decided_mm"].to_numpy(float)[decided], t["step_mm"].to_numpy(float)[decided])
+        line += f", {hit.mean() * 100:.1f} % of decisions the labelled plate"
+        line += f"; median decision at {np.median(t['decided_at_t_s'].to_numpy(float)[decided]):.3g} s"
+    flagged = int(t["flagged"].sum())
+    print(line + (f"; {flagged} flagged as unlike the fit's training scans" if flagged else ""))

@@ -1,0 +1,59 @@
+"""`feeler classify` on unlabelled scans, labelled ones, scans in wrong units, and CSVs
+missing what decoding needs."""
+
+import numpy as np
+import pytest
+
+from feeler.cli import main
+
+
+def _run(fit, csv, *extra):
+    return main(["classify", str(fit), str(csv), "--n-draws", "40", *extra])
+
+
+def test_unlabelled_scans_classify_and_labels_add_the_summary(fit_dir, scans_frame, tmp_path, capsys):
+    import pandas as pd
+
+    bare = scans_frame[["scan_id", "t_s", "uy_mm"]]
+    bare.to_csv(tmp_path / "bare.csv", index=False)
+    assert _run(fit_dir, tmp_path / "bare.csv", "--out", str(tmp_path / "a")) == 0
+    out = capsys.readouterr().out
+    assert "unlabelled scans" in out and "classified as" not in out
+    a = pd.read_csv(tmp_path / "a" / "classification.csv")
+    assert "step_mm" not in a.columns and not a.flagged.any()
+    scans_frame.to_csv(tmp_path / "lab.csv", index=False)
+    assert _run(fit_dir, tmp_path / "lab.csv", "--out", str(tmp_path / "b")) == 0
+    assert "classified as their labelled plate" in capsys.readouterr().out
+    b = pd.read_csv(tmp_path / "b" / "classification.csv")
+    p_cols = [c for c in b.columns if c.startswith("p_")]
+    np.testing.assert_allclose(a[p_cols].to_numpy(), b[p_cols].to_numpy(), rtol=1e-12)   # labels change nothing
+    assert (b.plate_mm == b.step_mm).mean() > 0.5
+
+
+def test_scans_of_different_lengths(fit_dir, scans_frame, tmp_path):
+    short = scans_frame[~((scans_frame.scan_id == 0) & (scans_frame.t_s > scans_frame.t_s.median()))]
+    short.to_csv(tmp_path / "ragged.csv", index=False)
+    assert _run(fit_dir, tmp_path / "ragged.csv") == 0
+
+
+@pytest.mark.parametrize("column, factor, words", [("t_s", 1000.0, "ms"), ("uy_mm", 1000.0, "um")])
+def test_wrong_units_are_one_line_errors(fit_dir, scans_frame, tmp_path, capsys, column, factor, words):
+    bad = scans_frame.copy()
+    bad[column] = bad[column] * factor
+    bad.to_csv(tmp_path / "bad.csv", index=False)
+    assert _run(fit_dir, tmp_path / "bad.csv") == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and words in err and "bad.csv" in err and "Traceback" not in err
+
+
+def test_missing_columns_and_bad_values(fit_dir, scans_frame, tmp_path, capsys):
+    scans_frame[["scan_id", "t_s"]].to_csv(tmp_path / "no_uy.csv", index=False)
+    assert _run(fit_dir, tmp_path / "no_uy.csv") == 2
+    err = capsys.readouterr().err
+    assert "missing column(s) uy_mm" in err and "required: scan_id, t_s, uy_mm" in err
+    back = scans_frame.copy()
+    back.loc[3, "t_s"] = back.loc[1, "t_s"]
+    back.to_csv(tmp_path / "back.csv", index=False)
+    assert _run(fit_dir, tmp_path / "back.csv") == 2
+    assert "not strictly increasing" in capsys.readouterr().err
+    assert _run(fit_dir, tmp_path / "none.csv") == 2

@@ -1,0 +1,109 @@
+"""`feeler decode`: offline it equals `classify` of the same scans; `--follow` keeps up with
+a run being written (partial lines, a retried scan) and ends when the writer lets go."""
+
+import threading
+import time
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feeler.calib.neuron.live.follow import follow_rows, writer_active
+from feeler.cli import main
+from feeler.errors import DataFileError
+from feeler.hardware.acquire.lock import lock_run_dir, release_run_dir
+
+
+def _p_cols(frame):
+    return [c for c in frame.columns if c.startswith("p_") and c.endswith("mm")]
+
+
+def test_decode_equals_classify_of_the_same_run(fit_dir, scans_frame, tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    scans_frame.to_csv(run / "scans.csv", index=False)
+    assert main(["decode", str(fit_dir), str(run), "--n-draws", "40", "--no-live"]) == 0
+    out = capsys.readouterr()
+    assert "decided" in out.out and "wrote" in out.out
+    dec = pd.read_csv(run / "decisions.csv")
+    assert main(["classify", str(fit_dir), str(run), "--n-draws", "40", "--out", str(tmp_path / "c")]) == 0
+    cls = pd.read_csv(tmp_path / "c" / "classification.csv")
+    np.testing.assert_array_equal(dec.scan_id, cls.scan_id)
+    np.testing.assert_allclose(dec[_p_cols(dec)].to_numpy(), cls[_p_cols(cls)].to_numpy(), rtol=1e-9, atol=1e-300)
+    np.testing.assert_allclose(dec[["height_mm", "lo90_mm", "hi90_mm"]].to_numpy(),
+                               cls[["height_mm", "lo90_mm", "hi90_mm"]].to_numpy(), rtol=1e-9, atol=1e-12)
+    assert {"decided_mm", "p_decided", "decided_at_t_s", "decided_at_x_mm", "flagged"} <= set(dec.columns)
+    made = dec.dropna(subset=["decided_mm"])
+    assert len(made) > 0 and (made.p_decided >= 0.9).all()
+    assert main(["decode", str(fit_dir), str(run), "--n-draws", "40"]) == 2          # no silent overwrite
+    assert "decisions.csv" in capsys.readouterr().err
+
+
+def _writer(run, frame, release, chunks=7):
+    """Write samples.csv in ragged chunks (cutting lines) while holding the run's lock; scan 0
+    is first aborted half-way and retried as attempt 2."""
+    fd = lock_run_dir(run)
+    try:
+        first = frame[frame.scan_id == frame.scan_id.iloc[0]]
+        aborted = first.iloc[: len(first) // 2].assign(attempt=1)
+        rows = pd.concat([aborted, frame.assign(attempt=np.where(frame.scan_id == first.scan_id.iloc[0], 2, 1))])
+        text = rows.to_csv(index=False)
+        cuts = np.linspace(0, len(text), chunks + 1).astype(int)
+        with open(run / "samples.csv", "w") as f:
+            for a, b in zip(cuts[:-1], cuts[1:]):
+                f.write(text[a:b])
+                f.flush()
+                time.sleep(0.05)
+        release.wait(10)
+    finally:
+        release_run_dir(fd)
+
+
+def test_follow_decodes_a_run_in_progress_like_offline(fit_dir, scans_frame, tmp_path, capsys):
+    run = tmp_path / "live"
+    run.mkdir()
+    release = threading.Event()
+    th = threading.Thread(target=_writer, args=(run, scans_frame, release))
+    th.start()
+    timer = threading.Timer(1.0, release.set)
+    timer.start()
+    try:
+        assert main(["decode", str(fit_dir), str(run), "--follow", "--poll-s", "0.02", "--n-draws", "40",
+                     "--no-live"]) == 0
+    finally:
+        release.set()
+        th.join()
+        timer.cancel()
+    assert not writer_active(run)
+    live = pd.read_csv(run / "decisions.csv")
+    scans_frame.to_csv(tmp_path / "s.csv", index=False)
+    assert main(["decode", str(fit_dir), str(tmp_path / "s.csv"), "--n-draws", "40", "--no-live"]) == 0
+    off = pd.read_csv(tmp_path / "decisions.csv")
+    pd.testing.assert_frame_equal(live.drop(columns="flag"), off.drop(columns="flag"), rtol=1e-12)
+
+
+def test_follow_rows_keeps_a_partial_line_and_drops_a_cut_one(tmp_path):
+    (tmp_path / "samples.csv").write_text("scan_id,t_s,uy_mm\n0,0.5,0.1\n0,1.0,0.")
+    state = {"n": 0}
+
+    def active():                               # the writer finishes the line, then one more cut line
+        state["n"] += 1
+        if state["n"] == 1:
+            with open(tmp_path / "samples.csv", "a") as f:
+                f.write("2\n1,0.5,0.3\n1,1")
+            return True
+        return False
+
+    stats = {}
+    rows = list(follow_rows(tmp_path, poll_s=0.001, active=active, sleep=lambda s: None, stats=stats))
+    assert [r["uy_mm"] for r in rows] == ["0.1", "0.2", "0.3"] and stats["partial_lines_dropped"] == 1
+
+
+def test_follow_without_a_run_fails_in_one_line(fit_dir, tmp_path, capsys):
+    with pytest.raises(DataFileError, match="no such file"):
+        list(follow_rows(tmp_path, poll_s=0.01, wait_s=0.02, sleep=lambda s: None))
+    assert main(["decode", str(fit_dir), str(tmp_path / "nowhere"), "--follow", "--wait-s", "0"]) == 2
+    assert main(["decode", str(fit_dir), str(tmp_path / "nowhere")]) == 2
+    assert main(["decode", str(fit_dir), str(tmp_path), "--poll-s", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 3 and "Traceback" not in err

@@ -1,0 +1,48 @@
+"""The training envelope: each check flags what lies outside, names unit mistakes, and
+stays quiet inside (one case per branch)."""
+
+import numpy as np
+import pytest
+
+from feeler.calib.neuron.live.envelope import Envelope, training_speed_mm_s
+from feeler.errors import ArgumentError
+
+ENV = Envelope(period_s=0.5, duration_s=20.0, speed_mm_s=0.5, p_lo=np.array([0.01, 0.02]),
+               p_hi=np.array([0.05, 0.1]))
+
+
+def test_inside_is_quiet():
+    t = np.arange(41) * 0.5
+    assert ENV.problems(t, [0.03, 0.05], x_mm=t * 0.5, speed_mm_s=0.5) == []
+
+
+def test_each_check_flags_and_names_units():
+    assert "sampling period" in ENV.period(1.0) and "ms" in ENV.period(500.0)
+    assert ENV.period(0.55) is None
+    assert "speed 2 mm/s, 4×" in ENV.speed(2.0)
+    assert "x probably in um" in ENV.speed(500.0, labelled=0.5)
+    assert "times probably in ms" in ENV.speed(0.0005, labelled=0.5)
+    assert "did not move" in ENV.speed(0.0)
+    assert ENV.duration(30.0, final=False) and ENV.duration(5.0, final=False) is None
+    assert ENV.duration(5.0, final=True)
+    assert "um" in ENV.response([50.0, 100.0], final=False)
+    assert ENV.response([0.001, 0.002], final=False) is None and ENV.response([0.001, 0.002], final=True)
+    assert "no response" in ENV.response([0.0, 0.0], final=True)
+    assert Envelope(0.5, 20.0, None, ENV.p_lo, ENV.p_hi).speed(2.0) is None       # no recorded speed
+
+
+def test_stream_summary_equals_whole_scan_check():
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(0.2, 1.4, 30))
+    x = t * 1.3
+    whole = ENV.problems(t, [0.2, 0.3], x_mm=x)
+    assert whole == ENV.problems_of(t.size, t[0], t[-1], [0.2, 0.3], x_ends_mm=(x[0], x[-1]))
+    assert len(whole) == 3          # period, speed, response (24 s is within 1.25× of 20 s)
+
+
+def test_scene_speed_and_bad_factors():
+    assert training_speed_mm_s({"scene_toml": "[motion]\nspeed_mm_s = 0.5\n"}) == 0.5
+    assert training_speed_mm_s({"scene_toml": "[scan]\nspeed_mm_s = 10\n"}) == 10.0
+    assert training_speed_mm_s({"scene_toml": "not toml ["}) is None and training_speed_mm_s({}) is None
+    with pytest.raises(ArgumentError):
+        Envelope(0.5, 20.0, 0.5, ENV.p_lo, ENV.p_hi, slack=1.0)
