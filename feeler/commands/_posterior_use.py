@@ -12,6 +12,7 @@ def add_use_arguments(parser, *, n_draws: int, out_file: str) -> None:
     parser.add_argument("--out", default=None, metavar="DIR", help=f"write {out_file} into DIR")
     parser.add_argument("--force", action="store_true", help="overwrite an earlier result in DIR")
     parser.add_argument("--accept-failed", action="store_true", help="use a posterior that failed its diagnostics")
+    parser.set_defaults(out_files=(out_file,))     # checked before any work (feeler.cli)
 
 
 def load_checked(args):
