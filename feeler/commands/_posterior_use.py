@@ -18,8 +18,14 @@ def add_use_arguments(parser, *, n_draws: int, out_file: str) -> None:
 def load_checked(args):
     """The saved fit of ``args.posterior``; CalibrationFailed unless ok or --accept-failed."""
     from feeler.calib.fit import load, require_ok
-    from feeler.errors import ArgumentError
+    from feeler.errors import ArgumentError, DataFileError
 
     if args.n_draws < 2:
         raise ArgumentError("--n-draws", args.n_draws, ">= 2")
-    return require_ok(load(args.posterior), accept_failed=args.accept_failed, what="neuron calibration")
+    result = load(args.posterior)
+    post = result.posterior["posterior"]
+    if "length_mm" not in post.attrs or "tau_s" not in post.data_vars:      # M1, M4, finger route
+        names = ", ".join(list(post.data_vars)[:4])
+        raise DataFileError(args.posterior, f"a fit of {names}, not a neuron (M2) fit; POSTERIOR must be "
+                                            f"the --out directory of `feeler calibrate neuron`")
+    return require_ok(result, accept_failed=args.accept_failed, what="neuron calibration")
