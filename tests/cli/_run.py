@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["ROOT", "feeler", "python_x"]
+__all__ = ["ENV", "ROOT", "feeler", "python_x"]
 
 ROOT = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "MPLBACKEND": "Agg", "NUMBA_CACHE_DIR": str(ROOT / ".cache" / "numba")}
