@@ -31,10 +31,15 @@ SBC_MODELS = {
 }
 
 
+# validate sbc --help: the docstring without its list header, and an example
+_SBC_DOC = ("Simulation-based calibration:" + __doc__.split("simulation-based calibration:", 1)[1]
+            .replace("\n        ", "\n") + "\nExample:\n    feeler validate sbc --model matrix --n 20 --out runs/sbc-matrix\n")
+
+
 def register(parser) -> None:
     sub = parser.add_subparsers(title="validations", metavar="WHAT")
     sbc = sub.add_parser("sbc", help="simulation-based calibration of one model",
-                         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+                         description=_SBC_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     sbc.add_argument("--model", choices=sorted(SBC_MODELS), required=True, help="which model")
     sbc.add_argument("--n", type=int, default=200, help="simulated datasets (default 200)")
     sbc.add_argument("--draws", type=int, default=99, help="posterior draws per dataset for the ranks (default 99)")
