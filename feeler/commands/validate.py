@@ -47,6 +47,7 @@ def register(parser) -> None:
                      help="tcp://HOST:PORT of a dask scheduler, or 'serial' (default: a LocalCluster)")
     sbc.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     sbc.add_argument("--out", default=None, metavar="DIR", help="write ranks.csv and sbc.csv into DIR")
+    sbc.set_defaults(out_files=("ranks.csv", "sbc.csv"))
     sbc.add_argument("--force", action="store_true", help="overwrite an earlier run in DIR")
     sbc.set_defaults(run=run_sbc_command)
 
@@ -57,6 +58,12 @@ def register(parser) -> None:
 
 
 def run_sbc_command(args) -> int:
+    from feeler.errors import ArgumentError
+
+    if args.n < 10:                                  # before the heavy imports (issue 16 item 3)
+        raise ArgumentError("--n", args.n, "at least 10 simulated datasets")
+    if args.draws < 9:
+        raise ArgumentError("--draws", args.draws, "at least 9 posterior draws per dataset (ranks 0..draws)")
     import pandas as pd
 
     from feeler.calib.sbc import run_sbc

@@ -47,6 +47,8 @@ CASES = {
                                         d / "p"), ["scan-plan", "feeler acquire"]),
     "classify given an M1 fit": (lambda d: ("classify", d / "m1", d / "sc"), ["not a neuron (M2) fit"]),
     "discriminate given an M1 fit": (lambda d: ("discriminate", d / "m1"), ["not a neuron (M2) fit"]),
+    "validate sbc --n 3": (lambda d: ("validate", "sbc", "--model", "matrix", "--n", "3"), ["--n=3", "10"]),
+    "validate sbc --draws 5": (lambda d: ("validate", "sbc", "--model", "matrix", "--draws", "5"), ["--draws=5"]),
     "classify --out at a file": (lambda d: ("classify", d / "m1", d / "sc", "--out", d / "a-file"), ["--out"]),
 }
 
@@ -86,3 +88,9 @@ def test_probe_leaves_nothing_behind(runs):
     out = feeler(*FIT, runs / "nowhere", "--out", runs / "new" / "deep")
     assert "nowhere" in _one_error_line(out)                      # failed after the --out check
     assert sorted(p.name for p in Path(runs).iterdir()) == before
+
+
+def test_validate_sbc_runs_outside_the_checkout(tmp_path):
+    out = feeler("validate", "sbc", "--model", "matrix", "--n", "10", "--scheduler", "serial", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "SBC ok" in out.stdout and "Traceback" not in out.stderr
