@@ -127,7 +127,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"feeler: error: {exc}", file=sys.stderr)
         return 2
     except FeelerError as exc:
-        print(f"feeler: failed: {exc}", file=sys.stderr)
+        resume = "; the run so far is kept: run the same command with --resume to continue" \
+            if getattr(args, "resume", None) is not None and "--resume" not in str(exc) else ""
+        print(f"feeler: failed: {exc}{resume}", file=sys.stderr)
         return 1
     except (FileExistsError, IsADirectoryError, NotADirectoryError, PermissionError, FileNotFoundError) as exc:
         where = exc.filename if exc.filename is not None else ""
