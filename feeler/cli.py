@@ -76,13 +76,15 @@ def _first_line(args) -> None:
     what = STARTING.get(command.split()[0], "working")
     target = next((getattr(args, k) for k in ("dataset", "scene", "scans", "posterior", "data", "plan")
                    if isinstance(getattr(args, k, None), str)), None)
+    if target is None and isinstance(getattr(args, "datasets", None), list):
+        target = f"{len(args.datasets)} dataset{'s' if len(args.datasets) != 1 else ''}"
     print(f"feeler {command}: {what}{' ' + target if target else ''} (loading libraries) ...",
           file=sys.stderr, flush=True)
 
 
 def _check_before_work(args) -> None:
     """Output path and earlier results, before anything is computed (issue 16 item 3)."""
-    for name, least in (("draws", 1), ("tune", 0), ("chains", 1), ("n_draws", 2), ("n", 1), ("seed", 0)):
+    for name, least in (("draws", 1), ("tune", 0), ("chains", 1), ("n_draws", 2), ("n", 1), ("seed", 0), ("workers", 1)):
         value = getattr(args, name, None)
         if isinstance(value, int) and not isinstance(value, bool) and value < least:
             raise ArgumentError(f"--{name.replace('_', '-')}", value, f"an integer >= {least}")
