@@ -10,7 +10,7 @@ import os
 import sys
 from typing import Iterable, TypeVar
 
-__all__ = ["show_progress", "progress", "bar_width"]
+__all__ = ["show_progress", "progress", "bar_width", "stage"]
 
 T = TypeVar("T")
 
@@ -42,3 +42,10 @@ def bar_width() -> dict:
     except (OSError, ValueError, AttributeError):
         pass
     return {"dynamic_ncols": True} if cols > 0 else {"ncols": 80, "nrows": 24}
+
+
+def stage(text: str, enabled: bool | None = None) -> None:
+    """``<text> ...`` on stderr: a line per stage of a long command, unless ``enabled`` is
+    False (--no-progress). Stdout stays the command's result."""
+    if enabled is not False:
+        print(f"{text} ...", file=sys.stderr, flush=True)

@@ -49,6 +49,7 @@ def run(args) -> int:
     import json
 
     from feeler.calib.fit import DiagnosticWarning
+    from feeler.calib.progress import stage
     from feeler.errors import ArgumentError
 
     if args.emcee_steps is not None and args.emcee_steps < 100:
@@ -56,8 +57,10 @@ def run(args) -> int:
     csv, length_mm, kernel = locate_scans(Path(args.dataset), args.length_mm)
     scene_path = csv.with_name("scene.toml")
     scene_toml = scene_path.read_text(encoding="utf-8") if scene_path.is_file() else None
+    stage(f"reading {csv}", args.progress)
     scans = read_scans(csv)
     data = data_from_scans(scans, length_mm=length_mm, kernel=kernel)
+    stage(f"fitting M2 ({args.backend} backend, {scans.step_mm.size} scans)", args.progress)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DecoderMisfitWarning)          # printed below instead
         warnings.simplefilter("ignore", DiagnosticWarning)

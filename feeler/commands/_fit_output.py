@@ -88,6 +88,9 @@ def finish_fit(result, args) -> int:
     """Print, save with --out, and return 0 (verdict ok) or 1 (failed)."""
     print_summary(result)
     if args.out:
+        if getattr(args, "progress", None) is not False:
+            import sys
+            print(f"writing {args.out} ...", file=sys.stderr, flush=True)
         out = result.save(args.out, force=args.force)
         print(f"wrote {out / 'posterior.nc'}, {out / 'summary.csv'}, {out / 'verdict.json'}")
     return 0 if result.verdict.ok else 1
