@@ -94,3 +94,13 @@ def test_validate_sbc_runs_outside_the_checkout(tmp_path):
     out = feeler("validate", "sbc", "--model", "matrix", "--n", "10", "--scheduler", "serial", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     assert "SBC ok" in out.stdout and "Traceback" not in out.stderr
+
+
+def test_a_fit_says_what_it_does_and_where_it_writes(runs, tmp_path):
+    out = feeler(*FIT, runs / "sc", "--out", tmp_path / "m1")
+    assert out.returncode == 0, out.stderr
+    err = out.stderr.splitlines()
+    assert err[0].startswith("feeler calibrate sensor: fitting ") and "fitting M1 (exact backend" in out.stderr
+    assert f"writing {tmp_path / 'm1'} ..." in err and f"wrote {tmp_path / 'm1' / 'posterior.nc'}" in out.stdout
+    quiet = feeler(*FIT, runs / "sc", "--no-progress")
+    assert quiet.returncode == 0 and quiet.stderr == ""
