@@ -5,13 +5,16 @@ __all__ = ["add_use_arguments", "load_checked"]
 
 
 def add_use_arguments(parser, *, n_draws: int, out_file: str) -> None:
-    """POSTERIOR, --n-draws, --seed, --out, --force, --accept-failed."""
+    """POSTERIOR, --n-draws, --seed, --out, --force, --accept-failed, --progress/--no-progress."""
     parser.add_argument("posterior", metavar="POSTERIOR", help="directory of a `calibrate neuron --out` fit")
     parser.add_argument("--n-draws", type=int, default=n_draws, help=f"posterior draws used (default {n_draws})")
     parser.add_argument("--seed", type=int, default=0, help="seed of draws and simulations (default 0)")
     parser.add_argument("--out", default=None, metavar="DIR", help=f"write {out_file} into DIR")
     parser.add_argument("--force", action="store_true", help="overwrite an earlier result in DIR")
     parser.add_argument("--accept-failed", action="store_true", help="use a posterior that failed its diagnostics")
+    parser.add_argument("--progress", action="store_true", default=None,
+                        help="always show progress (default: bars on a terminal, lines otherwise)")
+    parser.add_argument("--no-progress", dest="progress", action="store_false", help="no progress output")
     parser.set_defaults(out_files=(out_file,))     # checked before any work (feeler.cli)
 
 
