@@ -64,22 +64,17 @@ def summarize(posterior) -> pd.DataFrame:
     Intervals are equal-tailed (ETI) 95 % and 89 %; R-hat is the rank-normalised split
     R-hat, ESS bulk/tail and MCSE as in ArviZ 1.x (Vehtari et al. 2021).
     """
-    from arviz_stats.base import array_stats as A
+    from feeler.calib import convergence as C
 
     draws = flat_draws(posterior)
     names = list(draws)
     x = np.stack([draws[n] for n in names], axis=-1)          # (chain, draw, entry)
     flat = x.reshape(-1, len(names))
     q = np.quantile(flat, [0.025, 0.975, 0.055, 0.945], axis=0)
-    kw = dict(chain_axis=0, draw_axis=1)
+    funcs = {"r_hat": C.rhat, "ess_bulk": C.ess_bulk, "ess_tail": C.ess_tail,
+             "mcse_mean": C.mcse_mean, "mcse_sd": C.mcse_sd}
     with np.errstate(invalid="ignore", divide="ignore"):
-        cols = {
-            "r_hat": A.rhat(x, **kw),
-            "ess_bulk": A.ess(x, method="bulk", **kw),
-            "ess_tail": A.ess(x, method="tail", prob=(0.05, 0.95), **kw),
-            "mcse_mean": A.mcse(x, method="mean", **kw),
-            "mcse_sd": A.mcse(x, method="sd", **kw),
-        }
+        cols = {k: [f(x[..., j]) for j in range(len(names))] for k, f in funcs.items()}
     table = pd.DataFrame({"name": names, "mean": flat.mean(axis=0), "sd": flat.std(axis=0, ddof=1),
                           "eti95_lb": q[0], "eti95_ub": q[1], "eti89_lb": q[2], "eti89_ub": q[3],
                           **{k: np.asarray(v, dtype=float).reshape(len(names)) for k, v in cols.items()}})

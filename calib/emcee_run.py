@@ -40,15 +40,15 @@ def autocorr_times(chain: np.ndarray) -> np.ndarray:
 
 def converged(chain: np.ndarray, *, times: float = TIMES) -> tuple[bool, float]:
     """(passes with margin, longest τ_int) for ``chain (ndarray[steps, walkers, dim])``."""
-    from arviz_stats.base import array_stats as A
+    from feeler.calib import convergence as C
 
     tau = autocorr_times(chain)
     if not np.all(np.isfinite(tau)):
         return False, float("inf")
     x = np.transpose(chain, (1, 0, 2))                                     # (walker, step, dim)
     with np.errstate(invalid="ignore", divide="ignore"):
-        rhat = np.asarray(A.rhat(x, chain_axis=0, draw_axis=1), float)
-        ess = np.asarray(A.ess(x, method="bulk", chain_axis=0, draw_axis=1), float)
+        rhat = np.array([C.rhat(x[..., j]) for j in range(x.shape[-1])])
+        ess = np.array([C.ess_bulk(x[..., j]) for j in range(x.shape[-1])])
     ok = (chain.shape[0] >= 1.2 * times * tau.max() and np.all(rhat <= 1.005) and np.all(ess >= 480))
     return bool(ok), float(tau.max())
 

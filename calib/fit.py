@@ -56,7 +56,9 @@ class FitResult:
         tree = self.posterior.copy()
         tree["posterior"].attrs.update({"priors": json.dumps(self.priors),
                                         "backend": self.backend, "seconds": float(self.seconds)})
-        tree.to_netcdf(out / "posterior.nc", engine="h5netcdf")
+        from feeler.calib.lazy_dask import writing_without_dask
+        with writing_without_dask():
+            tree.to_netcdf(out / "posterior.nc", engine="h5netcdf")
         self.summary.to_csv(out / "summary.csv", index=False)
         write_json(out / "verdict.json", self.verdict.as_dict())
         return out
@@ -89,6 +91,8 @@ def load(directory: str | Path) -> FitResult:
     """
     import xarray as xr
 
+    from feeler.calib.lazy_dask import install
+    install()
     d = Path(directory)
     for name in FIT_FILES:
         if not (d / name).is_file():

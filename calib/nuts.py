@@ -38,7 +38,7 @@ import time
 
 import numpy as np
 
-from feeler.calib.progress import show_progress
+from feeler.calib.progress import bar_width, show_progress
 
 __all__ = ["sample_model", "stats_of", "SampleStats", "available_cores"]
 
@@ -272,7 +272,7 @@ class _Progress:
         import sys
 
         from tqdm.auto import tqdm
-        self.bar = tqdm(total=total, desc="NUTS", file=sys.stderr, leave=False, dynamic_ncols=True)
+        self.bar = tqdm(total=total, desc="NUTS", file=sys.stderr, leave=False, **bar_width())
         self.done = 0
 
     def __call__(self, chains) -> None:

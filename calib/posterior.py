@@ -41,6 +41,9 @@ def posterior_from_draws(draws: Mapping[str, np.ndarray], *,
     """
     from arviz_base import from_dict
 
+    from feeler.calib.lazy_dask import install
+    install()
+
     for name, value in draws.items():
         if np.ndim(value) < 2:
             raise ValueError(f"draws[{name!r}] must have leading (chain, draw) dims, "

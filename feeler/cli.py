@@ -12,8 +12,9 @@ import importlib
 import logging
 import pkgutil
 import sys
+import warnings
 
-from feeler.errors import FeelerError, InputError
+from feeler.errors import ArgumentError, FeelerError, InputError
 
 __all__ = ["main", "build_parser"]
 
@@ -39,7 +40,73 @@ def build_parser() -> argparse.ArgumentParser:
         cmd = sub.add_parser(module.NAME, help=module.HELP, description=module.__doc__,
                              formatter_class=argparse.RawDescriptionHelpFormatter)
         module.register(cmd)
+        _name_commands(cmd, module.NAME)
     return parser
+
+
+def _name_commands(parser: argparse.ArgumentParser, path: str) -> None:
+    """``args.command`` = the full sub-command path ("calibrate sensor"), at every depth."""
+    parser.set_defaults(command=path)
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                _name_commands(sub, f"{path} {name}")
+
+
+# what the first line says while the heavy libraries load (default: "loading ...")
+STARTING = {
+    "calibrate": "fitting",
+    "classify": "classifying the scans",
+    "discriminate": "simulating 2AFC discrimination with the posterior",
+    "fit": "fitting",
+    "simulate": "simulating",
+    "acquire": "starting the acquisition",
+    "skin": "running the skin model",
+    "validate": "simulation-based calibration",
+    "demo": "running the demo chain",
+    "emulate": "starting the emulator",
+}
+
+
+def _first_line(args) -> None:
+    """One line on stderr before any heavy import, so the user knows the command runs."""
+    command = getattr(args, "command", None)
+    if command is None or command == "report" or getattr(args, "progress", None) is False:
+        return                                   # report prints its own first line
+    what = STARTING.get(command.split()[0], "working")
+    target = next((getattr(args, k) for k in ("dataset", "scene", "scans", "posterior", "data", "plan")
+                   if isinstance(getattr(args, k, None), str)), None)
+    if target is None and isinstance(getattr(args, "datasets", None), list):
+        target = f"{len(args.datasets)} dataset{'s' if len(args.datasets) != 1 else ''}"
+    print(f"feeler {command}: {what}{' ' + target if target else ''} (loading libraries) ...",
+          file=sys.stderr, flush=True)
+
+
+def _check_before_work(args) -> None:
+    """Output path and earlier results, before anything is computed (issue 16 item 3)."""
+    for name, least in (("draws", 1), ("tune", 0), ("chains", 1), ("n_draws", 2), ("n", 1), ("seed", 0), ("workers", 1)):
+        value = getattr(args, name, None)
+        if isinstance(value, int) and not isinstance(value, bool) and value < least:
+            raise ArgumentError(f"--{name.replace('_', '-')}", value, f"an integer >= {least}")
+    out = getattr(args, "out", None)
+    if isinstance(out, str) and out:
+        from feeler.commands._checks import check_out_dir
+        check_out_dir(out, getattr(args, "out_files", ()), force=bool(getattr(args, "force", False)))
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """warnings.showwarning: ``feeler: warning: <message>`` on one line, no source path."""
+    text = " ".join(str(message).split())
+    print(f"feeler: warning: {text}", file=sys.stderr if file is None else file, flush=True)
+
+
+def _quiet_third_parties(verbose: int) -> None:
+    """Third-party log noise (dask.distributed's worker chatter) only with -v."""
+    import os
+    if verbose == 0:
+        os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "error")     # read by dask, workers inherit it
+        for name in ("distributed", "distributed.nanny", "distributed.worker", "pymc", "pytensor"):
+            logging.getLogger(name).setLevel(logging.ERROR)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -51,17 +118,32 @@ def main(argv: list[str] | None = None) -> int:
     if run is None:
         parser.print_help()
         return 2
+    _quiet_third_parties(args.verbose)
+    _first_line(args)
+    shown = warnings.showwarning
+    warnings.showwarning = _one_line_warning
     try:
+        _check_before_work(args)
         return int(run(args) or 0)
     except InputError as exc:
         print(f"feeler: error: {exc}", file=sys.stderr)
         return 2
     except FeelerError as exc:
-        print(f"feeler: {type(exc).__name__}: {exc}", file=sys.stderr)
+        resume = "; the run so far is kept: run the same command with --resume to continue" \
+            if getattr(args, "resume", None) is not None and "--resume" not in str(exc) else ""
+        print(f"feeler: failed: {exc}{resume}", file=sys.stderr)
         return 1
+    except (FileExistsError, IsADirectoryError, NotADirectoryError, PermissionError, FileNotFoundError) as exc:
+        where = exc.filename if exc.filename is not None else ""
+        print(f"feeler: error: {where}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
-        print("feeler: interrupted", file=sys.stderr)
+        resume = " (run the same command with --resume to continue)" if getattr(args, "resume", None) is not None \
+            else ""
+        print(f"feeler: interrupted{resume}", file=sys.stderr)
         return 130
+    finally:
+        warnings.showwarning = shown
 
 
 if __name__ == "__main__":  # pragma: no cover

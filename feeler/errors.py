@@ -72,6 +72,8 @@ class OverwriteError(InputError):
 
 
 def _short(value: object, limit: int = 60) -> str:
+    if type(value).__module__ == "numpy" and getattr(value, "ndim", None) == 0:
+        value = value.item()                     # inf, not np.float64(inf)
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."
 

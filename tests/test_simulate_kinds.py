@@ -26,7 +26,7 @@ def test_existing_data_are_kept_without_force(tmp_path, name, data, capsys):
     assert main(["simulate", str(ROOT / f"{name}.toml"), "--out", str(out)]) == 0
     before = (out / data).read_bytes()
     assert main(["simulate", str(ROOT / f"{name}.toml"), "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "--force" in err and len(err.splitlines()) == 1
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
+    assert len(err) == 1 and "--force" in err[0]
     assert (out / data).read_bytes() == before
     assert main(["simulate", str(ROOT / f"{name}.toml"), "--out", str(out), "--force"]) == 0

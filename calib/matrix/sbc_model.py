@@ -8,6 +8,7 @@ derived C = K⁻¹ and cond(C) (any function of the parameters must be rank-unif
 from __future__ import annotations
 
 from functools import partial
+from pathlib import Path
 
 import numpy as np
 
@@ -49,7 +50,11 @@ def fit_matrix_draws(data, rng: np.random.Generator, *, prior: MatrixPrior, n_dr
     return _named(K, sigma)
 
 
-def matrix_sbc_problem(scene_path: str = "datasets-synthetic/sensor-calibration.toml"):
+# the shipped scene, found from the source tree (not the working directory: issue 16 item 7)
+SENSOR_CALIBRATION = Path(__file__).resolve().parents[2] / "datasets-synthetic" / "sensor-calibration.toml"
+
+
+def matrix_sbc_problem(scene_path: str | Path = SENSOR_CALIBRATION):
     """``(simulate, fit)`` for :func:`feeler.calib.sbc.run_sbc`, picklable, on a scene's design."""
     from feeler.scene import load_scene
     from feeler.scenes.sensor_calibration import commanded_displacements

@@ -21,7 +21,7 @@ support; any problem fails the verdict (:func:`feeler.calib.fit.make_result`).
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
+from scipy import special     # not scipy.stats: 1 s more import on every fit (issue 18)
 
 from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
 from feeler.calib.neuron.model import PeakTable, PlatePrior, Plates, plate_stats
@@ -115,7 +115,7 @@ def loo_pit(table: PeakTable, plates: Plates, noise: str, log_w: np.ndarray, *, 
         s0 = (np.sum(ss / shape ** 2, axis=1)[:, None] - removed / shape[:, g] ** 2) / df
         var = s0 * shape[:, g] ** 2
     scale = np.sqrt(np.maximum(var, 1e-300) * (1 + 1 / (own_n - 1)))
-    pit = stats.t.cdf((p - loo_mean) / scale, df)
+    pit = special.stdtr(df, (p - loo_mean) / scale)                 # Student-t CDF
     return np.sum(w[:, None] * pit, axis=0)
 
 
@@ -136,14 +136,14 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
             cover.append(k / m)
             bias.append(float(np.mean(u)))
             z = (np.mean(u) - 0.5) / np.sqrt(1 / (12 * m))
-            pvals += [stats.binom.cdf(k, m, 0.85), stats.binom.sf(k - 1, m, 0.95), 2 * stats.norm.sf(abs(z))]
-            if stats.binom.cdf(k, m, 0.85) < level:
+            pvals += [special.bdtr(k, m, 0.85), special.bdtrc(k - 1, m, 0.95), 2 * special.ndtr(-abs(z))]
+            if special.bdtr(k, m, 0.85) < level:
                 out.append(f"plate_sd_mm: plate {_mm(step)}: only {k} of {m} scans inside their 90 % interval "
                            f"(leave-one-out); the decoder's {noise} noise is too narrow for this plate")
-            elif stats.binom.sf(k - 1, m, 0.95) < level:
+            elif special.bdtrc(k - 1, m, 0.95) < level:
                 out.append(f"plate_sd_mm: plate {_mm(step)}: all but {m - k} of {m} scans inside their 90 % "
                            f"interval (leave-one-out); the decoder's {noise} noise is too wide for this plate")
-            if 2 * stats.norm.sf(abs(z)) < level:
+            if 2 * special.ndtr(-abs(z)) < level:
                 side = "high" if z > 0 else "low"
                 out.append(f"plate_mean_mm: plate {_mm(step)}: its scans sit {side} in their predictive "
                            f"(mean leave-one-out PIT {np.mean(u):.2f}): the decoder is biased for this plate")

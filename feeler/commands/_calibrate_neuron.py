@@ -49,6 +49,7 @@ def run(args) -> int:
     import json
 
     from feeler.calib.fit import DiagnosticWarning
+    from feeler.calib.progress import stage
     from feeler.errors import ArgumentError
 
     if args.emcee_steps is not None and args.emcee_steps < 100:
@@ -56,8 +57,10 @@ def run(args) -> int:
     csv, length_mm, kernel = locate_scans(Path(args.dataset), args.length_mm)
     scene_path = csv.with_name("scene.toml")
     scene_toml = scene_path.read_text(encoding="utf-8") if scene_path.is_file() else None
+    stage(f"reading {csv}", args.progress)
     scans = read_scans(csv)
     data = data_from_scans(scans, length_mm=length_mm, kernel=kernel)
+    stage(f"fitting M2 ({args.backend} backend, {scans.step_mm.size} scans)", args.progress)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DecoderMisfitWarning)          # printed below instead
         warnings.simplefilter("ignore", DiagnosticWarning)
@@ -75,6 +78,8 @@ def run(args) -> int:
     if "loo_coverage90" in checks:
         print("posterior predictive check (leave-one-out): labels inside their 90 % interval per plate: " + ", ".join(
             f"{s:g} mm {100 * c:.0f} %" for s, c in zip(steps, checks["loo_coverage90"])))
+    print("note: a, tau_s and h are the decoder's (z = a·P_tau − h fitted to the labels, tau_s the window "
+          "that predicts them best), not the neuron parameters of a scene; a is in mm per unit of window sum")
     return finish_fit(result, args)
 
 

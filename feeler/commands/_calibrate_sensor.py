@@ -58,6 +58,7 @@ def run(args) -> int:
 
     from feeler.calib.fit import DiagnosticWarning
     from feeler.calib.matrix import fit_matrix, predict_u, read_calibration_csv
+    from feeler.calib.progress import stage
 
     csv, scene = _locate(Path(args.dataset))
     data = read_calibration_csv(csv)
@@ -67,6 +68,7 @@ def run(args) -> int:
     emcee = args.backend == "emcee"               # emcee: run until converged unless --draws
     draws = args.draws if args.draws is not None else (None if emcee else 1000)
     tune = args.tune if args.tune is not None else (3000 if emcee else 1000)
+    stage(f"fitting M1 ({args.backend} backend, {data.n} points)", args.progress)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DiagnosticWarning)     # the verdict is printed below
         result = fit_matrix(data, prior, model=model, noise=args.noise, backend=args.backend,

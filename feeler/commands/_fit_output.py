@@ -3,7 +3,10 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["add_fit_arguments", "finish_fit", "print_summary", "round_inside", "format_estimate"]
+# what FitResult.save writes (feeler.calib.fit.FIT_FILES, without importing pandas for --help)
+FIT_FILES = ("posterior.nc", "summary.csv", "verdict.json")
+
+__all__ = ["FIT_FILES", "add_fit_arguments", "finish_fit", "print_summary", "round_inside", "format_estimate"]
 
 
 def round_inside(mean: float, lo: float, hi: float, decimals: int) -> tuple[str, str, str]:
@@ -50,6 +53,7 @@ def add_fit_arguments(parser, *, draws: int | None = 1000, tune: int | None = 10
                         help=f"warm-up steps per chain (default {tune or 'per backend'})")
     parser.add_argument("--progress", action="store_true", default=None, help="always show progress bars")
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="never show progress bars")
+    parser.set_defaults(out_files=FIT_FILES)       # checked before the fit (feeler.cli)
 
 
 def print_summary(result, *, skip_prefixes: tuple[str, ...] = ()) -> None:
@@ -84,6 +88,9 @@ def finish_fit(result, args) -> int:
     """Print, save with --out, and return 0 (verdict ok) or 1 (failed)."""
     print_summary(result)
     if args.out:
+        if getattr(args, "progress", None) is not False:
+            import sys
+            print(f"writing {args.out} ...", file=sys.stderr, flush=True)
         out = result.save(args.out, force=args.force)
         print(f"wrote {out / 'posterior.nc'}, {out / 'summary.csv'}, {out / 'verdict.json'}")
     return 0 if result.verdict.ok else 1

@@ -87,7 +87,7 @@ def run(args) -> int:
     pairs = args.pair or list(combinations(sorted(scene.surface.heights_mm), 2))
     rows = []
     print(f"{'low mm':>8} {'high mm':>8}  P(correct) [95 % interval]   MC se")
-    for lo, hi in progress(pairs, desc="pairs"):
+    for lo, hi in progress(pairs, desc="pairs", enabled=args.progress):
         p = disc.pc(lo, hi)
         rows.append({"low_mm": lo, "high_mm": hi, "pc": p.mean, "lo95": p.lo95, "hi95": p.hi95, "mcse": p.mcse})
         print(f"{lo:8.4g} {hi:8.4g}  {format_estimate(p.mean, p.lo95, p.hi95, 4):28s} {p.mcse:.4f}")

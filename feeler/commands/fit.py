@@ -35,9 +35,22 @@ NAME = "fit"
 HELP = "fit forced-choice psychophysics: psychometric functions (M4) or τ through the finger chain"
 
 
+def _own_doc(what: str, example: str) -> str:
+    """A sub-command's --help text: ``what`` it does, the shared data/backends text of this
+    module's docstring (from "DATA.csv"), and an example."""
+    shared = __doc__[__doc__.index("DATA.csv"):]
+    return f"{what}\n\n{shared}\nExample:\n    {example}\n"
+
+
 def _add_psychophysics(sub) -> None:
     psy = sub.add_parser("psychophysics", help="PSE, thresholds and slopes per subject and condition",
-                         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+                         description=_own_doc(
+                             "Psychometric functions (M4: cumulative normal with lapse, optional beta-binomial\n"
+                             "overdispersion; subjects alone, or pooled hierarchically with NUTS): PSE, difference\n"
+                             "threshold, the threshold and slope at any proportion (--pc), goodness of fit, per\n"
+                             "subject and condition.",
+                             "feeler simulate datasets-synthetic/psychophysics-2afc.toml --out runs/humans\n"
+                             "    feeler fit psychophysics runs/humans/trials.csv --out runs/m4"), formatter_class=argparse.RawDescriptionHelpFormatter)
     psy.add_argument("data", metavar="DATA.csv", help="trial table (counts or one row per trial)")
     psy.add_argument("--backend", choices=("exact", "laplace", "nuts"), default="exact",
                      help="exact: the posterior integrated on an adaptive grid (default); laplace: a "
@@ -75,7 +88,11 @@ def register(parser) -> None:
     sub = parser.add_subparsers(title="what to fit", metavar="WHAT")
     _add_psychophysics(sub)
     route = sub.add_parser("finger-route", help="posterior of τ and σ_d through skin → neuron → observer",
-                           description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+                           description=_own_doc(
+                               "The neuron's window τ and the decision noise σ_d from 2AFC trials, through the\n"
+                               "finger chain (skin → FA-I neuron → observer), reported beside the paper's\n"
+                               "\"τ ≤ 300 ms\".",
+                               "feeler fit finger-route runs/humans/trials.csv --out runs/route"), formatter_class=argparse.RawDescriptionHelpFormatter)
     route.add_argument("data", metavar="DATA.csv", help="2AFC trial table (comparison design)")
     route.add_argument("--level", choices=("l0", "l1", "l2"), default="l0", help="skin fidelity (default l0)")
     route.add_argument("--check-level", choices=("l0", "l1", "l2"), default=None,

@@ -31,10 +31,15 @@ SBC_MODELS = {
 }
 
 
+# validate sbc --help: the docstring without its list header, and an example
+_SBC_DOC = ("Simulation-based calibration:" + __doc__.split("simulation-based calibration:", 1)[1]
+            .replace("\n        ", "\n") + "\nExample:\n    feeler validate sbc --model matrix --n 20 --out runs/sbc-matrix\n")
+
+
 def register(parser) -> None:
     sub = parser.add_subparsers(title="validations", metavar="WHAT")
     sbc = sub.add_parser("sbc", help="simulation-based calibration of one model",
-                         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+                         description=_SBC_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     sbc.add_argument("--model", choices=sorted(SBC_MODELS), required=True, help="which model")
     sbc.add_argument("--n", type=int, default=200, help="simulated datasets (default 200)")
     sbc.add_argument("--draws", type=int, default=99, help="posterior draws per dataset for the ranks (default 99)")
@@ -42,6 +47,7 @@ def register(parser) -> None:
                      help="tcp://HOST:PORT of a dask scheduler, or 'serial' (default: a LocalCluster)")
     sbc.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     sbc.add_argument("--out", default=None, metavar="DIR", help="write ranks.csv and sbc.csv into DIR")
+    sbc.set_defaults(out_files=("ranks.csv", "sbc.csv"))
     sbc.add_argument("--force", action="store_true", help="overwrite an earlier run in DIR")
     sbc.set_defaults(run=run_sbc_command)
 
@@ -52,6 +58,12 @@ def register(parser) -> None:
 
 
 def run_sbc_command(args) -> int:
+    from feeler.errors import ArgumentError
+
+    if args.n < 10:                                  # before the heavy imports (issue 16 item 3)
+        raise ArgumentError("--n", args.n, "at least 10 simulated datasets")
+    if args.draws < 9:
+        raise ArgumentError("--draws", args.draws, "at least 9 posterior draws per dataset (ranks 0..draws)")
     import pandas as pd
 
     from feeler.calib.sbc import run_sbc

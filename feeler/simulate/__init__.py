@@ -13,6 +13,7 @@ import importlib
 import shutil
 from pathlib import Path
 
+from feeler.errors import SceneError
 from feeler.rundir import prepare_out_dir
 from feeler.scene import load_scene
 from feeler.simulate.robot import CSV_COLUMNS, features_of, plate_profile, simulate_robot_scan, simulate_scans
@@ -32,7 +33,13 @@ def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = Fal
         ArgumentError: the scene asks for a sensor fidelity not available here.
     """
     scene = load_scene(scene_path)
-    module, func = SIMULATORS[scene.scene.kind].split(":")
+    kind = scene.scene.kind
+    if kind not in SIMULATORS:
+        hint = " (a scan plan: run it with `feeler acquire --plan`, --emulate without hardware)" \
+            if kind == "scan-plan" else ""
+        raise SceneError(scene_path, "scene.kind", f"{kind!r} is not a scene to simulate{hint}; "
+                                                   f"simulate takes {', '.join(sorted(SIMULATORS))}")
+    module, func = SIMULATORS[kind].split(":")
     getattr(importlib.import_module(module), func)(scene, scene_path, out, force)
     return Path(out)
 

