@@ -107,7 +107,7 @@ def test_m4_curve_images_and_new_threshold_columns_are_shown(run_dir, tmp_path):
     thr[head] += ",backend,pc,slope_per_um"
     thr[head + 1:] = [line + ",laplace,0.75,0.31" for line in thr[head + 1:]]
     (m4 / "thresholds.csv").write_text("\n".join(thr) + "\n", encoding="utf-8")
-    (m4 / "curves").mkdir()
+    (m4 / "curves").mkdir(exist_ok=True)
     png = _png(tmp_path)
     rows = ["subject,standard_um,standard_speed_mm_s,comparison_speed_mm_s,file"]
     for s in ("S1", "S2", "all"):
@@ -126,7 +126,7 @@ def test_a_listed_curve_that_is_not_a_png_is_named(run_dir, tmp_path):
     from feeler.errors import DataFileError
 
     m4 = shutil.copytree(run_dir / "m4", tmp_path / "run" / "m4")
-    (m4 / "curves").mkdir()
+    (m4 / "curves").mkdir(exist_ok=True)
     (m4 / "curves" / "index.csv").write_text("subject,standard_um,standard_speed_mm_s,comparison_speed_mm_s,file\n"
                                              "S1,10,20,20,curves/gone.png\n", encoding="utf-8")
     with pytest.raises(DataFileError, match=r"gone\.png: listed in m4/curves/index\.csv but not a readable PNG"):
