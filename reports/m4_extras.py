@@ -16,15 +16,21 @@ from feeler.reports.readers import read_table
 __all__ = ["thresholds_table", "curves_gallery", "CURVE_INDEX"]
 
 CURVE_INDEX = "curves/index.csv"
+#: further columns shown when the file has them (a page has room for about a dozen); the
+#: caption names the rest of the file's columns
+SHOWN = {"standard_um": "standard (µm)", "estimand": "estimand", "backend": "backend", "pc": "at P",
+         "threshold_um": "threshold at P (µm)", "slope_per_um": "slope at P (1/µm)", "gof_p": "fit p (deviance)"}
 _PAIRS = (("PSE (µm)", "pse_um", "pse_lb_um", "pse_ub_um"), ("DT (µm)", "dt_um", "dt_lb_um", "dt_ub_um"))
 
 
 def thresholds_table(inv, part) -> Table:
-    """Every row of thresholds.csv: PSE and DT as intervals, then any further column."""
+    """Every row of thresholds.csv: PSE and DT as intervals, then the :data:`SHOWN` columns the
+    file has; the caption names its other columns."""
     rel = part.path("thresholds.csv")
     t = read_table(inv.run_dir / rel, THRESH_COLS)
     used = {c for _, *cs in _PAIRS for c in cs} | {"subject", "standard_speed_mm_s", "comparison_speed_mm_s"}
-    extra = [c for c in t.columns if c not in used]
+    extra = [c for c in SHOWN if c in t.columns]
+    rest = [c for c in t.columns if c not in used and c not in extra]
     rows = []
     for _, r in t.iterrows():
         cells = [str(r["subject"]), f"{fmt(r['standard_speed_mm_s'])} / {fmt(r['comparison_speed_mm_s'])}"]
@@ -35,8 +41,9 @@ def thresholds_table(inv, part) -> Table:
         cells += [fmt(parse_value(r[c]).value, 4) if np.isfinite(parse_value(r[c]).value) else str(r[c]) for c in extra]
         rows.append(tuple(cells))
     return Table("Thresholds per subject and condition (95 % intervals)",
-                 ("subject", "standard / comparison mm/s", *(p[0] for p in _PAIRS), *extra), tuple(rows), (rel,),
-                 caption="The 'all' rows are the pooled estimates.")
+                 ("subject", "standard / comparison mm/s", *(p[0] for p in _PAIRS), *(SHOWN[c] for c in extra)), tuple(rows), (rel,),
+                 caption="The 'all' rows are the pooled estimates (their estimand column, where present, says "
+                         "which)." + (f" Also in {rel}: {', '.join(rest)}." if rest else ""))
 
 
 def curves_gallery(inv, part) -> Gallery | None:

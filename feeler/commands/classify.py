@@ -41,9 +41,13 @@ def run(args) -> int:
     from feeler.calib.neuron.live.table import labelled_summary, plate_column, unit_mistake
     from feeler.rundir import prepare_out_dir
 
+    from feeler.commands._checks import check_out_dir
+
     path = Path(args.scans)
-    records = read_scan_records(path)              # before the fit: a bad CSV fails at once
-    result = load_checked(args)
+    if args.out:                                   # every argument checked before any work
+        check_out_dir(args.out, ("classification.csv",), force=args.force)
+    result = load_checked(args)                    # POSTERIOR first, as on the command line
+    records = read_scan_records(path)
     length = float(result.posterior["posterior"].attrs["length_mm"])
     c = classify(result, [r.uy_mm / length for r in records], [r.t_s for r in records],
                  rng=np.random.default_rng(args.seed), n_draws=args.n_draws)

@@ -32,7 +32,8 @@ def _has_curve(disc_dir: Path) -> bool:
 
 def write_threshold_curve(m2_dir: Path, disc_dir: Path, *, n_scans: int = 400, n_draws: int = 200,
                           seed: int = 0, n_points: int = N_POINTS) -> Path | None:
-    """Write ``disc_dir/threshold_curve.csv`` (delta_mm, pc, lo95, hi95) unless the
+    """Write ``disc_dir/threshold_curve.csv`` (delta_mm, pc, lo95, hi95: the posterior median
+    of P(correct) over draws and its 2.5 and 97.5 % quantiles) unless the
     discrimination output already has its curve; returns the path written or None."""
     from feeler.calib.fit import load
     from feeler.calib.neuron.discriminate import Discriminator
@@ -47,11 +48,12 @@ def write_threshold_curve(m2_dir: Path, disc_dir: Path, *, n_scans: int = 400, n
     rows = []
     for d in deltas:
         pc = disc.proportion_correct(ref, disc.responses(reference + d))
-        lo, hi = np.quantile(pc, [0.025, 0.975])
-        rows.append((d, pc.mean(), lo, hi))
+        lo, mid, hi = np.quantile(pc, [0.025, 0.5, 0.975])
+        rows.append((d, mid, lo, hi))          # the median: inside its band even where most draws give 1
     path = disc_dir / CURVE_FILE
     header = (f"# the robot's 2AFC curve around {reference:g} mm, from {m2_dir.name}/ with feeler discriminate's "
-              f"defaults (seed {seed}, {n_scans} touches per height, {n_draws} posterior draws), written by feeler demo\n"
+              f"defaults (seed {seed}, {n_scans} touches per height, {n_draws} posterior draws; pc the median over "
+              f"draws, lo95/hi95 its 2.5/97.5 % quantiles), written by feeler demo\n"
               "delta_mm,pc,lo95,hi95\n")
     path.write_text(header + "".join(f"{d:.6g},{p:.6g},{lo:.6g},{hi:.6g}\n" for d, p, lo, hi in rows),
                     encoding="utf-8")

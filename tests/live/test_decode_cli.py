@@ -106,4 +106,5 @@ def test_follow_without_a_run_fails_in_one_line(fit_dir, tmp_path, capsys):
     assert main(["decode", str(fit_dir), str(tmp_path / "nowhere")]) == 2
     assert main(["decode", str(fit_dir), str(tmp_path), "--poll-s", "0"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 3 and "Traceback" not in err
+    said = [ln for ln in err.splitlines() if ln.startswith("feeler: ")]       # beside the first status lines
+    assert len(said) == 3 and all(ln.startswith("feeler: error: ") for ln in said) and "Traceback" not in err

@@ -37,7 +37,7 @@ def _rows(path):
 
 def test_trades_measured_during_the_demo_are_labelled(run_dir):
     index = json.loads((run_dir / "speed" / "speed.json").read_text())
-    assert index["measured"].startswith("during `feeler demo` at ") and set(index["tables"]) == {"backends", "fidelity"}
+    assert index["measured"].startswith("during `feeler demo` at ") and set(index["tables"]) == {"backends", "fidelity", "decoder"}
     backends = _rows(run_dir / "speed" / "backends.csv")
     assert [r["option"] for r in backends] == ["exact, 4 x 1000 draws", "emcee, 400 draws after 200"]
     exact = backends[0]

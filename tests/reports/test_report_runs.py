@@ -104,8 +104,10 @@ def test_m4_curve_images_and_new_threshold_columns_are_shown(run_dir, tmp_path):
     m4 = shutil.copytree(run_dir / "m4", tmp_path / "run" / "m4")
     thr = (m4 / "thresholds.csv").read_text(encoding="utf-8").splitlines()
     head = next(i for i, line in enumerate(thr) if line.startswith("subject"))
-    thr[head] += ",backend,pc,slope_per_um"
-    thr[head + 1:] = [line + ",laplace,0.75,0.31" for line in thr[head + 1:]]
+    cols = thr[head].split(",")
+    assert {"backend", "pc", "slope_per_um"} <= set(cols)              # the fit writes them
+    b = cols.index("backend")
+    thr[head + 1:] = [",".join(f[:b] + ["laplace"] + f[b + 1:]) for f in (ln.split(",") for ln in thr[head + 1:])]
     (m4 / "thresholds.csv").write_text("\n".join(thr) + "\n", encoding="utf-8")
     (m4 / "curves").mkdir(exist_ok=True)
     png = _png(tmp_path)
@@ -117,7 +119,7 @@ def test_m4_curve_images_and_new_threshold_columns_are_shown(run_dir, tmp_path):
     report = build_report(tmp_path / "run", tmp_path / "out", pdf=False)
     html = report.html.read_text(encoding="utf-8")
     assert html.count(base64.b64encode(png).decode("ascii")) == 3
-    assert "S2 · 10 µm at 20 vs 20 mm/s" in html and "<th>slope_per_um</th>" in html and "laplace" in html
+    assert "S2 · 10 µm at 20 vs 20 mm/s" in html and "<th>slope at P (1/µm)</th>" in html and "laplace" in html
     listed = [f for f in report.figures if f["drawn_by"] != "feeler"]
     assert [f["sources"] for f in listed] == [[f"m4/curves/{s}-20.png"] for s in ("S1", "S2", "all")]
 

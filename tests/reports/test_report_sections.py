@@ -33,7 +33,7 @@ def test_the_demo_run_is_found_part_by_part(run_dir):
     robot = _spec(inv, "robot:four-plates")
     assert [p.rel for p in robot.parts] == ["four-plates", "held-out"]           # same design, another seed
     assert {p.model for p in inv.of("fit")} == {"m1", "m2", "m4", "finger-route"}
-    assert [m.title for m in inv.missing] == ["Live decoder: decision latency against accuracy"]
+    assert [m.title for m in inv.missing] == []                    # the demo measures the decoder trade too
 
 
 def test_classification_numbers_from_the_csv(copy_run):
