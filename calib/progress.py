@@ -57,8 +57,11 @@ def _lines(iterable: Iterable[T], desc: str, total: int | None) -> Iterator[T]:
 
 
 def duration(seconds: float) -> str:
-    """``seconds`` (≥ 0) as ``"4 s"``, ``"3 min 05 s"`` or ``"1 h 02 min"``."""
-    s = int(round(max(float(seconds), 0.0)))
+    """``seconds`` (≥ 0) as ``"0.4 s"``, ``"12 s"``, ``"3 min 05 s"`` or ``"1 h 02 min"``."""
+    seconds = max(float(seconds), 0.0)
+    if seconds < 9.95:
+        return f"{seconds:.1f} s"
+    s = int(round(seconds))
     if s < 60:
         return f"{s} s"
     if s < 3600:
