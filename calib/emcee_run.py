@@ -82,7 +82,7 @@ def run_until_converged(sampler, p0: np.ndarray, *, steps: int | None = None, ma
         ok, tau = converged(sampler.get_chain(discard=done // 4), times=times)
         if lines:
             print(f"emcee: {done} steps per walker, {duration(time.monotonic() - start)}, longest tau "
-                  f"{tau:.0f} steps: {'converged' if ok else 'not yet converged, continuing'}",
+                  f"{tau:.0f} steps: {'converged' if ok else f'not yet converged, continuing (cap {max_steps})'}",
                   file=sys.stderr, flush=True)
         if ok:
             return done // 4, []
