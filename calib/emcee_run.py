@@ -10,14 +10,20 @@ parameter, against those three rules with a margin (60 τ_int, R-hat ≤ 1.005, 
 so that the verdict's own estimates on the same draws agree. It stops when they pass or
 at ``max_steps``; then the returned note says so and the verdict fails on the short chain.
 A fixed ``steps`` runs exactly that many.
+
+Progress: emcee's bar on a terminal (sized for a pseudo-terminal that reports no size),
+otherwise a line per chunk (steps so far, longest τ_int, elapsed time); none with
+``progress=False``.
 """
 from __future__ import annotations
 
 import logging
+import sys
+import time
 
 import numpy as np
 
-from feeler.calib.progress import show_progress
+from feeler.calib.progress import bar_width, duration, show_progress
 
 __all__ = ["run_until_converged", "autocorr_times", "converged", "MAX_STEPS", "TIMES"]
 
@@ -60,15 +66,24 @@ def run_until_converged(sampler, p0: np.ndarray, *, steps: int | None = None, ma
     Args:
         steps (int | None): run exactly this many steps; None: until converged or ``max_steps``.
     """
+    bar = {"progress": show_progress(progress), "progress_kwargs": bar_width()}
+    lines = progress is None and not bar["progress"]
+    start = time.monotonic()
     if steps is not None:
-        sampler.run_mcmc(p0, int(steps), progress=show_progress(progress))
+        if lines:
+            print(f"emcee: {int(steps)} steps per walker ...", file=sys.stderr, flush=True)
+        sampler.run_mcmc(p0, int(steps), **bar)
         return int(steps) // 4, []
     state, done, tau = p0, 0, float("inf")
     while done < max_steps:
         n = min(chunk if done == 0 else max(chunk, done // 2), max_steps - done)
-        state = sampler.run_mcmc(state, n, progress=show_progress(progress))
+        state = sampler.run_mcmc(state, n, **bar)
         done += n
         ok, tau = converged(sampler.get_chain(discard=done // 4), times=times)
+        if lines:
+            print(f"emcee: {done} steps per walker, {duration(time.monotonic() - start)}, longest tau "
+                  f"{tau:.0f} steps: {'converged' if ok else f'not yet converged, continuing (cap {max_steps})'}",
+                  file=sys.stderr, flush=True)
         if ok:
             return done // 4, []
     return done // 4, [f"emcee: stopped at its cap of {max_steps} steps per walker before the chains passed "

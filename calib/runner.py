@@ -27,6 +27,9 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
               n_workers: int = 2, desc: str = "jobs", progress_bar: bool | None = None) -> list[R]:
     """``[func(s) for s in seeds]``, computed serially or on a dask cluster.
 
+    Progress (:func:`feeler.calib.progress.progress`): a bar on a terminal, else a line
+    per finished job with an estimate of the time left; none when ``progress_bar`` is False.
+
     Raises:
         ArgumentError: ``scheduler`` neither None, "serial" nor ``tcp://HOST:PORT``;
             ``n_workers`` < 1.
@@ -35,7 +38,7 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
     if n_workers < 1:
         raise ArgumentError("n_workers", n_workers, "must be >= 1")
     if scheduler == "serial":
-        return [func(s) for s in progress(seeds, desc=desc, enabled=progress_bar)]
+        return [func(s) for s in progress(seeds, desc=desc, enabled=progress_bar, lines=True)]
     if scheduler is not None and not _is_tcp_address(scheduler):
         raise ArgumentError("scheduler", scheduler, "must be tcp://HOST:PORT (or omitted for a LocalCluster)")
     import logging
@@ -53,7 +56,8 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
         cluster, client = None, Client(scheduler, timeout=10)
     try:
         futures = client.map(func, seeds, pure=False)
-        for _ in progress(as_completed(futures), desc=desc, total=len(futures), enabled=progress_bar):
+        for _ in progress(as_completed(futures), desc=desc, total=len(futures), enabled=progress_bar,
+                          lines=True):
             pass
         return client.gather(futures)
     finally:

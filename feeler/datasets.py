@@ -56,7 +56,7 @@ def read_scans(path: str | Path) -> Scans:
     """Read a run directory's ``scans.csv`` (or the CSV itself).
 
     Raises:
-        DataFileError: missing file or column, non-numeric or NaN values, scans of
+        DataFileError: missing file or column, non-numeric, NaN or infinite values, scans of
             unequal length, or t not strictly increasing within a scan (naming the column).
     """
     import pandas as pd
@@ -80,6 +80,11 @@ def read_scans(path: str | Path) -> Scans:
         if values.isna().any():
             row = int(np.flatnonzero(values.isna().to_numpy())[0])
             raise DataFileError(path, f"column {col}: missing or non-numeric value at data row {row + 1}")
+        infinite = np.isinf(values.to_numpy(dtype=float))
+        if infinite.any():
+            row = int(np.flatnonzero(infinite)[0])
+            raise DataFileError(path, f"column {col}: {values.iloc[row]} at data row {row + 1}; "
+                                      f"values must be finite numbers")
         frame[col] = values
     groups = frame.groupby("scan_id", sort=False)
     lengths = groups.size()

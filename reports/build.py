@@ -95,7 +95,7 @@ def _manifest(sections) -> list[dict]:
 def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf: bool = True,
                  progress: Callable[[str], None] = lambda stage: None) -> Report:
     """Write the report of ``run_dir`` into ``out_dir`` (default ``run_dir``).
-    ``progress(stage)`` is called before every stage (section titles, "html", "pdf").
+    ``progress(stage)`` is called before every stage ("section i/n: <title>", "html", "pdf").
 
     Raises:
         DataFileError: ``run_dir`` is not a directory, or a file of the run is corrupt
@@ -109,8 +109,8 @@ def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf:
     inv = discover(run_dir)
     sections = []
     with report_style():
-        for spec in inv.present:
-            progress(spec.title)
+        for i, spec in enumerate(inv.present, 1):
+            progress(f"section {i}/{len(inv.present)}: {spec.title}")
             sections.append(_builder(spec.builder)(inv, spec))
     sections.sort(key=lambda s: not s.failed)                 # failed calibrations first (stable)
     progress("first page")
@@ -125,7 +125,7 @@ def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf:
     html_path.write_text(html, encoding="utf-8")
     pdf_path, pages = None, ()
     if pdf:
-        progress("pdf")
+        progress(f"pdf of {len(manifest)} figures (WeasyPrint)")
         pdf_path = out / "report.pdf"
         pages = write_pdf(html, pdf_path)
     man_path = out / MANIFEST

@@ -33,6 +33,9 @@ def test_round_trip_of_a_small_file(tmp_path):
 @pytest.mark.parametrize("mutate, words", [
     (lambda rows: ([r[:-1] for r in rows], COLUMNS[:-1]), "missing column(s) uz_mm"),
     (lambda rows: (rows[:3] + [rows[3][:6] + ["nan"] + rows[3][7:]] + rows[4:], COLUMNS), "column uy_mm"),
+    (lambda rows: (rows[:5] + [rows[5][:6] + ["inf"] + rows[5][7:]] + rows[6:], COLUMNS),
+     "column uy_mm: inf at data row 6; values must be finite"),
+    (lambda rows: (rows[:1] + [rows[1][:4] + ["-inf"] + rows[1][5:]] + rows[2:], COLUMNS), "column x_mm: -inf at data row 2"),
     (lambda rows: (rows[:2] + [rows[2][:3] + ["abc"] + rows[2][4:]] + rows[3:], COLUMNS), "column t_s"),
     (lambda rows: (rows[:2] + [rows[2][:3] + [0.25] + rows[2][4:]] + rows[3:], COLUMNS), "column t_s: not strictly"),
     (lambda rows: (rows[:7], COLUMNS), "column scan_id: scans have unequal lengths"),

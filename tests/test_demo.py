@@ -33,6 +33,10 @@ def test_demo_writes_figures_and_table(tmp_path, small):
     assert all(r["n_scans"] == 4 for r in table["plates"])
     assert len(table["adjacent_pairs"]) == 3
     assert printed[0] == "[1/4] simulate ..."
+    stage_lines = [ln for ln in printed if ln.startswith("[")]
+    assert [ln.split(" ...")[0] for ln in stage_lines] == ["[1/4] simulate", "[2/4] features", "[3/4] table",
+                                                           "[4/4] figures"]
+    assert all(ln.endswith(" so far)") for ln in stage_lines[1:])                   # the time so far
     text = next(p for p in printed if "peak z" in p)
     assert "peak z" in text and "0.050 vs 0.100" in text
     assert ctx["z"].shape == ctx["scans"].uy_mm.shape

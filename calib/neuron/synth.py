@@ -57,7 +57,7 @@ def scene_scans(scene_path=FOUR_PLATES, *, seed: int | None = None, per_plate: i
         scene = dataclasses.replace(scene, surface=dataclasses.replace(scene.surface, heights_mm=tuple(heights_mm)))
     if speed_mm_s is not None:
         scene = dataclasses.replace(scene, motion=dataclasses.replace(scene.motion, speed_mm_s=float(speed_mm_s)))
-    scans, _ = simulate_scans(scene, scene_path=scene_path)
+    scans, _ = simulate_scans(scene, scene_path=scene_path, progress=False)   # callers show their own progress
     nrn = scene.neuron
     data: NeuronData = data_from_scans(scans, length_mm=nrn.length_mm, kernel=nrn.kernel)
     return scene, scans, data

@@ -35,7 +35,7 @@ from feeler.models.neuron import peak_pulse_density, peak_window_sum
 from feeler.models.observer import conversion_factor, log_choice_prob
 from feeler.models.psychometric import LAPSE_MAX
 
-__all__ = ["RouteGrid", "fit_finger_route", "accepted_heights", "predict_p_higher", "tau_report",
+__all__ = ["RouteGrid", "fit_finger_route", "accepted_heights", "predict_p_higher", "tau_report", "paper_verdict",
            "PAPER_TAU_MAX_S"]
 
 PAPER_TAU_MAX_S = 0.3  # paper §4.2: simulations "coincide well ... below τ = 300 msec"
@@ -151,7 +151,9 @@ def fit_finger_route(trials: pd.DataFrame, *, rng: np.random.Generator, grid: Ro
     tree = posterior_from_draws(out, attrs=attrs)
     priors = {"tau_s": f"log-uniform on [{grid.tau_min_s}, {grid.tau_max_s}] s ({grid.n_tau} nodes)",
               "sigma_d_um": f"log-uniform on [{grid.sigma_d_min_um}, {grid.sigma_d_max_um}] µm",
-              "lapse": f"{LAPSE_MAX}·Beta({grid.lapse_a}, {grid.lapse_b}) ({grid.n_lapse} quantile nodes)"}
+              "lapse": f"{LAPSE_MAX}·Beta({grid.lapse_a}, {grid.lapse_b}) ({grid.n_lapse} quantile nodes)",
+              "kappa": "none of its own: derived, κ(tau_s) in µm per unit z by regression through the origin "
+                       f"over the simulated steps {', '.join(f'{h:g}' for h in grid.kappa_heights_um)} µm"}
     result = make_result(tree, backend=f"grid ({level})", priors=priors,
                          seconds=time.perf_counter() - start)
     return with_problems(result, _edge_problems(prob, taus, sigmas))
@@ -191,9 +193,25 @@ def tau_report(result: FitResult) -> dict:
     edges = np.concatenate([log_t - half, [log_t[-1] + half]])
     cdf = np.concatenate([[0.0], np.cumsum(mass)])
     q = lambda p: float(np.exp(np.interp(p, cdf, edges)))
+    p_le = float(np.interp(np.log(PAPER_TAU_MAX_S), edges, cdf))
     return {"tau_mean_s": float(np.sum(mass * taus)), "tau_median_s": q(0.5),
             "tau_eti95_s": [q(0.025), q(0.975)], "tau_map_s": float(taus[np.argmax(mass)]),
-            "p_tau_le_300ms": float(np.interp(np.log(PAPER_TAU_MAX_S), edges, cdf)),
-            "paper": "calculated results coincide well with the experiments below tau = 300 ms "
-                     "(paper §4.2, Fig. 6)",
+            "p_tau_le_300ms": p_le, "paper": paper_verdict(p_le),
             "skin_level": attrs.get("skin_level", "")}
+
+
+#: P(τ ≤ 300 ms | data) at or above which the data agree with the paper, at or below
+#: which they contradict it (in between: undecided)
+AGREE_P, CONTRADICT_P = 0.95, 0.05
+
+
+def paper_verdict(p_tau_le_300ms: float) -> str:
+    """The paper's claim (§4.2: simulations "coincide well" with the experiments below
+    τ = 300 ms) against P(τ ≤ 300 ms | data), in words from the number."""
+    claim = "tau <= 300 ms fits best (§4.2, Fig. 6)"
+    p = f"P(tau <= 300 ms | data) = {p_tau_le_300ms:.3f}"
+    if p_tau_le_300ms >= AGREE_P:
+        return f"{claim}; these data agree ({p})"
+    if p_tau_le_300ms <= CONTRADICT_P:
+        return f"{claim}; these data contradict it ({p}: tau is longer)"
+    return f"{claim}; these data cannot tell ({p}, between {CONTRADICT_P} and {AGREE_P})"

@@ -21,6 +21,8 @@ and CPU time and verdict.
 """
 from __future__ import annotations
 
+import argparse
+
 __all__ = ["NAME", "HELP", "register"]
 
 NAME = "demo"
@@ -32,6 +34,8 @@ def register(parser) -> None:
     parser.add_argument("--force", action="store_true", help="overwrite results of an earlier demo in DIR")
     parser.add_argument("--scene", default=None, metavar="SCENE",
                         help="robot-scan scene to use instead of the shipped four-plates")
+    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                        help="a line before each stage with the time so far (default; --no-progress: none)")
     parser.set_defaults(run=run)
 
 
@@ -40,7 +44,7 @@ def run(args) -> int:
 
     from feeler.demo import FIGURES, run_demo
 
-    ctx = run_demo(args.out, force=args.force, scene_path=args.scene)
+    ctx = run_demo(args.out, force=args.force, scene_path=args.scene, progress=args.progress)
     out = ctx["out"]
     print("\nsummary" + "-" * 62)
     print(f"{'stage':20s} {'seconds':>8s} {'cpu s':>7s}   result")

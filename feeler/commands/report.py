@@ -58,30 +58,6 @@ def check_out_dir(path) -> None:
         raise ArgumentError("--out", str(path), f"a writable directory ({probe} is not writable)")
 
 
-def _reporter(setting):
-    """(step(stage), close()) for a bar on a terminal, a line per stage otherwise, or nothing."""
-    import sys
-
-    from feeler.calib.progress import show_progress
-
-    if setting is False:
-        return (lambda stage: None), (lambda: None)
-    if show_progress(setting):
-        import shutil
-
-        from tqdm.auto import tqdm
-        # a terminal that reports no size (a bare pseudo-terminal) gets 100 x 20, not 0 x 0
-        # (tqdm draws nothing on a terminal of 0 rows)
-        size = shutil.get_terminal_size((100, 20))
-        bar = tqdm(desc="report", file=sys.stderr, leave=False, ncols=size.columns or 100, nrows=size.lines or 20,
-                   bar_format="{desc} [{elapsed}]")
-
-        def step(stage: str) -> None:
-            bar.set_description_str(f"report: {stage}")
-        return step, bar.close
-    return (lambda stage: print(f"report: {stage} ...", file=sys.stderr, flush=True)), (lambda: None)
-
-
 def run(args) -> int:
     import sys
     from pathlib import Path
@@ -94,7 +70,9 @@ def run(args) -> int:
     check_out_dir(args.out if args.out is not None else args.run_dir)
     from feeler.reports import build_report
 
-    step, close = _reporter(args.progress)
+    from feeler.calib.progress import stages
+
+    step, close = stages("report", args.progress)
     try:
         report = build_report(args.run_dir, args.out, pdf=not args.no_pdf, progress=step)
     finally:

@@ -6,7 +6,7 @@ DIR/scene.toml (a byte copy of SCENE) and DIR/truth.json. For a robot-scan scene
 DIR/truth.json holds every true parameter, (including each touch's press U_y0, tilt, start offset and drift) and DIR/scans.csv
 (long format: scan_id, plate, step_mm, speed_mm_s, t_s, x_mm, ux_mm, uy_mm, uz_mm), plus
 DIR/features.csv when the scene lists "features" in its outputs. The result depends only
-on the scene file (its seed). Existing data are never overwritten without --force.
+on the scene file (its seed; --seed N replaces it, and DIR/scene.toml then records N). Existing data are never overwritten without --force.
 
 Example:
     feeler simulate datasets-synthetic/four-plates.toml --out runs/four-plates
@@ -23,12 +23,16 @@ def register(parser) -> None:
     parser.add_argument("scene", metavar="SCENE", help="scene TOML file")
     parser.add_argument("--out", required=True, metavar="DIR", help="run directory to write")
     parser.add_argument("--force", action="store_true", help="overwrite existing data in DIR")
+    parser.add_argument("--seed", type=int, metavar="N",
+                        help="root seed of the random draws instead of the scene's own [scene] seed; "
+                             "DIR/scene.toml records it, so the run is reproduced from that file "
+                             "(finger-steps scenes draw nothing at random and refuse it)")
     parser.set_defaults(run=run)
 
 
 def run(args) -> int:
     from feeler.simulate import run_simulation
 
-    out = run_simulation(args.scene, args.out, force=args.force)
+    out = run_simulation(args.scene, args.out, force=args.force, seed=args.seed)
     print(f"wrote {out}: {', '.join(sorted(p.name for p in out.iterdir() if p.is_file()))}")
     return 0

@@ -30,6 +30,7 @@ def register(parser) -> None:
     lad.add_argument("--out", default="runs/skin-ladder", metavar="DIR", help="output directory")
     lad.add_argument("--small", action="store_true", help="coarse meshes and time steps (a quick check)")
     lad.add_argument("--force", action="store_true", help="overwrite existing results in DIR")
+    _progress_flag(lad)
     lad.set_defaults(run=run_ladder)
     fig = sub.add_parser("figures", help="the paper's Figs 3-6 for a finger-steps scene",
                          description="The paper's Figs 3-6 for a finger-steps scene: strain at the corpuscle, "
@@ -41,8 +42,17 @@ def register(parser) -> None:
     fig.add_argument("--out", required=True, metavar="DIR", help="output directory")
     fig.add_argument("--level", choices=("l0", "l1", "l2"), help="override the scene's skin level")
     fig.add_argument("--force", action="store_true", help="overwrite existing results in DIR")
+    _progress_flag(fig)
     fig.set_defaults(run=run_figures)
     parser.set_defaults(run=lambda args: (parser.print_help(), 2)[1])
+
+
+def _progress_flag(parser) -> None:
+    import argparse
+
+    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                        help="progress on stderr (default: a line per stage, and a bar on a terminal or a line "
+                             "per mesh or run otherwise; --no-progress: none)")
 
 
 def run_ladder(args) -> int:
@@ -51,7 +61,7 @@ def run_ladder(args) -> int:
     from feeler.rundir import prepare_out_dir
     out = prepare_out_dir(args.out, ladder_files(), force=args.force)
     print(f"skin ladder ({'small' if args.small else 'full'} study) into {out} ...", flush=True)
-    summary = run_ladder_study(out, small=args.small)
+    summary = run_ladder_study(out, small=args.small, progress=args.progress)
     for line in summary["lines"]:
         print(line)
     print(f"wrote {', '.join(str(out / f) for f in ladder_files())}")
@@ -68,7 +78,7 @@ def run_figures(args) -> int:
         raise SceneError(args.scene, "scene.kind", f"{scene.scene.kind!r}: skin figures need a finger-steps scene")
     from feeler.rundir import prepare_out_dir
     out = prepare_out_dir(args.out, figure_files(), force=args.force)
-    for line in write_figures(scene, out, level=args.level):
+    for line in write_figures(scene, out, level=args.level, progress=args.progress):
         print(line)
     print(f"wrote {', '.join(str(out / f) for f in figure_files())}")
     return 0

@@ -49,6 +49,9 @@ def register(parser) -> None:
     sbc.add_argument("--out", default=None, metavar="DIR", help="write ranks.csv and sbc.csv into DIR")
     sbc.set_defaults(out_files=("ranks.csv", "sbc.csv"))
     sbc.add_argument("--force", action="store_true", help="overwrite an earlier run in DIR")
+    sbc.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                     help="progress on stderr (default: a bar on a terminal, a line per dataset with the "
+                          "time left otherwise; --no-progress: none)")
     sbc.set_defaults(run=run_sbc_command)
 
     def no_target(args) -> int:
@@ -74,7 +77,7 @@ def run_sbc_command(args) -> int:
     if args.out:
         prepare_out_dir(args.out, ("ranks.csv", "sbc.csv"), force=args.force)
     res = run_sbc(simulate, fit, n_datasets=args.n, seed=args.seed, n_draws=args.draws,
-                  scheduler=args.scheduler)
+                  scheduler=args.scheduler, progress=args.progress)
     table = res.table()
     with pd.option_context("display.width", 120, "display.max_rows", 200):
         print(f"SBC of model {args.model}: {args.n} datasets, ranks among {args.draws} draws")

@@ -22,6 +22,7 @@ from typing import Callable
 import numpy as np
 
 import feeler
+from feeler.calib.progress import duration
 from feeler.datasets import proportion_correct, read_scans, strain
 from feeler.rundir import prepare_out_dir, write_json
 from feeler.scene import load_scene
@@ -120,7 +121,7 @@ STAGES: list[tuple[str, Callable[[dict], None]]] = [
 
 def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | None = None,
              stages=None, echo: Callable[[str], None] = print, scenes: dict | None = None,
-             discriminate_scans: int | None = None) -> dict:
+             discriminate_scans: int | None = None, progress: bool | None = None) -> dict:
     """Run the demo stages into ``out``; returns the context (scene, scans, features, table...).
 
     Args:
@@ -128,6 +129,7 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
         scenes: other scene files by name ("sensor-calibration", "psychophysics-2afc",
             "finger-steps") instead of the shipped ones (smaller runs, e.g. in tests).
         discriminate_scans: touches per height for the discrimination (default the command's).
+        progress: False drops the ``[i/n] stage ... (time so far)`` line before each stage.
 
     Raises:
         OverwriteError: ``out`` holds demo results and ``force`` is false.
@@ -136,8 +138,11 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
     ctx = {"out": out, "force": force, "scene_path": Path(scene_path or DEFAULT_SCENE), "print": echo,
            "seconds": {}, "cpu_seconds": {}, "scenes": dict(scenes or {}), "discriminate_scans": discriminate_scans}
     todo = STAGES if stages is None else stages
+    start = time.perf_counter()
     for i, (name, stage) in enumerate(todo, 1):
-        echo(f"[{i}/{len(todo)}] {name} ...")
+        if progress is not False:
+            so_far = f" ({duration(time.perf_counter() - start)} so far)" if i > 1 else ""
+            echo(f"[{i}/{len(todo)}] {name} ...{so_far}")
         t0, c0 = time.perf_counter(), time.process_time()
         stage(ctx)
         ctx["seconds"][name] = time.perf_counter() - t0

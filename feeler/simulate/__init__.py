@@ -9,24 +9,29 @@ needs are imported: a displacement-fidelity robot scene imports neither OpenCV n
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib
+import re
 import shutil
 from pathlib import Path
 
-from feeler.errors import SceneError
+from feeler.errors import ArgumentError, SceneError
 from feeler.rundir import prepare_out_dir
 from feeler.scene import load_scene
 from feeler.simulate.robot import CSV_COLUMNS, features_of, plate_profile, simulate_robot_scan, simulate_scans
 
-__all__ = ["SIMULATORS", "run_simulation", "CSV_COLUMNS", "features_of", "plate_profile", "simulate_scans",
+__all__ = ["SIMULATORS", "run_simulation", "with_seed", "CSV_COLUMNS", "features_of", "plate_profile", "simulate_scans",
            "simulate_robot_scan"]
 
 
-def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = False) -> Path:
+def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = False,
+                   seed: int | None = None) -> Path:
     """Simulate any shipped kind of scene into the run directory ``out``; returns ``out``.
 
     The scene's kind picks the simulator (:data:`SIMULATORS`); each writes ``scene.toml``
-    (a byte copy), ``truth.json`` and its data files.
+    (a byte copy), ``truth.json`` and its data files. ``seed`` (≥ 0) replaces the scene's
+    ``[scene] seed``; the run's ``scene.toml`` is then the copy with that seed written in,
+    so the run is still reproduced by its own scene file.
 
     Raises:
         SceneError: the scene does not validate. OverwriteError: data exist and not ``force``.
@@ -34,6 +39,12 @@ def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = Fal
     """
     scene = load_scene(scene_path)
     kind = scene.scene.kind
+    if seed is not None:
+        if not hasattr(scene.scene, "seed"):
+            raise ArgumentError("--seed", seed, f"a {kind} scene draws nothing at random; it has no seed")
+        if seed < 0:
+            raise ArgumentError("--seed", seed, "an integer >= 0")
+        scene = dataclasses.replace(scene, scene=dataclasses.replace(scene.scene, seed=seed))
     if kind not in SIMULATORS:
         hint = " (a scan plan: run it with `feeler acquire --plan`, --emulate without hardware)" \
             if kind == "scan-plan" else ""
@@ -41,7 +52,24 @@ def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = Fal
                                                    f"simulate takes {', '.join(sorted(SIMULATORS))}")
     module, func = SIMULATORS[kind].split(":")
     getattr(importlib.import_module(module), func)(scene, scene_path, out, force)
+    if seed is not None:
+        copy = Path(out) / "scene.toml"
+        copy.write_text(with_seed(Path(scene_path).read_text(encoding="utf-8"), seed), encoding="utf-8")
     return Path(out)
+
+
+def with_seed(text: str, seed: int) -> str:
+    """A scene file's text with ``seed = <seed>`` in its ``[scene]`` table (replaced, or
+    added under the table's header when the file relied on the default)."""
+    head = re.search(r"(?m)^\[scene\][^\n]*\n", text)
+    if head is None:
+        return f"[scene]\nseed = {seed}\n" + text
+    end = re.compile(r"(?m)^\[").search(text, head.end())
+    stop = len(text) if end is None else end.start()
+    body, n = re.subn(r"(?m)^(\s*seed\s*=\s*)[^\n#]*", lambda m: f"{m.group(1)}{seed} ", text[head.end():stop], 1)
+    if n == 0:
+        body = f"seed = {seed}\n" + body
+    return text[:head.end()] + body + text[stop:]
 
 
 def _simulate_calibration(scene, scene_path, out, force) -> None:

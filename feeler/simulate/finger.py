@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from feeler.calib.progress import progress as bar
 from feeler.models.skin import SkinParams, StepProfile, loading_history, strain_history
 from feeler.models.skin.ladder import summarise
 from feeler.models.skin.mesh import MeshSpec
@@ -55,18 +56,21 @@ def mesh_spec_of(scene) -> MeshSpec:
                     grade=m.grade, contact_half_width_mm=m.contact_half_width_mm)
 
 
-def finger_runs(scene, *, level: str | None = None) -> list[FingerRun]:
-    """Strain histories for every (height, speed) of the scene, heights outer."""
+def finger_runs(scene, *, level: str | None = None, progress: bool | None = None) -> list[FingerRun]:
+    """Strain histories for every (height, speed) of the scene, heights outer.
+
+    ``progress``: a bar on a terminal, otherwise a line per finished run with the time
+    left (:func:`feeler.calib.progress.progress`); False: silent."""
     params, spec = skin_params_of(scene), mesh_spec_of(scene)
     level = scene.model.level if level is None else level
     runs = []
-    for height in scene.steps.heights_um:
+    cases = [(h, v) for h in scene.steps.heights_um for v in scene.loading.speeds_mm_s]
+    for height, speed in bar(cases, desc=f"skin runs ({level}, height x speed)", enabled=progress, lines=True):
         profile = StepProfile(height, scene.steps.position_mm, scene.steps.edge_um)
-        for speed in scene.loading.speeds_mm_s:
-            dt = scene.loading.travel_step_mm / speed
-            t, eps = strain_history(profile, speed, level=level, params=params, dt_s=dt, mesh=spec)
-            load = loading_history(params, speed, dt)
-            runs.append(FingerRun(height, speed, t, load.travel_mm, eps, load.slide_start))
+        dt = scene.loading.travel_step_mm / speed
+        t, eps = strain_history(profile, speed, level=level, params=params, dt_s=dt, mesh=spec)
+        load = loading_history(params, speed, dt)
+        runs.append(FingerRun(height, speed, t, load.travel_mm, eps, load.slide_start))
     return runs
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from feeler.calib.progress import progress
 from feeler.errors import ArgumentError
 from feeler.models.optics import (CameraParams, Layout, OpticsParams, areas_from_force,
                                   displacement_from_force, force_from_areas,
@@ -80,7 +81,7 @@ def observe_images(u_mm: np.ndarray, *, params: OpticsParams, layout: Layout,
         areas[reading.index] = reading.areas_px2
     else:
         extract = AreaExtractor(layout, blur_sd_px=camera.blur_sd_px)
-        for i, frame in enumerate(frames):
+        for i, frame in enumerate(progress(frames, desc="reading frames")):
             found, problem = extract(frame)
             if problem is None:
                 areas[i] = found

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from feeler.calib.progress import progress as bar
+from feeler.calib.progress import stage
 from feeler.datasets import Scans, scan_features
 from feeler.errors import SceneError
 from feeler.models import probe, sensor, surface
@@ -49,12 +51,16 @@ def _sensor_params(scene, scene_path=None, out_dir=None):
     return fidelity_params(scene.optics, scene.sensor.fidelity, scene_path=scene_path, out_dir=out_dir)
 
 
-def simulate_scans(scene, *, scene_path=None, out_dir=None) -> tuple[Scans, list[dict]]:
+def simulate_scans(scene, *, scene_path=None, out_dir=None,
+                   progress: bool | None = None) -> tuple[Scans, list[dict]]:
     """All scans of a robot-scan scene, and the true state of every touch.
 
     At the ``images`` fidelity the scans are observed together (packed onto the camera's
     elements, :mod:`feeler.simulate.images`) with one extra child of the seed; ``scene_path``
     locates ``optics.layout``, ``out_dir`` receives ``sensor.avi`` when ``optics.video``.
+
+    ``progress``: a line per stage on stderr and a bar over the scans on a terminal
+    (:mod:`feeler.calib.progress`); False: silent.
 
     Raises:
         SceneError: frames rejected by the reader (``optics`` too blurred or noisy).
@@ -78,20 +84,21 @@ def simulate_scans(scene, *, scene_path=None, out_dir=None) -> tuple[Scans, list
     n = len(heights) * per_plate
     children = np.random.SeedSequence(scene.scene.seed).spawn(n + 1)
     t_all, x_all, u_all, touches = [], [], [], []
-    for plate, height in enumerate(heights):
-        profile = plate_profile(scene.surface, height)
-        for rep in range(per_plate):
-            scan_id = plate * per_plate + rep
-            probe_ss, sensor_ss = children[scan_id].spawn(2)
-            touch = probe.draw_touch(params, motion, np.random.default_rng(probe_ss))
-            t, x, u_true = probe.tip_displacement(profile, motion, params, touch)
-            if fidelity != "images":
-                u_true = sensor.observe(u_true, fidelity=fidelity, params=noise,
-                                        rng=np.random.default_rng(sensor_ss))
-            t_all.append(t), x_all.append(x), u_all.append(u_true)
-            touches.append({"scan_id": scan_id, "plate": plate, "step_mm": height, **asdict(touch)})
+    profiles = [plate_profile(scene.surface, height) for height in heights]
+    stage(f"simulating {n} scans of {len(heights)} plates ({fidelity} fidelity)", progress)
+    for scan_id in bar(range(n), desc="scans", enabled=progress):
+        plate, height = scan_id // per_plate, heights[scan_id // per_plate]
+        probe_ss, sensor_ss = children[scan_id].spawn(2)
+        touch = probe.draw_touch(params, motion, np.random.default_rng(probe_ss))
+        t, x, u_true = probe.tip_displacement(profiles[plate], motion, params, touch)
+        if fidelity != "images":
+            u_true = sensor.observe(u_true, fidelity=fidelity, params=noise,
+                                    rng=np.random.default_rng(sensor_ss))
+        t_all.append(t), x_all.append(x), u_all.append(u_true)
+        touches.append({"scan_id": scan_id, "plate": plate, "step_mm": height, **asdict(touch)})
     u = np.stack(u_all)
     if fidelity == "images":
+        stage(f"rendering and reading the camera frames of {n} scans", progress)
         u = sensor.observe(u, fidelity=fidelity, params=noise, rng=np.random.default_rng(children[n]))
         bad = np.flatnonzero(np.isnan(u).any(axis=(1, 2)))
         if bad.size:

@@ -5,6 +5,7 @@ import csv
 from dataclasses import asdict
 from pathlib import Path
 
+from feeler.calib.progress import stage
 from feeler.models.skin import SkinParams, StepProfile
 from feeler.models.skin.ladder import converged_change, convergence_study, trade_table
 from feeler.models.skin.mesh import MeshSpec
@@ -36,17 +37,21 @@ def ladder_setup(small: bool, tiny: bool = False):
 
 
 def run_ladder_study(out: Path, *, small: bool = False, tiny: bool = False, measured: str | None = None,
-                     speed_mm_s: float = 20.0, profile: StepProfile = StepProfile(15.0)) -> dict:
+                     speed_mm_s: float = 20.0, profile: StepProfile = StepProfile(15.0),
+                     progress: bool | None = False) -> dict:
     """Run both parts, write the files, return the summary (also in ladder.json).
 
     Args:
         small, tiny: the study's size (see :func:`ladder_setup`); full by default.
         measured: words saying when and where it was measured (kept in ladder.json).
+        progress: None: a line per stage and per mesh on stderr (a bar on a terminal);
+            True: the same, bar forced; False: silent.
     """
     params = SkinParams()
     base, factors, travel = ladder_setup(small, tiny)
     dt = travel / speed_mm_s
-    rows = convergence_study(params, profile, speed_mm_s, base=base, factors=factors, dt_s=dt)
+    stage(f"L2 mesh convergence over {len(factors)} meshes", progress)
+    rows = convergence_study(params, profile, speed_mm_s, base=base, factors=factors, dt_s=dt, progress=progress)
     change = converged_change(rows)
     with open(out / "convergence.csv", "w", newline="") as fh:
         w = csv.writer(fh)
@@ -60,6 +65,7 @@ def run_ladder_study(out: Path, *, small: bool = False, tiny: bool = False, meas
     if 1.0 in factors[1:-1]:
         meshes["default"] = base
     setup = {name: next(r.setup_s for r in rows if base.refined(r.factor) == spec) for name, spec in meshes.items()}
+    stage("trade table: L0, L1 and L2 timed on the converged and coarsest meshes", progress)
     trade, fitted = trade_table(params, profile, speed_mm_s, meshes=meshes, reference="converged", setup_s=setup, dt_s=dt)
     with open(out / "trade.csv", "w", newline="") as fh:
         w = csv.writer(fh)
@@ -109,14 +115,17 @@ def _plot_trade(trade, path: Path) -> None:
     plt.close(fig)
 
 
-def write_figures(scene, out: Path, *, level: str | None = None) -> list[str]:
-    """Figs 3–6 for a finger-steps scene into ``out``; returns printable summary lines."""
+def write_figures(scene, out: Path, *, level: str | None = None, progress: bool | None = False) -> list[str]:
+    """Figs 3–6 for a finger-steps scene into ``out``; returns printable summary lines.
+    ``progress`` as in :func:`run_ladder_study`."""
     from feeler.simulate.finger import finger_runs
     from feeler.skin.figures import figure_data, plot_figures
 
     level = scene.model.level if level is None else level
-    runs = finger_runs(scene, level=level)
+    runs = finger_runs(scene, level=level, progress=progress)
+    stage("Figs 4-6: pulse densities and accepted heights over the tau sweep", progress)
     data = figure_data(runs, scene.neuron, scene.loading.press_s)
+    stage(f"plotting Figs 3-6 into {out}", progress)
     plot_figures(runs, data, out, label=f"skin {level.upper()}", tau_s=scene.neuron.tau_s,
                  step_mm=scene.steps.position_mm)
     with open(out / "fig5_peaks.csv", "w", newline="") as fh:

@@ -114,7 +114,10 @@ class RunStore:
         fd = lock_run_dir(out)
         try:
             if (out / "scene.toml").read_bytes() != Path(plan_path).read_bytes():
-                raise ArgumentError("--plan", str(plan_path), f"the plan the run was started with ({out / 'scene.toml'})")
+                raise ArgumentError("--plan", str(plan_path),
+                                    f"differs from the plan this run was started with; to continue the run, "
+                                    f"pass --plan {out / 'scene.toml'} (its copy of that plan), or drop --resume "
+                                    f"and give a new --out to start a run of this plan")
             return cls._reopen(out, fd)
         except BaseException:
             release_run_dir(fd)

@@ -69,11 +69,15 @@ def _timed(fn, repeats: int = 1):
 
 
 def convergence_study(params: SkinParams, profile: StepProfile, speed_mm_s: float, *,
-                      base: MeshSpec, factors, dt_s: float | None = None) -> list[ConvergenceRow]:
-    """L2 on ``base.refined(f)`` for each factor f (coarse to fine)."""
+                      base: MeshSpec, factors, dt_s: float | None = None,
+                      progress: bool | None = False) -> list[ConvergenceRow]:
+    """L2 on ``base.refined(f)`` for each factor f (coarse to fine); ``progress`` as in
+    :func:`feeler.calib.progress.progress` (None: a bar on a terminal, a line per mesh otherwise)."""
+    from feeler.calib.progress import progress as bar
+
     slide_start = loading_history(params, speed_mm_s, dt_s).slide_start
     rows = []
-    for f in factors:
+    for f in bar(list(factors), desc="L2 meshes", enabled=progress, lines=True):
         spec = base.refined(f)
         fem, setup = _timed(lambda: (finger_fem(params, spec), influence(params, spec))[0])
         (t, e), slide = _timed(lambda: strain_history(profile, speed_mm_s, level="l2", params=params,

@@ -94,6 +94,12 @@ def test_validate_sbc_runs_outside_the_checkout(tmp_path):
     out = feeler("validate", "sbc", "--model", "matrix", "--n", "10", "--scheduler", "serial", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     assert "SBC ok" in out.stdout and "Traceback" not in out.stderr
+    done = [ln for ln in out.stderr.splitlines() if ln.startswith("SBC datasets: ")]     # a line per replicate
+    assert [ln.split(",")[0] for ln in done] == [f"SBC datasets: {i}/10 done" for i in range(1, 11)]
+    assert all(", about " in ln and " left" in ln for ln in done[:-1])                  # with the time left
+    quiet = feeler("validate", "sbc", "--model", "matrix", "--n", "10", "--scheduler", "serial", "--no-progress",
+                   cwd=tmp_path)
+    assert quiet.returncode == 0 and quiet.stderr == "" and quiet.stdout == out.stdout
 
 
 def test_a_fit_says_what_it_does_and_where_it_writes(runs, tmp_path):

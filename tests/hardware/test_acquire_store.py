@@ -92,8 +92,10 @@ def test_resume_refuses_another_plan_a_missing_file_and_a_bad_journal(tmp_path):
         write_scan(store, 0)
     other = tmp_path / "other.toml"
     other.write_text(PLAN.read_text().replace("seed = 7", "seed = 8"))
-    with pytest.raises(ArgumentError, match="--plan"):
+    with pytest.raises(ArgumentError, match="--plan") as info:
         RunStore.resume(out, other)
+    assert "differs from the plan this run was started with" in str(info.value) \
+        and f"pass --plan {out / 'scene.toml'}" in str(info.value) and "new --out" in str(info.value)
     with pytest.raises(DataFileError, match="not a run directory"):
         RunStore.resume(tmp_path / "nothing", PLAN)
     with open(out / "journal.jsonl", "a") as f:

@@ -4,7 +4,7 @@ import pandas as pd
 import pytest
 
 from feeler.calib.psychometric.finger_route import (RouteGrid, _edge_problems, accepted_heights,
-                                       fit_finger_route, predict_p_higher, tau_report)
+                                       fit_finger_route, paper_verdict, predict_p_higher, tau_report)
 from feeler.calib.fit import DiagnosticWarning
 from feeler.errors import ArgumentError
 
@@ -60,6 +60,9 @@ def test_shipped_like_data_fit_and_report(design, extreme):
     assert result.verdict.ok, result.verdict.problems
     report = tau_report(result)
     assert 0.0 <= report["p_tau_le_300ms"] <= 1.0 and report["skin_level"] == "l0"
+    assert report["paper"] == paper_verdict(report["p_tau_le_300ms"])
+    assert set(result.priors) == {"tau_s", "sigma_d_um", "lapse", "kappa"}        # every parameter has its prior
+    assert "derived" in result.priors["kappa"] and "5, 7.5, 10, 12.5, 15 µm" in result.priors["kappa"]
     # extremes: all-correct and all-wrong conditions, zero-trial rows, one subject
     with pytest.warns(DiagnosticWarning, match="sigma_d_um: posterior piles against its upper"):
         result = fit_finger_route(extreme, rng=np.random.default_rng(2), grid=GRID, draws=400)
@@ -89,3 +92,11 @@ def test_edge_piling_is_flagged():
 def test_bad_grid(kwargs):
     with pytest.raises(ArgumentError):
         RouteGrid(**kwargs)
+
+
+@pytest.mark.parametrize("p, words", [(0.999, "these data agree"), (0.95, "these data agree"),
+                                      (0.5, "these data cannot tell"), (0.05, "these data contradict it"),
+                                      (0.001, "these data contradict it")])
+def test_the_paper_line_is_worded_from_the_probability(p, words):
+    text = paper_verdict(p)
+    assert words in text and f"P(tau <= 300 ms | data) = {p:.3f}" in text and "coincide" not in text

@@ -151,7 +151,8 @@ def test_progress_is_a_line_per_stage_off_a_terminal(run_dir, tmp_path, capsys):
     assert main(["report", str(fit), "--no-pdf"]) == 0
     err = capsys.readouterr().err.splitlines()
     assert err[0] == f"feeler report: reading {fit} ..."
-    assert err[1:] == ["report: reading the run ...", "report: M2: neuron (a, τ, h) and decoder noise (./) ...",
+    assert err[1:] == ["report: reading the run ...",
+                       "report: section 1/1: M2: neuron (a, τ, h) and decoder noise (./) ...",
                        "report: first page ...", "report: html ..."]
     assert main(["report", str(fit), "--no-pdf", "--no-progress"]) == 0
     assert capsys.readouterr().err.splitlines() == [f"feeler report: reading {fit} ..."]
@@ -176,8 +177,8 @@ def test_progress_bar_on_a_terminal(run_dir, tmp_path):
     assert proc.wait(timeout=120) == 0
     os.close(master)
     text = b"".join(chunks).decode("utf-8", "replace")
-    assert "report: M2: neuron" in text and "\r" in text                        # a bar redrawn in place
-    assert "report: M2: neuron (a, τ, h) and decoder noise (./) ...\n" not in text.replace("\r\n", "\n")
+    assert "report: section 1/1: M2: neuron" in text and "\r" in text                       # a bar redrawn in place
+    assert "report: section 1/1: M2: neuron (a, τ, h) and decoder noise (./) ...\n" not in text.replace("\r\n", "\n")
 
 
 @pytest.mark.parametrize("make", ["file", "readonly"])

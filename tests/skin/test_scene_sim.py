@@ -81,7 +81,16 @@ def test_cli_figures_writes_all_files(tmp_path, capsys):
     for name in ("fig3_strain.png", "fig4_pulse_density.png", "fig5_peak_vs_height.png",
                  "fig6_accepted.png", "fig5_peaks.csv", "fig6_accepted.csv", "figures.json"):
         assert (tmp_path / "f" / name).stat().st_size > 0
-    assert "R²" in capsys.readouterr().out
+    out, err = capsys.readouterr()
+    assert "R²" in out
+    lines = err.splitlines()                             # off a terminal: a line per stage and per skin run
+    head = "skin runs (l0, height x speed): "
+    runs = [ln for ln in lines if ln.startswith(head)]
+    assert [ln[len(head):].split(",")[0] for ln in runs] == [f"{i}/4 done" for i in range(1, 5)]
+    assert lines.index(runs[-1]) < lines.index("Figs 4-6: pulse densities and accepted heights over the tau sweep ...") \
+        < lines.index(f"plotting Figs 3-6 into {tmp_path / 'f'} ...")
+    assert main(["skin", "figures", str(scene_path), "--out", str(tmp_path / "f2"), "--no-progress"]) == 0
+    assert capsys.readouterr().err == ""
     assert main(["skin", "figures", str(scene_path), "--out", str(tmp_path / "f")]) == 2
 
 
