@@ -12,6 +12,13 @@ default 400 draws.
   the second figure), as a fraction of the scene's 0.5 s sample period: median and p99,
   idle and with two busy-loop processes on the two cores. Goals: p99 ≤ 1 % idle; p99
   under load within 2× of idle. Recorded, not asserted (a shared machine's timings).
+- Frame pipeline: the same scans rendered as the 16-element sensor's camera frames
+  (640×480, the virtual camera's optics and shot noise, the scanning element 5, every other
+  element at rest) and pushed through :meth:`LiveDecoder.push_frame` — frame → areas of
+  all 16 elements → the scanning element's force → displacement → decode, the reading
+  chain of ``feeler acquire`` (:class:`~feeler.hardware.camera.FramePipeline`): wall time
+  per sample as a fraction of the period, median and p99, idle and loaded. Goals: p99 ≤
+  5 % idle; p99 under load within 2× of idle. The extraction alone (``read``) beside it.
 - Trade: per fall from the peak ``drop`` in :data:`DROPS` and threshold θ in :data:`THRESHOLDS`, a scan is decided at the first sample
   where its response has passed its peak and the top plate's probability is ≥ θ (the
   decoder's rule, applied to one recorded pass; checked equal to the decoder's own
@@ -32,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from _ratios import LOADS, busy_loops, record_ratio
+from _ratios import LOADS, busy_loops, record_ratio, seconds_of
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.live import LiveDecoder
 from feeler.calib.neuron.live.trade import decision_index, end_row, record_pass, trade_rows
@@ -40,6 +47,7 @@ from feeler.calib.neuron.synth import HARD_SCENES, scene_scans
 
 FULL = os.environ.get("FEELER_FULL") == "1"
 FRESH = 150 if FULL else 40
+FRAME_SCANS = 24 if FULL else 8        # scans rendered as camera frames (41 frames each)
 SCENE = Path(HARD_SCENES) / "close-steps.toml"
 THRESHOLDS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
 DROPS = (0.25, 0.5, 0.75)
@@ -96,6 +104,60 @@ def test_per_sample_cost_against_the_sample_period(benchmark, setup):
         for what in ("push", "push + height"):
             record_ratio(benchmark, f"{what} p99 loaded / idle", p99[what, labels[1]] / p99[what, labels[0]], "<= 2")
     benchmark.pedantic(lambda: _stream(dec, fresh, 0), rounds=3, iterations=1)
+
+
+@pytest.fixture(scope="module")
+def frames(setup):
+    """(FramePipeline, frames uint8[m, n, 480, 640]) of the first :data:`FRAME_SCANS` fresh scans."""
+    from feeler.hardware.camera import FramePipeline
+    from feeler.models.optics import (CameraParams, OpticsParams, areas_from_force, force_from_displacement,
+                                      grid_layout, render_frames)
+
+    _, fresh, _ = setup
+    layout, optics, element = grid_layout(), OpticsParams(), 5
+    m = min(FRAME_SCANS, fresh.t_s.shape[0])
+    u = np.zeros((m, fresh.t_s.shape[1], len(layout.elements), 3))
+    u[:, :, element] = np.stack([fresh.ux_mm[:m], fresh.uy_mm[:m], fresh.uz_mm[:m]], axis=-1)
+    areas = areas_from_force(force_from_displacement(u, optics.c_matrix), optics)
+    rendered = render_frames(areas.reshape(-1, *areas.shape[2:]), layout, CameraParams(), np.random.default_rng(0))
+    pipe = FramePipeline(layout, element, optics.c_matrix, optics, blur_sd_px=CameraParams().blur_sd_px)
+    return pipe, rendered.reshape(m, -1, *rendered.shape[1:])
+
+
+def _stream_frames(dec, scans, frames, k):
+    """Scan ``k``'s frames through ``dec.push_frame``; seconds per sample."""
+    dec.reset()
+    out = np.empty(frames.shape[1])
+    for i, (t, x) in enumerate(zip(scans.t_s[k], scans.x_mm[k])):
+        t0 = time.perf_counter()
+        dec.push_frame(t, frames[k, i], x_mm=x)
+        out[i] = time.perf_counter() - t0
+    return out
+
+
+def test_frame_pipeline_cost_against_the_sample_period(benchmark, setup, frames):
+    scene, fresh, fit = setup
+    pipe, shots = frames
+    period = scene.motion.dt_s
+    dec = LiveDecoder(fit, seed=0, camera=pipe)
+    benchmark.extra_info["opencv threads"] = __import__("cv2").getNumThreads()
+    p99 = {}
+    for label, n_busy in LOADS.items():
+        with busy_loops(n_busy):
+            per = np.concatenate([_stream_frames(dec, fresh, shots, k) for k in range(shots.shape[0])]) / period
+            read = np.array([seconds_of(lambda f=f: pipe.read(f), 1, warmup=0)[0]
+                             for f in shots.reshape(-1, *shots.shape[2:])]) / period
+        for what, v in (("push_frame", per), ("read (frame → U)", read)):
+            med, p99[what, label] = float(np.median(v)), float(np.percentile(v, 99))
+            benchmark.extra_info[f"{what} [{label}]: median fraction of period"] = med
+            benchmark.extra_info[f"{what} [{label}]: p99 fraction of period"] = p99[what, label]
+            record_ratio(benchmark, f"{what} p99 / sample period [{label}]", p99[what, label],
+                         "push_frame: <= 0.05 (5 %)" if what == "push_frame" else "(its share)")
+    labels = list(LOADS)
+    if len(labels) == 2:
+        for what in ("push_frame", "read (frame → U)"):
+            record_ratio(benchmark, f"{what} p99 loaded / idle", p99[what, labels[1]] / p99[what, labels[0]], "<= 2")
+    benchmark.pedantic(lambda: _stream_frames(dec, fresh, shots, 0), rounds=3, iterations=1)
 
 
 def test_decision_latency_against_accuracy(benchmark, setup):
