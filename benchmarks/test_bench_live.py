@@ -19,6 +19,14 @@ default 400 draws.
   chain of ``feeler acquire`` (:class:`~feeler.hardware.camera.FramePipeline`): wall time
   per sample as a fraction of the period, median and p99, idle and loaded. Goals: p99 ≤
   5 % idle; p99 under load within 2× of idle. The extraction alone (``read``) beside it.
+- Wall and CPU time: every per-sample figure is given twice, as wall time and as CPU time
+  (``CPU …``: this thread's for ``push``, the process's — OpenCV's workers included — for
+  the frames). Measured on the shared 2-core machine, the loaded/idle wall p99 of ``push``
+  was 6–10× while its CPU p99 stayed within 1.15×, unchanged by one BLAS thread, by
+  OpenCV's 1 or 2 threads or by the garbage collector switched off: with two busy loops
+  three runnable processes share two cores, and a push that straddles a preemption waits
+  a time slice (a few ms, ≫ its ~1 ms), which p99 catches. That wait is the scheduler's,
+  not the decoder's; the CPU figure is what the code controls.
 - Trade: per fall from the peak ``drop`` in :data:`DROPS` and threshold θ in :data:`THRESHOLDS`, a scan is decided at the first sample
   where its response has passed its peak and the top plate's probability is ≥ θ (the
   decoder's rule, applied to one recorded pass; checked equal to the decoder's own
@@ -39,7 +47,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from _ratios import LOADS, busy_loops, record_ratio, seconds_of
+from _ratios import LOADS, busy_loops, record_ratio
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.live import LiveDecoder
 from feeler.calib.neuron.live.trade import decision_index, end_row, record_pass, trade_rows
@@ -70,18 +78,38 @@ def setup():
 
 
 def _stream(dec, scans, k, *, height: bool = False):
-    """One scan through ``dec``; per sample (seconds, peaked, top p, top plate, t, x)."""
+    """One scan through ``dec``; per sample (wall s, peaked, top p, top plate, t, x, CPU s
+    of this thread)."""
     dec.reset()
     rows = []
     for t, uy, x in zip(scans.t_s[k], scans.uy_mm[k], scans.x_mm[k]):
-        t0 = time.perf_counter()
+        c0, t0 = time.thread_time(), time.perf_counter()
         s = dec.push(t, uy, x_mm=x)
         if height:
             s.height_mm
-        dt = time.perf_counter() - t0
+        dt, cpu = time.perf_counter() - t0, time.thread_time() - c0
         j = int(np.argmax(s.prob))
-        rows.append((dt, s.peaked, float(s.prob[j]), float(dec.plates_mm[j]), t, x))
+        rows.append((dt, s.peaked, float(s.prob[j]), float(dec.plates_mm[j]), t, x, cpu))
     return np.array(rows)
+
+
+def _record_p99(benchmark, p99, what, label, wall, cpu, goal):
+    """Median and p99 of per-sample wall and CPU fractions of the period, under ``label``."""
+    for clock, v in (("", wall), ("CPU ", cpu)):
+        med, p99[clock + what, label] = float(np.median(v)), float(np.percentile(v, 99))
+        benchmark.extra_info[f"{clock}{what} [{label}]: median fraction of period"] = med
+        benchmark.extra_info[f"{clock}{what} [{label}]: p99 fraction of period"] = p99[clock + what, label]
+        record_ratio(benchmark, f"{clock}{what} p99 / sample period [{label}]", p99[clock + what, label],
+                     goal if not clock else "(CPU time: the code's own share)")
+
+
+def _record_loaded_over_idle(benchmark, p99, whats):
+    labels = list(LOADS)
+    if len(labels) == 2:
+        for what in whats:
+            for clock in ("", "CPU "):
+                record_ratio(benchmark, f"{clock}{what} p99 loaded / idle",
+                             p99[clock + what, labels[1]] / p99[clock + what, labels[0]], "<= 2")
 
 
 def test_per_sample_cost_against_the_sample_period(benchmark, setup):
@@ -93,16 +121,10 @@ def test_per_sample_cost_against_the_sample_period(benchmark, setup):
     for label, n_busy in LOADS.items():
         with busy_loops(n_busy):
             for what, height, m in (("push", False, n), ("push + height", True, max(n // 4, 1))):
-                per = np.concatenate([_stream(dec, fresh, k, height=height)[:, 0] for k in range(m)]) / period
-                med, p99[what, label] = float(np.median(per)), float(np.percentile(per, 99))
-                benchmark.extra_info[f"{what} [{label}]: median fraction of period"] = med
-                benchmark.extra_info[f"{what} [{label}]: p99 fraction of period"] = p99[what, label]
-                record_ratio(benchmark, f"{what} p99 / sample period [{label}]", p99[what, label],
-                             "push: <= 0.01 (1 %)" if what == "push" else "(the height read every sample)")
-    labels = list(LOADS)
-    if len(labels) == 2:
-        for what in ("push", "push + height"):
-            record_ratio(benchmark, f"{what} p99 loaded / idle", p99[what, labels[1]] / p99[what, labels[0]], "<= 2")
+                per = np.concatenate([_stream(dec, fresh, k, height=height)[:, [0, 6]] for k in range(m)]) / period
+                _record_p99(benchmark, p99, what, label, per[:, 0], per[:, 1],
+                            "push: <= 0.01 (1 %)" if what == "push" else "(the height read every sample)")
+    _record_loaded_over_idle(benchmark, p99, ("push", "push + height"))
     benchmark.pedantic(lambda: _stream(dec, fresh, 0), rounds=3, iterations=1)
 
 
@@ -125,13 +147,24 @@ def frames(setup):
 
 
 def _stream_frames(dec, scans, frames, k):
-    """Scan ``k``'s frames through ``dec.push_frame``; seconds per sample."""
+    """Scan ``k``'s frames through ``dec.push_frame``; per sample (wall s, CPU s of the
+    process: OpenCV's worker threads included)."""
     dec.reset()
-    out = np.empty(frames.shape[1])
+    out = np.empty((frames.shape[1], 2))
     for i, (t, x) in enumerate(zip(scans.t_s[k], scans.x_mm[k])):
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         dec.push_frame(t, frames[k, i], x_mm=x)
-        out[i] = time.perf_counter() - t0
+        out[i] = time.perf_counter() - t0, time.process_time() - c0
+    return out
+
+
+def _read_times(pipe, frames):
+    """Per frame (wall s, CPU s of the process) of ``pipe.read`` alone."""
+    out = np.empty((len(frames), 2))
+    for i, f in enumerate(frames):
+        c0, t0 = time.process_time(), time.perf_counter()
+        pipe.read(f)
+        out[i] = time.perf_counter() - t0, time.process_time() - c0
     return out
 
 
@@ -145,18 +178,10 @@ def test_frame_pipeline_cost_against_the_sample_period(benchmark, setup, frames)
     for label, n_busy in LOADS.items():
         with busy_loops(n_busy):
             per = np.concatenate([_stream_frames(dec, fresh, shots, k) for k in range(shots.shape[0])]) / period
-            read = np.array([seconds_of(lambda f=f: pipe.read(f), 1, warmup=0)[0]
-                             for f in shots.reshape(-1, *shots.shape[2:])]) / period
-        for what, v in (("push_frame", per), ("read (frame → U)", read)):
-            med, p99[what, label] = float(np.median(v)), float(np.percentile(v, 99))
-            benchmark.extra_info[f"{what} [{label}]: median fraction of period"] = med
-            benchmark.extra_info[f"{what} [{label}]: p99 fraction of period"] = p99[what, label]
-            record_ratio(benchmark, f"{what} p99 / sample period [{label}]", p99[what, label],
-                         "push_frame: <= 0.05 (5 %)" if what == "push_frame" else "(its share)")
-    labels = list(LOADS)
-    if len(labels) == 2:
-        for what in ("push_frame", "read (frame → U)"):
-            record_ratio(benchmark, f"{what} p99 loaded / idle", p99[what, labels[1]] / p99[what, labels[0]], "<= 2")
+            read = _read_times(pipe, shots.reshape(-1, *shots.shape[2:])) / period
+        _record_p99(benchmark, p99, "push_frame", label, per[:, 0], per[:, 1], "push_frame: <= 0.05 (5 %)")
+        _record_p99(benchmark, p99, "read (frame → U)", label, read[:, 0], read[:, 1], "(its share)")
+    _record_loaded_over_idle(benchmark, p99, ("push_frame", "read (frame → U)"))
     benchmark.pedantic(lambda: _stream_frames(dec, fresh, shots, 0), rounds=3, iterations=1)
 
 
