@@ -12,6 +12,21 @@ default 400 draws.
   the second figure), as a fraction of the scene's 0.5 s sample period: median and p99,
   idle and with two busy-loop processes on the two cores. Goals: p99 ≤ 1 % idle; p99
   under load within 2× of idle. Recorded, not asserted (a shared machine's timings).
+- Frame pipeline: the same scans rendered as the 16-element sensor's camera frames
+  (640×480, the virtual camera's optics and shot noise, the scanning element 5, every other
+  element at rest) and pushed through :meth:`LiveDecoder.push_frame` — frame → areas of
+  all 16 elements → the scanning element's force → displacement → decode, the reading
+  chain of ``feeler acquire`` (:class:`~feeler.hardware.camera.FramePipeline`): wall time
+  per sample as a fraction of the period, median and p99, idle and loaded. Goals: p99 ≤
+  5 % idle; p99 under load within 2× of idle. The extraction alone (``read``) beside it.
+- Wall and CPU time: every per-sample figure is given twice, as wall time and as CPU time
+  (``CPU …``: this thread's for ``push``, the process's — OpenCV's workers included — for
+  the frames). Measured on the shared 2-core machine, the loaded/idle wall p99 of ``push``
+  was 6–10× while its CPU p99 stayed within 1.15×, unchanged by one BLAS thread, by
+  OpenCV's 1 or 2 threads or by the garbage collector switched off: with two busy loops
+  three runnable processes share two cores, and a push that straddles a preemption waits
+  a time slice (a few ms, ≫ its ~1 ms), which p99 catches. That wait is the scheduler's,
+  not the decoder's; the CPU figure is what the code controls.
 - Trade: per fall from the peak ``drop`` in :data:`DROPS` and threshold θ in :data:`THRESHOLDS`, a scan is decided at the first sample
   where its response has passed its peak and the top plate's probability is ≥ θ (the
   decoder's rule, applied to one recorded pass; checked equal to the decoder's own
@@ -40,6 +55,7 @@ from feeler.calib.neuron.synth import HARD_SCENES, scene_scans
 
 FULL = os.environ.get("FEELER_FULL") == "1"
 FRESH = 150 if FULL else 40
+FRAME_SCANS = 24 if FULL else 8        # scans rendered as camera frames (41 frames each)
 SCENE = Path(HARD_SCENES) / "close-steps.toml"
 THRESHOLDS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
 DROPS = (0.25, 0.5, 0.75)
@@ -62,18 +78,38 @@ def setup():
 
 
 def _stream(dec, scans, k, *, height: bool = False):
-    """One scan through ``dec``; per sample (seconds, peaked, top p, top plate, t, x)."""
+    """One scan through ``dec``; per sample (wall s, peaked, top p, top plate, t, x, CPU s
+    of this thread)."""
     dec.reset()
     rows = []
     for t, uy, x in zip(scans.t_s[k], scans.uy_mm[k], scans.x_mm[k]):
-        t0 = time.perf_counter()
+        c0, t0 = time.thread_time(), time.perf_counter()
         s = dec.push(t, uy, x_mm=x)
         if height:
             s.height_mm
-        dt = time.perf_counter() - t0
+        dt, cpu = time.perf_counter() - t0, time.thread_time() - c0
         j = int(np.argmax(s.prob))
-        rows.append((dt, s.peaked, float(s.prob[j]), float(dec.plates_mm[j]), t, x))
+        rows.append((dt, s.peaked, float(s.prob[j]), float(dec.plates_mm[j]), t, x, cpu))
     return np.array(rows)
+
+
+def _record_p99(benchmark, p99, what, label, wall, cpu, goal):
+    """Median and p99 of per-sample wall and CPU fractions of the period, under ``label``."""
+    for clock, v in (("", wall), ("CPU ", cpu)):
+        med, p99[clock + what, label] = float(np.median(v)), float(np.percentile(v, 99))
+        benchmark.extra_info[f"{clock}{what} [{label}]: median fraction of period"] = med
+        benchmark.extra_info[f"{clock}{what} [{label}]: p99 fraction of period"] = p99[clock + what, label]
+        record_ratio(benchmark, f"{clock}{what} p99 / sample period [{label}]", p99[clock + what, label],
+                     goal if not clock else "(CPU time: the code's own share)")
+
+
+def _record_loaded_over_idle(benchmark, p99, whats):
+    labels = list(LOADS)
+    if len(labels) == 2:
+        for what in whats:
+            for clock in ("", "CPU "):
+                record_ratio(benchmark, f"{clock}{what} p99 loaded / idle",
+                             p99[clock + what, labels[1]] / p99[clock + what, labels[0]], "<= 2")
 
 
 def test_per_sample_cost_against_the_sample_period(benchmark, setup):
@@ -85,17 +121,68 @@ def test_per_sample_cost_against_the_sample_period(benchmark, setup):
     for label, n_busy in LOADS.items():
         with busy_loops(n_busy):
             for what, height, m in (("push", False, n), ("push + height", True, max(n // 4, 1))):
-                per = np.concatenate([_stream(dec, fresh, k, height=height)[:, 0] for k in range(m)]) / period
-                med, p99[what, label] = float(np.median(per)), float(np.percentile(per, 99))
-                benchmark.extra_info[f"{what} [{label}]: median fraction of period"] = med
-                benchmark.extra_info[f"{what} [{label}]: p99 fraction of period"] = p99[what, label]
-                record_ratio(benchmark, f"{what} p99 / sample period [{label}]", p99[what, label],
-                             "push: <= 0.01 (1 %)" if what == "push" else "(the height read every sample)")
-    labels = list(LOADS)
-    if len(labels) == 2:
-        for what in ("push", "push + height"):
-            record_ratio(benchmark, f"{what} p99 loaded / idle", p99[what, labels[1]] / p99[what, labels[0]], "<= 2")
+                per = np.concatenate([_stream(dec, fresh, k, height=height)[:, [0, 6]] for k in range(m)]) / period
+                _record_p99(benchmark, p99, what, label, per[:, 0], per[:, 1],
+                            "push: <= 0.01 (1 %)" if what == "push" else "(the height read every sample)")
+    _record_loaded_over_idle(benchmark, p99, ("push", "push + height"))
     benchmark.pedantic(lambda: _stream(dec, fresh, 0), rounds=3, iterations=1)
+
+
+@pytest.fixture(scope="module")
+def frames(setup):
+    """(FramePipeline, frames uint8[m, n, 480, 640]) of the first :data:`FRAME_SCANS` fresh scans."""
+    from feeler.hardware.camera import FramePipeline
+    from feeler.models.optics import (CameraParams, OpticsParams, areas_from_force, force_from_displacement,
+                                      grid_layout, render_frames)
+
+    _, fresh, _ = setup
+    layout, optics, element = grid_layout(), OpticsParams(), 5
+    m = min(FRAME_SCANS, fresh.t_s.shape[0])
+    u = np.zeros((m, fresh.t_s.shape[1], len(layout.elements), 3))
+    u[:, :, element] = np.stack([fresh.ux_mm[:m], fresh.uy_mm[:m], fresh.uz_mm[:m]], axis=-1)
+    areas = areas_from_force(force_from_displacement(u, optics.c_matrix), optics)
+    rendered = render_frames(areas.reshape(-1, *areas.shape[2:]), layout, CameraParams(), np.random.default_rng(0))
+    pipe = FramePipeline(layout, element, optics.c_matrix, optics, blur_sd_px=CameraParams().blur_sd_px)
+    return pipe, rendered.reshape(m, -1, *rendered.shape[1:])
+
+
+def _stream_frames(dec, scans, frames, k):
+    """Scan ``k``'s frames through ``dec.push_frame``; per sample (wall s, CPU s of the
+    process: OpenCV's worker threads included)."""
+    dec.reset()
+    out = np.empty((frames.shape[1], 2))
+    for i, (t, x) in enumerate(zip(scans.t_s[k], scans.x_mm[k])):
+        c0, t0 = time.process_time(), time.perf_counter()
+        dec.push_frame(t, frames[k, i], x_mm=x)
+        out[i] = time.perf_counter() - t0, time.process_time() - c0
+    return out
+
+
+def _read_times(pipe, frames):
+    """Per frame (wall s, CPU s of the process) of ``pipe.read`` alone."""
+    out = np.empty((len(frames), 2))
+    for i, f in enumerate(frames):
+        c0, t0 = time.process_time(), time.perf_counter()
+        pipe.read(f)
+        out[i] = time.perf_counter() - t0, time.process_time() - c0
+    return out
+
+
+def test_frame_pipeline_cost_against_the_sample_period(benchmark, setup, frames):
+    scene, fresh, fit = setup
+    pipe, shots = frames
+    period = scene.motion.dt_s
+    dec = LiveDecoder(fit, seed=0, camera=pipe)
+    benchmark.extra_info["opencv threads"] = __import__("cv2").getNumThreads()
+    p99 = {}
+    for label, n_busy in LOADS.items():
+        with busy_loops(n_busy):
+            per = np.concatenate([_stream_frames(dec, fresh, shots, k) for k in range(shots.shape[0])]) / period
+            read = _read_times(pipe, shots.reshape(-1, *shots.shape[2:])) / period
+        _record_p99(benchmark, p99, "push_frame", label, per[:, 0], per[:, 1], "push_frame: <= 0.05 (5 %)")
+        _record_p99(benchmark, p99, "read (frame → U)", label, read[:, 0], read[:, 1], "(its share)")
+    _record_loaded_over_idle(benchmark, p99, ("push_frame", "read (frame → U)"))
+    benchmark.pedantic(lambda: _stream_frames(dec, fresh, shots, 0), rounds=3, iterations=1)
 
 
 def test_decision_latency_against_accuracy(benchmark, setup):

@@ -34,12 +34,13 @@ import logging
 import time
 from collections import Counter
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from feeler.errors import ArgumentError, DataFileError
 from feeler.hardware.stage import ProtocolError, StageTimeout
-from feeler.models.optics import Layout, OpticsParams, displacement_from_force, force_from_areas
+from feeler.models.optics import Layout, OpticsParams
 
 from .plan import ScanSpec, moves_of, sample_times_s, scans_of
 from .store import RunStore
@@ -75,12 +76,19 @@ class Setup:
         if not (isinstance(self.late_fraction, (int, float)) and 0 < self.late_fraction < float("inf")):
             raise ArgumentError("--late-fraction", self.late_fraction, "a fraction of the sample period > 0")
 
+    @cached_property
+    def pipeline(self):
+        """The frame → displacement chain every sample is read with
+        (:class:`feeler.hardware.camera.FramePipeline`)."""
+        from feeler.hardware.camera import FramePipeline
+
+        return FramePipeline(self.layout, self.plan.optics.element, self.c_mm_per_n, self.optics,
+                             blur_sd_px=self.plan.optics.blur_sd_px)
+
 
 def run_campaign(setup: Setup, stage, camera, store: RunStore, extra: dict) -> dict:
     """Run every scan not yet done; returns the final summary (also in ``summary.json``)."""
-    from feeler.hardware.camera import AreaExtractor
-
-    extract = AreaExtractor(setup.layout, blur_sd_px=setup.plan.optics.blur_sd_px)
+    extract = setup.pipeline
     scans = scans_of(setup.plan)
     extra = {**extra, "scans_planned": len(scans), "late_fraction": setup.late_fraction}
     seen: Counter = Counter()                    # driver recoveries already journalled
@@ -165,9 +173,8 @@ def _sample(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpe
     else:
         raise DataFileError(camera.name, f"{MAX_TRIES} bad frames in a row at scan {scan.scan_id} "
                             f"sample {k}; last: {problem}")
-    a = areas[setup.plan.optics.element]
-    f = force_from_areas(a, setup.optics)
-    u = displacement_from_force(f, setup.c_mm_per_n)
+    reading = setup.pipeline.reading(areas)
+    a, f, u = reading.areas_px2, reading.force_n, reading.u_mm
     plan = setup.plan
     return {"scan_id": scan.scan_id, "plate": scan.plate, "step_mm": scan.step_mm,
             "speed_mm_s": float(plan.scan.speed_mm_s), "x_mm": float(pos[0] - scan.origin_x_mm),

@@ -113,10 +113,18 @@ class LiveDecoder:
         threshold (float): decision probability, in (0, 1].
         drop (float): fraction the response must fall from its peak, in (0, 1).
         slack, scale_factor (float): the training envelope's tolerances (:class:`.envelope.Envelope`).
+        camera (FramePipeline | None): the sensor's frame → displacement chain
+            (:class:`feeler.hardware.camera.FramePipeline`, e.g. ``FramePipeline.of_plan(plan)``),
+            needed by :meth:`push_frame` and :meth:`push_areas`.
+
+    Samples come as U_y or a displacement vector (:meth:`push`), as the scanning element's
+    contact areas (:meth:`push_areas`) or as camera frames (:meth:`push_frame`); areas and
+    frames are read exactly as ``feeler acquire`` reads them, so a frame decoded here
+    decodes as the displacement ``samples.csv`` records for it.
     """
 
     def __init__(self, fit, *, seed: int = 0, n_draws: int = 400, threshold: float = 0.9, drop: float = 0.5,
-                 slack: float = 1.25, scale_factor: float = 2.0):
+                 slack: float = 1.25, scale_factor: float = 2.0, camera=None):
         from feeler.calib.neuron.decoder import DecoderDraws
         from feeler.calib.neuron.live.envelope import Envelope
         from feeler.calib.neuron.live.sums import WindowSums
@@ -142,6 +150,7 @@ class LiveDecoder:
         self.env = Envelope.of_fit(fit, self.dec.tau_s, slack=slack, scale_factor=scale_factor)
         self.threshold, self.drop = float(threshold), float(drop)
         self._floor = float(np.median(self.env.p_lo)) * self.drop
+        self.camera = camera
         self.reset()
 
     @property
@@ -204,6 +213,31 @@ class LiveDecoder:
             new = True
         self._state = LiveState(self.sums.n, t, prob, height, z, peaked, self._decision, new, flags)
         return self._state
+
+    def push_areas(self, t_s: float, areas_px2, *, x_mm: float | None = None) -> LiveState:
+        """Add one sample from contact areas (px²): the scanning element's four, or every
+        element's (n_elements, 4); force and displacement as :attr:`camera` reads them.
+
+        Raises:
+            ArgumentError: no camera, areas of another shape or not finite; as :meth:`push`.
+        """
+        return self.push(t_s, self._camera().reading(areas_px2).u_mm, x_mm=x_mm)
+
+    def push_frame(self, t_s: float, frame, *, x_mm: float | None = None) -> LiveState:
+        """Add one sample from a camera frame (grey uint8, the layout's size): areas of
+        every element → the scanning element's force → displacement → :meth:`push`.
+
+        Raises (the decoder's state unchanged):
+            ArgumentError: no camera, a frame of another type, dtype or shape; as :meth:`push`.
+            FrameRejected: a frame whose discs cannot be measured (the reason in one line).
+        """
+        return self.push(t_s, self._camera().read(frame).u_mm, x_mm=x_mm)
+
+    def _camera(self):
+        if self.camera is None:
+            raise ArgumentError("camera", None, "a FramePipeline (LiveDecoder(fit, camera=...)) to decode "
+                                "areas or frames")
+        return self.camera
 
     def _flags(self, t: float, *, final: bool) -> list[str]:
         moved = np.isfinite(self._x0) and np.isfinite(self._x1) and self._x1 != self._x0
