@@ -16,7 +16,7 @@ import numpy as np
 
 from feeler.errors import DataFileError
 
-__all__ = ["COLUMNS", "Scans", "Features", "read_scans", "strain", "jump_uy_mm", "peak_rate_uy_mm_s",
+__all__ = ["COLUMNS", "Scans", "Features", "read_csv_file", "read_scans", "strain", "jump_uy_mm", "peak_rate_uy_mm_s",
            "scan_features", "proportion_correct"]
 
 COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
@@ -52,6 +52,18 @@ class Features:
     peak_rate_uy_mm_s: np.ndarray
 
 
+def read_csv_file(path: Path):
+    """The CSV at ``path`` as a DataFrame; DataFileError naming it when missing or unreadable."""
+    import pandas as pd
+
+    try:
+        return pd.read_csv(path)
+    except FileNotFoundError:
+        raise DataFileError(path, "no such file") from None
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise DataFileError(path, f"not a readable CSV: {exc}") from None
+
+
 def read_scans(path: str | Path) -> Scans:
     """Read a run directory's ``scans.csv`` (or the CSV itself).
 
@@ -64,12 +76,7 @@ def read_scans(path: str | Path) -> Scans:
     path = Path(path)
     if path.is_dir():
         path = path / "scans.csv"
-    try:
-        frame = pd.read_csv(path)
-    except FileNotFoundError:
-        raise DataFileError(path, "no such file") from None
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
-        raise DataFileError(path, f"not a readable CSV: {exc}") from None
+    frame = read_csv_file(path)
     missing = [c for c in COLUMNS if c not in frame.columns]
     if missing:
         raise DataFileError(path, f"missing column(s) {', '.join(missing)}; required: {', '.join(COLUMNS)}")

@@ -48,18 +48,12 @@ def read_scan_records(path: str | Path) -> list[ScanRecord]:
         DataFileError: missing file or column (naming the required ones), non-numeric or
             NaN values, times not increasing within a scan, a label not constant in a scan.
     """
-    import pandas as pd
+    from feeler.datasets import read_csv_file
 
     path = Path(path)
     if path.is_dir():
         path = path / "scans.csv" if (path / "scans.csv").exists() else path / "samples.csv"
-    try:
-        frame = pd.read_csv(path)
-    except FileNotFoundError:
-        raise DataFileError(path, "no such file") from None
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
-        raise DataFileError(path, f"not a readable CSV: {exc}") from None
-    return records_from_frame(frame, path)
+    return records_from_frame(read_csv_file(path), path)
 
 
 def records_from_frame(frame, path) -> list[ScanRecord]:
