@@ -5,7 +5,9 @@ the draw's line z = a_s·P − h_s (mm) and the plates' decoded-height means m_c
 s_cs (mm):
 
 - plate probabilities: p(c | scan) = mean_s  N(z_s; m_cs, s_cs) / Σ_c' N(z_s; m_c's, s_c's)
-  (equal plate priors; in log space, so nothing underflows) — :meth:`DecoderDraws.class_log_prob`;
+  (equal plate priors; in log space, so nothing underflows), then sharpened by the fit's
+  power γ and floored at ε/C (:mod:`.recalibrate`; γ = 1, ε = 0 for posteriors written
+  before it) — :meth:`DecoderDraws.class_log_prob`;
 - decoded height: the calibration curve m_s(δ) runs piecewise linearly through the plates
   (step c_j, mean m_js) and on past the end plates with the end segments' slopes; its
   spread s_s(δ) is interpolated the same way and held constant past the ends. The
@@ -26,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import logsumexp, ndtr
 
+from feeler.calib.neuron.recalibrate import recalibrated
 from feeler.errors import ArgumentError
 
 __all__ = ["DecoderDraws", "curve_at"]
@@ -51,6 +54,7 @@ class DecoderDraws:
         steps_mm (ndarray[C]): training plates' steps, increasing, mm.
         tau_s, a, h (ndarray[S]): window (s), gain (mm per unit strain), offset (mm).
         mean_mm, sd_mm (ndarray[S, C]): each plate's decoded-height mean and sd, mm.
+        sharpness, floor (float): γ and ε of the plate probabilities (:mod:`.recalibrate`).
     """
     steps_mm: np.ndarray
     tau_s: np.ndarray
@@ -58,6 +62,8 @@ class DecoderDraws:
     h: np.ndarray
     mean_mm: np.ndarray
     sd_mm: np.ndarray
+    sharpness: float = 1.0
+    floor: float = 0.0
 
     @classmethod
     def from_result(cls, result, *, rng: np.random.Generator | None = None, n_draws: int | None = None):
@@ -75,7 +81,8 @@ class DecoderDraws:
             return v.reshape((-1,) + v.shape[2:])
 
         out = cls(steps_mm=np.asarray(obs["plate_steps_mm"].values, float), tau_s=flat("tau_s"), a=flat("a"),
-                  h=flat("h"), mean_mm=flat("plate_mean_mm"), sd_mm=flat("plate_sd_mm"))
+                  h=flat("h"), mean_mm=flat("plate_mean_mm"), sd_mm=flat("plate_sd_mm"),
+                  sharpness=float(post.attrs.get("prob_sharpness", 1.0)), floor=float(post.attrs.get("prob_floor", 0.0)))
         if n_draws is not None and n_draws < out.a.size:
             if rng is None:
                 raise ArgumentError("rng", None, "a numpy Generator to subsample draws")
@@ -90,7 +97,7 @@ class DecoderDraws:
 
     def take(self, idx) -> "DecoderDraws":
         return DecoderDraws(self.steps_mm, self.tau_s[idx], self.a[idx], self.h[idx], self.mean_mm[idx],
-                            self.sd_mm[idx])
+                            self.sd_mm[idx], self.sharpness, self.floor)
 
     @property
     def size(self) -> int:
@@ -106,7 +113,7 @@ class DecoderDraws:
         m, s = self.mean_mm[:, None, :], self.sd_mm[:, None, :]
         ll = -0.5 * ((z - m) / s) ** 2 - np.log(s)
         cond = ll - logsumexp(ll, axis=2, keepdims=True)
-        return logsumexp(cond, axis=0) - np.log(self.size)
+        return recalibrated(logsumexp(cond, axis=0) - np.log(self.size), self.sharpness, self.floor)
 
     def predictive_cdf(self, z: np.ndarray, delta: np.ndarray) -> np.ndarray:
         """F(δ) = mean_s Φ((z_s − m_s(δ))/s_s(δ)) for ``z (ndarray[S, n])``, ``delta (ndarray[n])``."""

@@ -2,7 +2,8 @@
 
 Pipeline: strain = U_y / length → peak-u₁ table over ln τ → plates → checks of what the
 data can pin down and of their units → noise model and τ weights by leave-one-out
-prediction of the labels (:mod:`.window`) → backend (``grid`` default and exact,
+prediction of the labels (:mod:`.window`) → the sharpness of the pooled plate
+probabilities, by leave-one-out too (:mod:`.recalibrate`) → backend (``grid`` default and exact,
 ``nuts``, ``emcee``) → the decoder's predictive checks (:mod:`.checks`) → DataTree with
 the posterior, the observed labels and plates, the peak table (so a saved posterior can
 classify new scans), the scene the scans came from (so ``discriminate`` simulates the
@@ -21,7 +22,9 @@ from feeler.calib.neuron.checks import data_problems, posterior_problems, unit_p
 from feeler.calib.neuron.data import NeuronData, data_from_scans, shared_times
 from feeler.calib.neuron.grid import sample_grid
 from feeler.calib.neuron.model import NOISE_MODELS, Plates, Priors, make_priors
-from feeler.calib.neuron.window import choose_noise, loo_elpd, tau_log_weights, usable_noise_models
+from feeler.calib.neuron.recalibrate import FLOOR, LOG_GAMMA_SD, fit_sharpness
+from feeler.calib.neuron.window import (choose_noise, loo_class_log_prob, loo_elpd, tau_log_weights,
+                                        usable_noise_models)
 from feeler.errors import ArgumentError
 
 __all__ = ["NeuronData", "data_from_scans", "shared_times", "fit_neuron", "BACKENDS", "NOISE_CHOICES",
@@ -91,6 +94,8 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
         else:
             elpd = loo_elpd(table, plates, noise, growth_max=pri.growth_max, pointwise=True)
     log_w = tau_log_weights(elpd, rng)
+    sharpness = (fit_sharpness(loo_class_log_prob(table, plates, noise, log_w, growth_max=pri.growth_max),
+                               plates.group) if noise in usable else 1.0)
     stats = None
     if backend == "grid":
         post = sample_grid(table, plates, pri, noise, log_w, chains=chains, draws=draws, rng=rng)
@@ -106,7 +111,8 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
     fit_problems, info = posterior_problems(table, plates, noise, log_w, post, growth_max=pri.growth_max)
     problems += fit_problems
     attrs = {"model": "neuron", "length_mm": data.length_mm, "kernel": data.kernel, "noise": noise,
-             "noise_scores": json.dumps(scores), "checks": json.dumps(info)}
+             "noise_scores": json.dumps(scores), "checks": json.dumps(info),
+             "prob_sharpness": sharpness, "prob_floor": FLOOR}
     if "loo_coverage90" in info:                      # overall, kept for readers of the earlier attribute
         attrs["ppc_coverage90"] = float(np.average(info["loo_coverage90"], weights=plates.counts))
         attrs["ppc_p_value"] = info["p_min"]          # smallest p of the per-plate checks (fails below 0.01/C)
@@ -123,5 +129,8 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
     seconds = time.perf_counter() - start
     if fit_problems:
         warnings.warn("decoder misfit: " + "; ".join(fit_problems), DecoderMisfitWarning, stacklevel=2)
-    return make_result(tree, backend=backend, priors=pri.as_text(noise), seconds=seconds, bounds=pri.bounds(),
+    priors_text = pri.as_text(noise) | {
+        "plate probabilities": f"pooled over tau, then p^gamma renormalised with a floor {FLOOR:g}/plates; "
+                               f"ln gamma ~ Normal(0, {LOG_GAMMA_SD:g}^2), fitted by leave-one-out (gamma = {sharpness:.3g})"}
+    return make_result(tree, backend=backend, priors=priors_text, seconds=seconds, bounds=pri.bounds(),
                        checks=problems)

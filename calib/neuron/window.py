@@ -21,11 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.special import logsumexp, ndtr
+from scipy.stats import t as student_t
 
 from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
 from feeler.calib.neuron.model import NOISE_MODELS, PeakTable, PlatePrior, Plates, plate_stats
 
-__all__ = ["loo_elpd", "choose_noise", "tau_log_weights", "continuous_log_density", "usable_noise_models"]
+__all__ = ["loo_plates", "loo_class_log_prob", "loo_elpd", "choose_noise", "tau_log_weights", "continuous_log_density", "usable_noise_models"]
 
 
 def usable_noise_models(plates: Plates) -> tuple[str, ...]:
@@ -85,10 +86,10 @@ def _growth_hat(q, r, x, prior: PlatePrior, growth_max: float) -> np.ndarray:
     return nodes[np.argmax(lp, axis=1)]
 
 
-def loo_elpd(table: PeakTable, plates: Plates, noise: str, *, growth_max: float = 3.0,
-             pointwise: bool = False) -> np.ndarray:
-    """Leave-one-out elpd of the labels per τ node (ndarray[n_grid]) for one noise model
-    (``pointwise``: per node and scan, ndarray[n_grid, n_scans])."""
+def loo_plates(table: PeakTable, plates: Plates, noise: str, *, growth_max: float = 3.0):
+    """Every scan's view of the plates fitted without it, per τ node: the plate means and
+    predictive spreads s·√(1 + 1/n_c) of the plug-in fit of one noise model, two
+    ndarray[n_grid, n_scans, C] (units of P)."""
     p = table.peak.T                                                        # (G, n)
     mean, ss = plate_stats(p, plates)                                       # (G, C)
     n_c = plates.counts.astype(float)
@@ -117,9 +118,38 @@ def loo_elpd(table: PeakTable, plates: Plates, noise: str, *, growth_max: float 
             var = np.maximum(s0[..., None] * shape[:, None, :] ** 2, floor)
         else:
             var = np.maximum(np.sum(ssk, axis=-1, keepdims=True) / dof, floor) * np.ones(C)
-    s = np.sqrt(var * (1 + 1 / nk))
-    dens = continuous_log_density(p, np.broadcast_to(g_idx, (G, n)), mu, s, plates.steps_mm)
+    return mu, np.sqrt(var * (1 + 1 / nk))
+
+
+def loo_elpd(table: PeakTable, plates: Plates, noise: str, *, growth_max: float = 3.0,
+             pointwise: bool = False) -> np.ndarray:
+    """Leave-one-out elpd of the labels per τ node (ndarray[n_grid]) for one noise model
+    (``pointwise``: per node and scan, ndarray[n_grid, n_scans])."""
+    mu, s = loo_plates(table, plates, noise, growth_max=growth_max)
+    G, n = mu.shape[:2]
+    dens = continuous_log_density(table.peak.T, np.broadcast_to(plates.group, (G, n)), mu, s, plates.steps_mm)
     return dens if pointwise else np.sum(dens, axis=1)
+
+
+def loo_class_log_prob(table: PeakTable, plates: Plates, noise: str, log_w: np.ndarray, *,
+                       growth_max: float = 3.0) -> np.ndarray:
+    """log P(plate | scan k) of every training scan under the plates fitted without it,
+    pooled over the τ nodes with weights ``exp(log_w) (ndarray[n_grid])`` as the decoder
+    pools its draws (equal plate priors): ndarray[n_scans, C]."""
+    mu, s = loo_plates(table, plates, noise, growth_max=growth_max)
+    p = table.peak.T[..., None]                                             # (G, n, 1)
+    nk = np.repeat(plates.counts[None, :].astype(float), p.shape[1], axis=0)
+    nk[np.arange(p.shape[1]), plates.group] -= 1
+    dof = nk - 1 if noise == "per-plate" else np.full(nk.shape, p.shape[1] - 1.0 - nk.shape[1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ll = student_t.logpdf(p, dof, loc=mu, scale=s)
+    ll = np.where(np.isfinite(ll), ll, -np.inf)
+    cond = ll - logsumexp(ll, axis=2, keepdims=True)                        # per node
+    keep = np.isfinite(log_w) & np.all(np.isfinite(cond), axis=(1, 2))
+    if not keep.any():
+        return np.full((p.shape[1], mu.shape[2]), -np.log(mu.shape[2]))
+    w = log_w[keep] - logsumexp(log_w[keep])
+    return logsumexp(cond[keep] + w[:, None, None], axis=0)
 
 
 def tau_log_weights(pointwise: np.ndarray, rng: np.random.Generator, n_boot: int = 400) -> np.ndarray:

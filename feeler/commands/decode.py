@@ -35,7 +35,8 @@ def register(parser) -> None:
     parser.add_argument("run_dir", metavar="RUN", help="run directory (scans.csv or samples.csv), or a scan CSV")
     parser.add_argument("--follow", action="store_true", help="tail RUN/samples.csv until the acquisition ends")
     parser.add_argument("--threshold", type=float, default=0.9,
-                        help="decide when the top plate's probability reaches this, after the peak (default 0.9)")
+                        help="decide when the top plate's probability reaches this, after the peak (default 0.9; "
+                             "at most 1 - 0.001*(plates-1)/plates, the fit's floor)")
     parser.add_argument("--drop", type=float, default=0.5,
                         help="the peak has passed once the response fell by this fraction (default 0.5)")
     parser.add_argument("--poll-s", type=float, default=0.2, help="--follow: seconds between looks (default 0.2)")

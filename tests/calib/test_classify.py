@@ -1,6 +1,7 @@
 """Classification with an M2 posterior: coverage per plate on hard plates, Bayes' rule by
 hand, the statistic a streaming decoder needs, log space, refusals."""
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -11,6 +12,8 @@ from scipy import stats
 from feeler.calib.fit import FitResult, Verdict, posterior_from_draws
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.classify import classify, expected_calibration_error, log_loss, peaks_at
+from feeler.calib.neuron.decoder import DecoderDraws
+from feeler.calib.neuron.recalibrate import FLOOR
 from feeler.calib.neuron.synth import HARD_SCENES, scene_scans
 from feeler.errors import ArgumentError
 from feeler.models import neuron
@@ -110,7 +113,12 @@ def test_far_out_scan_stays_finite_in_log_space(fitted):
     assert np.all(np.isfinite(c.log_prob))
     np.testing.assert_allclose(np.exp(c.log_prob).sum(axis=1), 1.0, rtol=1e-9)
     clean = classify(res, data.strain[-1:], data.t_s, rng=np.random.default_rng(3))   # a 0.2 mm scan
-    assert clean.log_prob[0, 0] < -20 and np.isfinite(clean.log_prob).all()   # resolved, not rounded to 0
+    n_plates = clean.plates_mm.size                      # a far-off plate is held at the floor ε/C ...
+    assert clean.log_prob[0, 0] == pytest.approx(np.log(FLOOR / n_plates), abs=1e-6)
+    dec = dataclasses.replace(DecoderDraws.from_result(res, rng=np.random.default_rng(3), n_draws=400),
+                              sharpness=1.0, floor=0.0)
+    raw = dec.class_log_prob(clean.p_at_tau)             # ... below which the pool is resolved, not rounded to 0
+    assert raw[0, 0] < -20 and np.isfinite(raw).all()
     assert c.lo90_mm[1] > 10 * c.plates_mm.max()       # the decoded height shows it is off every plate
 
 

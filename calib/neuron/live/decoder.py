@@ -137,6 +137,10 @@ class LiveDecoder:
             raise ArgumentError("n_draws", n_draws, "an integer > 0")
         post = fit.posterior
         self.dec = DecoderDraws.from_result(fit, rng=np.random.default_rng(seed), n_draws=n_draws)
+        top = 1.0 - self.dec.floor * (self.dec.steps_mm.size - 1) / self.dec.steps_mm.size
+        if threshold > top:       # the floor ε/C of every plate caps the top probability
+            raise ArgumentError("threshold", threshold, f"a probability in (0, {top:.6g}]: this fit's plate "
+                                f"probabilities never exceed it (floor {self.dec.floor:g} over the plates)")
         attrs = post["posterior"].attrs
         self.length_mm = float(attrs["length_mm"])
         lt = np.asarray(post["observed_data"]["log_tau_grid"].values, float)
