@@ -26,7 +26,10 @@ default 400 draws.
   OpenCV's 1 or 2 threads or by the garbage collector switched off: with two busy loops
   three runnable processes share two cores, and a push that straddles a preemption waits
   a time slice (a few ms, ≫ its ~1 ms), which p99 catches. That wait is the scheduler's,
-  not the decoder's; the CPU figure is what the code controls.
+  not the decoder's; the CPU figure is what the code controls. A push now takes ~0.3 ms
+  (scipy's logsumexp and np.median, ~0.1 and ~0.04 ms of checks a call, replaced by
+  lean equivalents), so fewer pushes straddle a preemption: loaded/idle wall p99 1.3×.
+  A frame (~5 ms of OpenCV) still straddles one often enough to show in p99.
 - Trade: per fall from the peak ``drop`` in :data:`DROPS` and threshold θ in :data:`THRESHOLDS`, a scan is decided at the first sample
   where its response has passed its peak and the top plate's probability is ≥ θ (the
   decoder's rule, applied to one recorded pass; checked equal to the decoder's own

@@ -26,9 +26,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import logsumexp, ndtr
+from scipy.special import ndtr
 
-from feeler.calib.neuron.recalibrate import recalibrated
+from feeler.calib.neuron.recalibrate import log_sum_exp, recalibrated
 from feeler.errors import ArgumentError
 
 __all__ = ["DecoderDraws", "curve_at"]
@@ -112,8 +112,8 @@ class DecoderDraws:
         z = self.decoded(p_at_tau)[..., None]                                 # (S, n, 1)
         m, s = self.mean_mm[:, None, :], self.sd_mm[:, None, :]
         ll = -0.5 * ((z - m) / s) ** 2 - np.log(s)
-        cond = ll - logsumexp(ll, axis=2, keepdims=True)
-        return recalibrated(logsumexp(cond, axis=0) - np.log(self.size), self.sharpness, self.floor)
+        cond = ll - log_sum_exp(ll, axis=2, keepdims=True)
+        return recalibrated(log_sum_exp(cond, axis=0) - np.log(self.size), self.sharpness, self.floor)
 
     def predictive_cdf(self, z: np.ndarray, delta: np.ndarray) -> np.ndarray:
         """F(δ) = mean_s Φ((z_s − m_s(δ))/s_s(δ)) for ``z (ndarray[S, n])``, ``delta (ndarray[n])``."""

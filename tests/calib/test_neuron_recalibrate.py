@@ -96,3 +96,28 @@ def test_fit_records_the_sharpness_and_classify_applies_it():
     assert (dec.sharpness, dec.floor) == (gamma, floor)
     raw = DecoderDraws(dec.steps_mm, dec.tau_s, dec.a, dec.h, dec.mean_mm, dec.sd_mm).class_log_prob(c.p_at_tau)
     np.testing.assert_allclose(c.log_prob, recalibrated(raw, gamma, floor), rtol=1e-12, atol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-700, 700) | st.just(-np.inf), min_size=1, max_size=9), st.integers(1, 3))
+def test_log_sum_exp_equals_scipy(values, rows):
+    from scipy.special import logsumexp as reference
+
+    from feeler.calib.neuron.recalibrate import log_sum_exp
+
+    x = np.tile(np.asarray(values, float), (rows, 1))
+    for axis in (0, 1):
+        with np.errstate(divide="ignore"):
+            want = reference(x, axis=axis)
+        np.testing.assert_allclose(log_sum_exp(x, axis=axis), want, rtol=1e-12, atol=1e-13)   # log(1 + u) vs log1p(u)
+    assert log_sum_exp(x, axis=1, keepdims=True).shape == (rows, 1)
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(st.floats(-1e6, 1e6), min_size=1, max_size=30))
+def test_median_of_equals_numpy(values):
+    from feeler.calib.neuron.live.envelope import median_of
+
+    x = np.asarray(values, float)
+    assert median_of(x) == np.median(x)
+    assert np.isnan(median_of(np.append(x, np.nan)))

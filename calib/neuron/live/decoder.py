@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from feeler.calib.neuron.live.envelope import median_of
 from feeler.errors import ArgumentError
 
 __all__ = ["Decision", "LiveState", "LiveDecoder"]
@@ -179,7 +180,7 @@ class LiveDecoder:
     def _answer_of(self, p: np.ndarray):
         col = p[:, None]
         prob = np.exp(self.dec.class_log_prob(col)[0])
-        return prob, _Height(self.dec, p), float(np.median(self.dec.decoded(col)))
+        return prob, _Height(self.dec, p), median_of(self.dec.decoded(col))
 
     @property
     def p_at_tau(self) -> np.ndarray:
@@ -206,8 +207,8 @@ class LiveDecoder:
         if grew:
             self._answer = self._answer_of(self.p_at_tau)
         prob, height, z = self._answer
-        now = np.median(self.at_draws(self.sums.u))
-        peak = np.median(self.p_at_tau)
+        now = median_of(self.at_draws(self.sums.u))
+        peak = median_of(self.p_at_tau)
         peaked = bool(peak > self._floor and now < (1.0 - self.drop) * peak)
         new = False
         flags = tuple(self._flags(t, final=False))

@@ -30,7 +30,20 @@ import numpy as np
 
 from feeler.errors import ArgumentError
 
-__all__ = ["Envelope", "UNIT_FACTOR", "training_speed_mm_s"]
+__all__ = ["Envelope", "UNIT_FACTOR", "training_speed_mm_s", "median_of"]
+
+
+def median_of(x: np.ndarray) -> float:
+    """The median of a 1-D array, equal to ``np.median`` (without its ~40 µs of checks,
+    which the live decoder would pay several times per sample); NaN if any is NaN."""
+    x = np.asarray(x, float).ravel()
+    n = x.size
+    k = n // 2
+    part = np.partition(x, (k - 1, k) if n % 2 == 0 else k)
+    if np.isnan(part[-1]):                 # partition sorts NaN last
+        return float("nan")
+    return float(part[k] if n % 2 else 0.5 * (part[k - 1] + part[k]))
+
 
 UNIT_FACTOR = 30.0     # as calib.neuron.checks: a scale further off than this is a unit mistake
 
@@ -132,8 +145,8 @@ class Envelope:
         """P (ndarray[S]) beyond the training range (above at once; below at the end)."""
         p = np.asarray(p_at_tau, float).ravel()
         with np.errstate(divide="ignore", invalid="ignore"):
-            hi = float(np.median(p / self.p_hi))
-            lo = float(np.median(p / self.p_lo)) if np.all(self.p_lo > 0) else np.inf
+            hi = median_of(p / self.p_hi)
+            lo = median_of(p / self.p_lo) if np.all(self.p_lo > 0) else np.inf
         if hi > self.scale_factor:
             hint = ": U_y probably in um (expected mm)" if hi > UNIT_FACTOR else ""
             return f"response {_times(hi)} the largest training scan's{hint}"
