@@ -52,6 +52,8 @@ def test_recovers_tau_and_noise_from_data_simulated_by_the_chain(design):
         hits += int(s.loc["sigma_d_um", "eti95_lb"] <= 1.2 <= s.loc["sigma_d_um", "eti95_ub"])
         report = tau_report(result)
         assert report["tau_eti95_s"][0] <= report["tau_median_s"] <= report["tau_eti95_s"][1]
+        draws = result.posterior["posterior"]["tau_s"].values.ravel()   # jittered over the same cells
+        assert report["tau_mean_s"] == pytest.approx(draws.mean(), abs=4 * draws.std() / np.sqrt(draws.size))
     assert hits >= 7
 
 
