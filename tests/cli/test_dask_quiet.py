@@ -149,3 +149,19 @@ def test_the_cluster_closes_even_when_a_worker_will_not():
     with pytest.raises(asyncio.TimeoutError):
         shut_down(_Client(rec), cluster)
     assert rec.calls[-1] == ("cluster.close", SHUTDOWN_TIMEOUT_S)
+
+
+def _die(seed: int) -> int:
+    import os
+    os._exit(3)
+
+
+def test_a_worker_that_dies_is_a_one_line_failure():
+    import dask
+
+    from feeler.calib.runner import map_seeds
+    from feeler.errors import FeelerError
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        with pytest.raises(FeelerError, match=r"^a dask worker died while computing deaths \(.*\); run with -v"):
+            map_seeds(_die, [1], n_workers=1, desc="deaths")
