@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import re
 import sys
-from pathlib import Path
 
 import pytest
 
 from feeler.cli import main
 from tests.cli._run import ROOT, feeler, in_a_pty
+from tests.small_scenes import small_finger_scene
 
 SCENES = ROOT / "datasets-synthetic"
 FOUR = SCENES / "four-plates.toml"
@@ -77,24 +77,10 @@ def test_calibration_campaign_stage(tmp_path, capsys):
     assert capsys.readouterr().err == ""
 
 
-def _small_finger(tmp: Path) -> Path:
-    """The shipped finger-steps scene (L1) on a coarse mesh, 3 heights x 2 speeds."""
-    text = (SCENES / "finger-steps.toml").read_text(encoding="utf-8")
-    for old, new in (("heights_um = [5.0, 7.5, 10.0, 12.5, 15.0]", "heights_um = [5.0, 10.0, 15.0]"),
-                     ("travel_step_mm = 0.01 ", "travel_step_mm = 0.05 "), ("h_contact_mm = 0.0177", "h_contact_mm = 0.05"),
-                     ("h_corpuscle_mm = 0.0071", "h_corpuscle_mm = 0.02"), ("h_far_mm = 0.567", "h_far_mm = 1.5"),
-                     ("grade = 0.25", "grade = 0.4")):
-        assert old in text, old
-        text = text.replace(old, new)
-    assert re.search(r'(?m)^level = "l1"', text)
-    path = tmp / "finger-small.toml"
-    path.write_text(text, encoding="utf-8")
-    return path
-
-
 @pytest.mark.parametrize("flag", [None, "--no-progress"])
 def test_finger_steps_the_shared_mesh_is_a_stage_before_the_runs(tmp_path, capsys, flag):
-    scene = _small_finger(tmp_path)
+    scene = small_finger_scene(tmp_path / "finger-small.toml")
+    assert re.search(r'(?m)^level = "l1"', scene.read_text(encoding="utf-8"))
     assert main(["simulate", str(scene), "--out", str(tmp_path / "a"), *([flag] if flag else [])]) == 0
     out, err = capsys.readouterr()
     assert _wrote(out) == [f"wrote {tmp_path / 'a'}: scene.toml, strain.csv, truth.json"]
