@@ -158,6 +158,7 @@ def _die(seed: int) -> int:
 
 def test_a_worker_that_dies_is_a_one_line_failure():
     import dask
+    import distributed  # noqa: F401  (its config first: set() below then restores it, not deletes it)
 
     from feeler.calib.runner import map_seeds
     from feeler.errors import FeelerError
