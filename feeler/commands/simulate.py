@@ -3,13 +3,14 @@
 Any shipped kind: robot-scan (four-plates), sensor-calibration (DIR/calibration.csv),
 psychophysics-2afc (DIR/trials.csv), finger-steps (DIR/strain.csv); each also writes
 DIR/scene.toml (a byte copy of SCENE) and DIR/truth.json. For a robot-scan scene
-DIR/truth.json holds every true parameter, (including each touch's press U_y0, tilt, start offset and drift) and DIR/scans.csv
-(long format: scan_id, plate, step_mm, speed_mm_s, t_s, x_mm, ux_mm, uy_mm, uz_mm), plus
-DIR/features.csv when the scene lists "features" in its outputs. The result depends only
-on the scene file (its seed; --seed N replaces it, and DIR/scene.toml then records N).
-Existing data are never overwritten without --force. Progress on stderr: a line per stage
-(and a bar over scans, frames or skin runs on a terminal; off a terminal a line per skin
-run with the time left); --no-progress: none, only the "wrote" line on stdout.
+DIR/truth.json holds every true parameter (including each touch's press U_y0, tilt,
+start offset and drift), and DIR/scans.csv (long format: scan_id, plate, step_mm,
+speed_mm_s, t_s, x_mm, ux_mm, uy_mm, uz_mm), plus DIR/features.csv when the scene lists
+"features" in its outputs. The result depends only on the scene file (its seed; --seed N
+replaces it, and DIR/scene.toml then records N). Existing data are never overwritten
+without --force. Progress on stderr: a line per stage (and a bar over scans, frames or
+skin runs on a terminal; off a terminal a line per skin run with the time left);
+--no-progress: none, only the "wrote" line on stdout.
 
 Example:
     feeler simulate datasets-synthetic/four-plates.toml --out runs/four-plates
