@@ -88,3 +88,18 @@ def test_finger_route_says_what_it_fits(tmp_path, capsys):
 def _untimed(text: str) -> list[str]:
     """The lines of a fit's output without its timing line ("backend ..., 0.194 s")."""
     return [ln for ln in text.splitlines() if not ln.startswith("backend ")]
+
+
+def test_demo_passes_no_progress_to_its_simulation(tmp_path, capsys):
+    from feeler.demo import STAGES, run_demo
+
+    scene = tmp_path / "four-plates-small.toml"
+    scene.write_text((SCENES / "four-plates.toml").read_text(encoding="utf-8")
+                     .replace("scans_per_plate = 24", "scans_per_plate = 6"), encoding="utf-8")
+    said = []
+    run_demo(tmp_path / "a", scene_path=scene, stages=STAGES[:1], echo=said.append)
+    assert said == ["[1/1] simulate ..."]
+    assert capsys.readouterr().err == "simulating 24 scans of 4 plates (displacement fidelity) ...\n"
+    said.clear()
+    run_demo(tmp_path / "b", scene_path=scene, stages=STAGES[:1], echo=said.append, progress=False)
+    assert said == [] and capsys.readouterr().err == ""
