@@ -91,17 +91,33 @@ def stage(text: str, enabled: bool | None = None) -> None:
         print(f"{text} ...", file=sys.stderr, flush=True)
 
 
-def stages(desc: str, enabled: bool | None = None) -> tuple[Callable[[str], None], Callable[[], None]]:
+def stages(desc: str, enabled: bool | None = None,
+           tick_s: float = 1.0) -> tuple[Callable[[str], None], Callable[[], None]]:
     """(step(text), close()) for a command of named stages: on a terminal one live line
-    ``desc: <text> [elapsed]`` (tqdm), otherwise ``desc: <text> ...`` per stage on stderr;
-    nothing when ``enabled`` is False. Call ``close()`` when done (also on errors)."""
+    ``desc: <text> [elapsed]`` (tqdm; redrawn every ``tick_s`` seconds, so the time runs
+    on through a long stage), otherwise ``desc: <text> ...`` per stage on stderr; nothing
+    when ``enabled`` is False. Call ``close()`` when done (also on errors)."""
     if enabled is False:
         return (lambda text: None), (lambda: None)
     if not show_progress(enabled):
         return (lambda text: stage(f"{desc}: {text}")), (lambda: None)
+    import threading
+
     from tqdm.auto import tqdm
     bar = tqdm(desc=desc, file=sys.stderr, leave=False, bar_format="{desc} [{elapsed}]", **bar_width())
+    done = threading.Event()
+
+    def tick() -> None:
+        while not done.wait(tick_s):
+            bar.refresh()
+    ticker = threading.Thread(target=tick, name=f"{desc} progress", daemon=True)
+    ticker.start()
 
     def step(text: str) -> None:
         bar.set_description_str(f"{desc}: {text}")
-    return step, bar.close
+
+    def close() -> None:
+        done.set()
+        ticker.join()
+        bar.close()
+    return step, close

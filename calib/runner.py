@@ -16,11 +16,13 @@ from __future__ import annotations
 from typing import Callable, Iterable, Sequence, TypeVar
 
 from feeler.calib.progress import progress
-from feeler.errors import ArgumentError
+from feeler.errors import ArgumentError, FeelerError
 
-__all__ = ["map_seeds"]
+__all__ = ["map_seeds", "shut_down", "SHUTDOWN_TIMEOUT_S"]
 
 R = TypeVar("R")
+
+SHUTDOWN_TIMEOUT_S = 30.0    # s a worker (or the client, the scheduler) gets to stop before it is killed
 
 
 def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str | None = None,
@@ -30,9 +32,13 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
     Progress (:func:`feeler.calib.progress.progress`): a bar on a terminal, else a line
     per finished job with an estimate of the time left; none when ``progress_bar`` is False.
 
+    The cluster is stopped in order (:func:`shut_down`); its log lines stay off stderr
+    unless feeler runs with -v (:mod:`feeler.calib.dask_logging`).
+
     Raises:
         ArgumentError: ``scheduler`` neither None, "serial" nor ``tcp://HOST:PORT``;
             ``n_workers`` < 1.
+        FeelerError: a worker process died (KilledWorker).
     """
     seeds = [int(s) for s in seeds]
     if n_workers < 1:
@@ -41,16 +47,13 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
         return [func(s) for s in progress(seeds, desc=desc, enabled=progress_bar, lines=True)]
     if scheduler is not None and not _is_tcp_address(scheduler):
         raise ArgumentError("scheduler", scheduler, "must be tcp://HOST:PORT (or omitted for a LocalCluster)")
-    import logging
+    from distributed import Client, KilledWorker, LocalCluster, as_completed
 
-    from distributed import Client, LocalCluster, as_completed
+    from feeler.calib.dask_logging import cluster_options
 
-    # dask logs every worker start/stop at INFO; show that only when feeler runs with -v
-    dask_log = logging.getLogger("distributed")
-    dask_log.setLevel(max(logging.getLogger().getEffectiveLevel(), logging.INFO))
     if scheduler is None:
         cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, host="127.0.0.1")
+                               dashboard_address=None, host="127.0.0.1", **cluster_options())
         client = Client(cluster)
     else:
         cluster, client = None, Client(scheduler, timeout=10)
@@ -60,10 +63,35 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
                           lines=True):
             pass
         return client.gather(futures)
+    except KilledWorker as exc:                # the process died (memory, a signal): no traceback for that
+        raise FeelerError(f"a dask worker died while computing {desc} ({exc}); run with -v to see the "
+                          f"workers' log, or with --scheduler serial") from None
     finally:
-        client.close()
+        shut_down(client, cluster)
+
+
+def shut_down(client, cluster, timeout_s: float = SHUTDOWN_TIMEOUT_S) -> None:
+    """Stop a map's dask objects in order: the client (no more requests), then each
+    worker while the scheduler still runs (so none loses it mid-heartbeat), each given
+    ``timeout_s`` to exit before its nanny kills it, then the cluster (scheduler).
+
+    ``cluster`` None: only the client (an existing scheduler is not ours to stop).
+    distributed's own ``cluster.close()`` gives each worker 4 s, which a loaded machine
+    overruns ("Worker process still alive after 4.0 seconds, killing")."""
+    try:
+        client.close(timeout=timeout_s)
+    finally:
         if cluster is not None:
-            cluster.close()
+            try:
+                cluster.sync(_close_workers, list(cluster.workers.values()), timeout_s)
+            finally:
+                cluster.close(timeout=timeout_s)
+
+
+async def _close_workers(workers, timeout_s: float) -> None:
+    import asyncio
+
+    await asyncio.gather(*(w.close(timeout=timeout_s) for w in workers))
 
 
 def _is_tcp_address(text: str) -> bool:

@@ -101,11 +101,13 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 
 def _quiet_third_parties(verbose: int) -> None:
-    """Third-party log noise (dask.distributed's worker chatter) only with -v."""
-    import os
+    """Third-party log noise only with -v: none of dask.distributed's (here or in its worker
+    processes, :mod:`feeler.calib.dask_logging`), PyMC's and pytensor's errors only."""
+    from feeler.calib.dask_logging import quiet
+
+    quiet(verbose)
     if verbose == 0:
-        os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "error")     # read by dask, workers inherit it
-        for name in ("distributed", "distributed.nanny", "distributed.worker", "pymc", "pytensor"):
+        for name in ("pymc", "pytensor"):
             logging.getLogger(name).setLevel(logging.ERROR)
 
 

@@ -95,22 +95,29 @@ def _manifest(sections) -> list[dict]:
 def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf: bool = True,
                  progress: Callable[[str], None] = lambda stage: None) -> Report:
     """Write the report of ``run_dir`` into ``out_dir`` (default ``run_dir``).
-    ``progress(stage)`` is called before every stage ("section i/n: <title>", "html", "pdf").
+    ``progress(stage)`` is called before every stage: "section i/n: <title>", each figure
+    it draws ("section i/n, figure k: <title>", k counted over the report), "first page",
+    "html", and the PDF's own steps ("pdf: laying out page p", ... :mod:`~feeler.reports.pdf_steps`).
 
     Raises:
         DataFileError: ``run_dir`` is not a directory, or a file of the run is corrupt
             (one line naming it).
     """
-    from feeler.reports.model import report_style
+    from feeler.reports.model import on_figure, report_style
     from feeler.reports.sec_appendix import appendix_section
     from feeler.reports.sec_front import front_section
 
     progress("reading the run")
     inv = discover(run_dir)
-    sections = []
-    with report_style():
+    sections, drawn, where = [], [0], [""]
+
+    def figure(title: str) -> None:
+        drawn[0] += 1
+        progress(f"{where[0]}, figure {drawn[0]}: {title}")
+    with report_style(), on_figure(figure):
         for i, spec in enumerate(inv.present, 1):
-            progress(f"section {i}/{len(inv.present)}: {spec.title}")
+            where[0] = f"section {i}/{len(inv.present)}"
+            progress(f"{where[0]}: {spec.title}")
             sections.append(_builder(spec.builder)(inv, spec))
     sections.sort(key=lambda s: not s.failed)                 # failed calibrations first (stable)
     progress("first page")
@@ -125,9 +132,8 @@ def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf:
     html_path.write_text(html, encoding="utf-8")
     pdf_path, pages = None, ()
     if pdf:
-        progress(f"pdf of {len(manifest)} figures (WeasyPrint)")
         pdf_path = out / "report.pdf"
-        pages = write_pdf(html, pdf_path)
+        pages = write_pdf(html, pdf_path, progress=progress)
     man_path = out / MANIFEST
     man_path.write_text(json.dumps({"run_dir": str(inv.run_dir), "figures": manifest, "pages": len(pages),
                                     "page_sections": [list(p) for p in pages]}, indent=2, ensure_ascii=False) + "\n",
@@ -154,19 +160,25 @@ def render_html(inv: Inventory, sections, manifest) -> str:
         created=_dt.datetime.now().isoformat(timespec="seconds"))
 
 
-def write_pdf(html: str, path: str | Path) -> tuple[tuple[str, ...], ...]:
+def write_pdf(html: str, path: str | Path,
+              progress: Callable[[str], None] = lambda stage: None) -> tuple[tuple[str, ...], ...]:
     """Lay out ``html`` with WeasyPrint and write ``path``; returns, per page, the ids of
-    the sections that start on it."""
+    the sections that start on it. ``progress(stage)`` before each of WeasyPrint's steps
+    (:func:`feeler.reports.pdf_steps.weasyprint_steps`: parsing, each page, writing)."""
+    progress("pdf: loading WeasyPrint")
     import weasyprint
     from weasyprint.urls import FatalURLFetchingError, URLFetcher
 
+    from feeler.reports.pdf_steps import weasyprint_steps
+
     # only inline data: URIs, and any other reference stops the rendering: no network
     fetcher = URLFetcher(allowed_protocols=("data",), fail_on_errors=True)
-    try:
-        document = weasyprint.HTML(string=html, url_fetcher=fetcher).render()
-    except FatalURLFetchingError as exc:   # a BaseException in WeasyPrint 70
-        raise RuntimeError(f"{path}: {exc}; a report may reference inline data: URIs only") from None
-    document.write_pdf(path)
+    with weasyprint_steps(progress):
+        try:
+            document = weasyprint.HTML(string=html, url_fetcher=fetcher).render()
+        except FatalURLFetchingError as exc:   # a BaseException in WeasyPrint 70
+            raise RuntimeError(f"{path}: {exc}; a report may reference inline data: URIs only") from None
+        document.write_pdf(path)
     seen, pages = set(), []
     for page in document.pages:
         starts = tuple(sorted(a for a in page.anchors if a.startswith("sec-") and a not in seen))

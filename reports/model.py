@@ -9,15 +9,20 @@ found when it was drawn (none, in a good report).
 from __future__ import annotations
 
 import base64
+import contextlib
 import io
 import math
+from contextvars import ContextVar
 from dataclasses import dataclass, field
+from typing import Callable
 
 __all__ = ["Figure", "Gallery", "Table", "Note", "Section", "subplots", "make_figure", "fmt", "interval", "log_axis",
-           "report_style", "STYLE",
+           "report_style", "STYLE", "on_figure",
            "table_from_frame", "DPI"]
 
 DPI = 110                 # pixels per inch of the inlined PNGs (shown at their size in inches)
+
+_ON_FIGURE: ContextVar[Callable[[str], None] | None] = ContextVar("feeler_report_on_figure", default=None)
 
 
 @dataclass(frozen=True)
@@ -124,13 +129,28 @@ def _move_covering_legends(fig) -> bool:
     return moved
 
 
+@contextlib.contextmanager
+def on_figure(callback: Callable[[str], None]):
+    """Within: ``callback(title)`` as :func:`make_figure` starts drawing each figure (the
+    report's progress per figure; section builders need not know of it)."""
+    token = _ON_FIGURE.set(callback)
+    try:
+        yield
+    finally:
+        _ON_FIGURE.reset(token)
+
+
 def make_figure(title: str, fig, sources, caption: str = "") -> Figure:
     """Draw ``fig`` at its printed size, move legends that cover data, check the layout,
-    encode the PNG and close the figure."""
+    encode the PNG and close the figure (announced to :func:`on_figure`'s callback)."""
     import matplotlib.pyplot as plt
     from PIL import Image
 
     from feeler.reports.layout import check_figure
+
+    announce = _ON_FIGURE.get()
+    if announce is not None:
+        announce(title)
 
     try:
         _draw(fig)

@@ -16,7 +16,7 @@ flagged, with the reason.
 (a partial last line waits for its end) and stops when the acquisition lets go of the
 run (finished, stopped or crashed), rewriting decisions.csv after every scan. On a
 terminal a live line shows the scan in progress (decoded z so far, plate
-probabilities, decision); otherwise one line per decision.
+probabilities, decision); otherwise one line per decision (--no-progress: neither).
 """
 from __future__ import annotations
 
@@ -92,6 +92,8 @@ def _decoder(args):
 
     live = LiveDecoder(load_checked(args), seed=args.seed, n_draws=args.n_draws, threshold=args.threshold,
                        drop=args.drop)
+    if args.progress is False:                          # --no-progress: no live line, no line per decision
+        return RunDecoder(live)
     view = LiveView(live.plates_mm, live=args.live)
     return RunDecoder(live, on_state=view.on_state, on_scan=view.on_scan)
 
@@ -103,7 +105,8 @@ def _follow(decoder, path, out, args) -> None:
     write = decoder.on_scan
 
     def on_scan(row):
-        write(row)
+        if write is not None:                           # None: --no-progress
+            write(row)
         decoder.write(out / "decisions.csv")
 
     decoder.on_scan = on_scan

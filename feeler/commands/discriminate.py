@@ -70,7 +70,7 @@ def run(args) -> int:
     from itertools import combinations
 
     from feeler.calib.neuron.discriminate import Discriminator
-    from feeler.calib.progress import progress
+    from feeler.calib.progress import progress, stage
     from feeler.commands._fit_output import format_estimate
     from feeler.errors import ArgumentError
     from feeler.rundir import prepare_out_dir, write_json
@@ -87,10 +87,11 @@ def run(args) -> int:
     pairs = args.pair or list(combinations(sorted(scene.surface.heights_mm), 2))
     rows = []
     print(f"{'low mm':>8} {'high mm':>8}  P(correct) [95 % interval]   MC se")
-    for lo, hi in progress(pairs, desc="pairs", enabled=args.progress):
+    for lo, hi in progress(pairs, desc="2AFC pairs", enabled=args.progress, lines=True):
         p = disc.pc(lo, hi)
         rows.append({"low_mm": lo, "high_mm": hi, "pc": p.mean, "lo95": p.lo95, "hi95": p.hi95, "mcse": p.mcse})
         print(f"{lo:8.4g} {hi:8.4g}  {format_estimate(p.mean, p.lo95, p.hi95, 4):28s} {p.mcse:.4f}")
+    stage(f"difference threshold at 75 % around {args.reference:g} mm", args.progress)
     th = disc.threshold(args.reference)
     w = th.weber
     weber = (f"> {th.searched_mm / args.reference:.4f}" if w.median == float("inf") else
@@ -98,6 +99,7 @@ def run(args) -> int:
              f"{w.median:.4f} [{w.lo95:.4f}, > {th.searched_mm / args.reference:.4f}]")
     print(f"threshold at 75 % around {args.reference:g} mm: {threshold_text(th)}; Weber fraction {weber}")
     v_ref, v_test = args.speeds or (scene.motion.speed_mm_s, 2 * scene.motion.speed_mm_s)
+    stage(f"PSE of {args.reference:g} mm between {v_ref:g} and {v_test:g} mm/s", args.progress)
     pse = disc.pse(args.reference, v_ref, v_test)
     print(f"PSE of {args.reference:g} mm at {v_ref:g} mm/s when scanned at {v_test:g} mm/s: "
           + (f"{format_estimate(pse.mean, pse.lo95, pse.hi95, 4)} mm" if pse.found == 1 else

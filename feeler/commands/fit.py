@@ -203,6 +203,7 @@ def run_psychophysics(args) -> int:
 def run_finger_route(args) -> int:
     import numpy as np
 
+    from feeler.calib.progress import stage
     from feeler.calib.psychometric.finger_route import RouteGrid, fit_finger_route, predict_p_higher, tau_report
     from feeler.errors import ArgumentError
     from feeler.psydata import read_trials, synthetic_note
@@ -219,6 +220,8 @@ def run_finger_route(args) -> int:
     if args.out:
         prepare_out_dir(args.out, ("posterior.nc", "summary.csv", "verdict.json", "tau_report.json"),
                         force=args.force)
+    stage(f"fitting tau, sigma_d and the lapse through skin {args.level} -> neuron -> observer "
+          f"({args.n_tau} tau nodes)", args.progress)
     result = fit_finger_route(trials, rng=np.random.default_rng(args.seed), grid=RouteGrid(n_tau=args.n_tau),
                               level=args.level, chains=args.chains, draws=args.draws)
     print_summary(result)
@@ -227,6 +230,7 @@ def run_finger_route(args) -> int:
         mean = result.summary.set_index("name")["mean"]
         kw = dict(tau_s=float(mean["tau_s"]), sigma_d_um=float(mean["sigma_d_um"]),
                   lapse=float(mean["lapse"]))
+        stage(f"checking the fit with skin {args.check_level}", args.progress)
         p_fit = predict_p_higher(trials, level=args.level, **kw)
         p_chk = predict_p_higher(trials, level=args.check_level, **kw)
         report["check"] = {"level": args.check_level, "max_abs_dp": float(np.max(np.abs(p_fit - p_chk)))}

@@ -9,8 +9,8 @@ missing part would need. Then one section per part, failed calibrations first.
 
 Writes report.html (self-contained: figures inlined, opens offline), report.pdf (the same
 HTML laid out by WeasyPrint) and report-manifest.json (every figure with the files it
-came from). Progress: a bar on a terminal, a line per stage otherwise (--no-progress:
-neither). A corrupt file of the run stops with a one-line error naming it (exit 2).
+came from). Progress: a live line on a terminal, otherwise a line per stage: each
+section, each figure drawn, each PDF step and page (--no-progress: none). A corrupt file of the run stops with a one-line error naming it (exit 2).
 
 Examples:
     feeler report runs/demo
@@ -64,7 +64,8 @@ def run(args) -> int:
 
     from feeler.errors import DataFileError
 
-    print(f"feeler report: reading {args.run_dir} ...", file=sys.stderr, flush=True)
+    if args.progress is not False:                   # the first line, as feeler.cli prints for the others
+        print(f"feeler report: reading {args.run_dir} ...", file=sys.stderr, flush=True)
     if not Path(args.run_dir).is_dir():
         raise DataFileError(args.run_dir, "not a directory; expected a run directory")
     check_out_dir(args.out if args.out is not None else args.run_dir)

@@ -3,15 +3,21 @@
 Any shipped kind: robot-scan (four-plates), sensor-calibration (DIR/calibration.csv),
 psychophysics-2afc (DIR/trials.csv), finger-steps (DIR/strain.csv); each also writes
 DIR/scene.toml (a byte copy of SCENE) and DIR/truth.json. For a robot-scan scene
-DIR/truth.json holds every true parameter, (including each touch's press U_y0, tilt, start offset and drift) and DIR/scans.csv
-(long format: scan_id, plate, step_mm, speed_mm_s, t_s, x_mm, ux_mm, uy_mm, uz_mm), plus
-DIR/features.csv when the scene lists "features" in its outputs. The result depends only
-on the scene file (its seed; --seed N replaces it, and DIR/scene.toml then records N). Existing data are never overwritten without --force.
+DIR/truth.json holds every true parameter (including each touch's press U_y0, tilt,
+start offset and drift), and DIR/scans.csv (long format: scan_id, plate, step_mm,
+speed_mm_s, t_s, x_mm, ux_mm, uy_mm, uz_mm), plus DIR/features.csv when the scene lists
+"features" in its outputs. The result depends only on the scene file (its seed; --seed N
+replaces it, and DIR/scene.toml then records N). Existing data are never overwritten
+without --force. Progress on stderr: a line per stage (and a bar over scans, frames or
+skin runs on a terminal; off a terminal a line per skin run with the time left);
+--no-progress: none, only the "wrote" line on stdout.
 
 Example:
     feeler simulate datasets-synthetic/four-plates.toml --out runs/four-plates
 """
 from __future__ import annotations
+
+import argparse
 
 __all__ = ["NAME", "HELP", "register"]
 
@@ -27,12 +33,15 @@ def register(parser) -> None:
                         help="root seed of the random draws instead of the scene's own [scene] seed; "
                              "DIR/scene.toml records it, so the run is reproduced from that file "
                              "(finger-steps scenes draw nothing at random and refuse it)")
+    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                        help="progress on stderr (default: a line per stage, and a bar on a terminal; "
+                             "--no-progress: none)")
     parser.set_defaults(run=run)
 
 
 def run(args) -> int:
     from feeler.simulate import run_simulation
 
-    out = run_simulation(args.scene, args.out, force=args.force, seed=args.seed)
+    out = run_simulation(args.scene, args.out, force=args.force, seed=args.seed, progress=args.progress)
     print(f"wrote {out}: {', '.join(sorted(p.name for p in out.iterdir() if p.is_file()))}")
     return 0

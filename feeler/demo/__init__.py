@@ -36,7 +36,8 @@ FIGURES = ("fig7_delta_uy.png", "fig8_uy_rate.png", "fig9_pulse_density.png")
 def _simulate(ctx: dict) -> None:
     from feeler.simulate import run_simulation
 
-    ctx["run_dir"] = run_simulation(ctx["scene_path"], ctx["out"] / "four-plates", force=ctx["force"])
+    ctx["run_dir"] = run_simulation(ctx["scene_path"], ctx["out"] / "four-plates", force=ctx["force"],
+                                    progress=ctx.get("progress"))
     ctx["scene"] = load_scene(ctx["run_dir"] / "scene.toml")
 
 
@@ -129,14 +130,17 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
         scenes: other scene files by name ("sensor-calibration", "psychophysics-2afc",
             "finger-steps") instead of the shipped ones (smaller runs, e.g. in tests).
         discriminate_scans: touches per height for the discrimination (default the command's).
-        progress: False drops the ``[i/n] stage ... (time so far)`` line before each stage.
+        progress: False drops the ``[i/n] stage ... (time so far)`` line before each stage
+            and the stages' own progress (simulation, report); None: as `feeler --progress` off
+            a terminal or on one.
 
     Raises:
         OverwriteError: ``out`` holds demo results and ``force`` is false.
     """
     out = prepare_out_dir(out, ("robot_table.json", *FIGURES, "four-plates/scans.csv"), force=force)
     ctx = {"out": out, "force": force, "scene_path": Path(scene_path or DEFAULT_SCENE), "print": echo,
-           "seconds": {}, "cpu_seconds": {}, "scenes": dict(scenes or {}), "discriminate_scans": discriminate_scans}
+           "seconds": {}, "cpu_seconds": {}, "scenes": dict(scenes or {}), "discriminate_scans": discriminate_scans,
+           "progress": progress}
     todo = STAGES if stages is None else stages
     start = time.perf_counter()
     for i, (name, stage) in enumerate(todo, 1):

@@ -183,9 +183,14 @@ def _speed_tables(ctx: dict) -> None:
 
 
 def _report(ctx: dict) -> None:
+    from feeler.calib.progress import stages
     from feeler.reports import build_report
 
-    report = build_report(ctx["out"])
+    step, close = stages("report", ctx.get("progress"))      # its sections, figures and PDF pages
+    try:
+        report = build_report(ctx["out"], progress=step)
+    finally:
+        close()
     ctx["report"] = report
     ctx["print"](f"\nreport: {report.html}" + (f" and {report.pdf} ({report.n_pages} pages)" if report.pdf else ""))
 

@@ -109,7 +109,7 @@ def _fidelity(scene_src: Path, path: Path) -> str:
         for fid in FIDELITIES:
             scene_path = _fidelity_scene(scene_src, tmp, fid)
             t0 = time.perf_counter()
-            run = run_simulation(scene_path, tmp / f"run-{fid}")
+            run = run_simulation(scene_path, tmp / f"run-{fid}", progress=False)     # timed: no output
             sim_s = time.perf_counter() - t0
             scene = load_scene(scene_path)
             t0 = time.perf_counter()

@@ -65,9 +65,11 @@ def optics_params(optics: Optics | None, c_mm_per_n=None):
                         area_sd_px2=o.area_sd_px2, area_step_px2=o.area_step_px2)
 
 
-def fidelity_params(optics: Optics | None, fidelity: str, *, scene_path, out_dir=None, c_mm_per_n=None):
+def fidelity_params(optics: Optics | None, fidelity: str, *, scene_path, out_dir=None, c_mm_per_n=None,
+                    progress: bool | None = False):
     """``params`` for :func:`feeler.models.sensor.observe` at an optical fidelity (and
-    registers those fidelities). ``out_dir`` receives ``sensor.avi`` when ``video``."""
+    registers those fidelities). ``out_dir`` receives ``sensor.avi`` when ``video``;
+    ``progress`` is the `images` fidelity's (stage lines and frame bars, False: silent)."""
     from feeler.models.optics import CameraParams, grid_layout, load_layout
     from feeler.simulate.images import ImagesFidelity, register_optical_fidelities
 
@@ -85,4 +87,4 @@ def fidelity_params(optics: Optics | None, fidelity: str, *, scene_path, out_dir
         layout = grid_layout()
     video = str(Path(out_dir) / "sensor.avi") if o.video and out_dir is not None else None
     return ImagesFidelity(params, layout, CameraParams(blur_sd_px=o.blur_sd_px,
-                                                       photons_per_level=o.photons_per_level), video)
+                                                       photons_per_level=o.photons_per_level), video, progress)

@@ -25,13 +25,17 @@ __all__ = ["SIMULATORS", "run_simulation", "with_seed", "CSV_COLUMNS", "features
 
 
 def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = False,
-                   seed: int | None = None) -> Path:
+                   seed: int | None = None, progress: bool | None = None) -> Path:
     """Simulate any shipped kind of scene into the run directory ``out``; returns ``out``.
 
     The scene's kind picks the simulator (:data:`SIMULATORS`); each writes ``scene.toml``
     (a byte copy), ``truth.json`` and its data files. ``seed`` (≥ 0) replaces the scene's
     ``[scene] seed``; the run's ``scene.toml`` is then the copy with that seed written in,
     so the run is still reproduced by its own scene file.
+
+    ``progress`` (:mod:`feeler.calib.progress`): None, a line per stage on stderr and a
+    bar over scans, frames or skin runs on a terminal (off a terminal, a line per skin
+    run); True, bars even off a terminal; False, silent.
 
     Raises:
         SceneError: the scene does not validate. OverwriteError: data exist and not ``force``.
@@ -51,7 +55,7 @@ def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = Fal
         raise SceneError(scene_path, "scene.kind", f"{kind!r} is not a scene to simulate{hint}; "
                                                    f"simulate takes {', '.join(sorted(SIMULATORS))}")
     module, func = SIMULATORS[kind].split(":")
-    getattr(importlib.import_module(module), func)(scene, scene_path, out, force)
+    getattr(importlib.import_module(module), func)(scene, scene_path, out, force, progress=progress)
     if seed is not None:
         copy = Path(out) / "scene.toml"
         copy.write_text(with_seed(Path(scene_path).read_text(encoding="utf-8"), seed), encoding="utf-8")
@@ -72,21 +76,21 @@ def with_seed(text: str, seed: int) -> str:
     return text[:head.end()] + body + text[stop:]
 
 
-def _simulate_calibration(scene, scene_path, out, force) -> None:
+def _simulate_calibration(scene, scene_path, out, force, progress=None) -> None:
     from feeler.simulate.calibration import simulate_sensor_calibration
 
-    simulate_sensor_calibration(scene, out, force=force, scene_path=scene_path)
+    simulate_sensor_calibration(scene, out, force=force, scene_path=scene_path, progress=progress)
 
 
-def _simulate_psychophysics(scene, scene_path, out, force) -> None:
+def _simulate_psychophysics(scene, scene_path, out, force, progress=None) -> None:
     from feeler.simulate.psychophysics import simulate_psychophysics
 
     prepare_out_dir(out, ["scene.toml"], force=force)
-    simulate_psychophysics(scene, out, force=force)
+    simulate_psychophysics(scene, out, force=force, progress=progress)
     shutil.copyfile(scene_path, Path(out) / "scene.toml")
 
 
-# scene kind → "module:function(scene, scene_path, out, force)"; imported only when used
+# scene kind → "module:function(scene, scene_path, out, force, progress=None)"; imported only when used
 SIMULATORS = {
     "robot-scan": "feeler.simulate.robot:simulate_robot_scan",
     "sensor-calibration": "feeler.simulate:_simulate_calibration",

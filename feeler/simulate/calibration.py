@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from feeler.calib.progress import stage
 from feeler.rundir import prepare_out_dir, write_json
 from feeler.scene import scene_as_dict
 from feeler.scenes.sensor_calibration import commanded_displacements
@@ -21,19 +22,22 @@ CALIBRATION_FILES = ("calibration.csv", "truth.json", "scene.toml")
 _HEADER = "point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n"
 
 
-def draw_campaign(scene, rng: np.random.Generator, scene_path=None,
-                  out_dir=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def draw_campaign(scene, rng: np.random.Generator, scene_path=None, out_dir=None,
+                  progress: bool | None = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Commanded U (mm), true U (mm) and measured F (N), each ndarray[n, 3].
 
     At an optical fidelity F is read through the element (areas or rendered frames) with
     the same ``rng`` after the stage errors; ``scene_path`` locates ``optics.layout``,
-    ``out_dir`` receives ``sensor.avi`` when ``optics.video``.
+    ``out_dir`` receives ``sensor.avi`` when ``optics.video``. ``progress``: None or True,
+    a line per stage on stderr (and at ``images`` a bar over the frames on a terminal);
+    False, silent.
     """
     u_cmd = commanded_displacements(scene.design)
     n = u_cmd.shape[0]
+    stage(f"simulating a calibration campaign of {n} points ({scene.sensor.fidelity} fidelity)", progress)
     u_true = u_cmd + scene.noise.stage_sd_mm * rng.standard_normal((n, 3))
     if scene.sensor.fidelity != "displacement":
-        return u_cmd, u_true, _optical_force(scene, u_true, rng, scene_path, out_dir)
+        return u_cmd, u_true, _optical_force(scene, u_true, rng, scene_path, out_dir, progress)
     k = np.linalg.inv(np.asarray(scene.sensor.c_mm_per_n, dtype=float))
     if scene.noise.kind == "student":
         eta = rng.standard_t(scene.noise.student_nu, size=(n, 3))
@@ -43,7 +47,8 @@ def draw_campaign(scene, rng: np.random.Generator, scene_path=None,
     return u_cmd, u_true, f
 
 
-def _optical_force(scene, u_true: np.ndarray, rng: np.random.Generator, scene_path, out_dir) -> np.ndarray:
+def _optical_force(scene, u_true: np.ndarray, rng: np.random.Generator, scene_path, out_dir,
+                   progress: bool | None = False) -> np.ndarray:
     """F (n, 3) N read through the optical element whose C is the scene's true C."""
     from feeler.errors import SceneError
     from feeler.models import sensor
@@ -52,7 +57,7 @@ def _optical_force(scene, u_true: np.ndarray, rng: np.random.Generator, scene_pa
 
     c = np.asarray(scene.sensor.c_mm_per_n, dtype=float)
     params = fidelity_params(scene.optics, scene.sensor.fidelity, scene_path=scene_path, out_dir=out_dir,
-                             c_mm_per_n=c)
+                             c_mm_per_n=c, progress=progress)
     u_read = sensor.observe(u_true[:, None, :], fidelity=scene.sensor.fidelity, params=params, rng=rng)[:, 0]
     bad = np.flatnonzero(np.isnan(u_read).any(axis=1))
     if bad.size:
@@ -62,7 +67,8 @@ def _optical_force(scene, u_true: np.ndarray, rng: np.random.Generator, scene_pa
 
 
 def simulate_sensor_calibration(scene, out_dir: str | Path, force: bool = False,
-                                scene_path: str | Path | None = None) -> dict[str, Path]:
+                                scene_path: str | Path | None = None,
+                                progress: bool | None = False) -> dict[str, Path]:
     """Write the campaign of ``scene`` into ``out_dir``.
 
     Args:
@@ -71,6 +77,7 @@ def simulate_sensor_calibration(scene, out_dir: str | Path, force: bool = False,
         force (bool): overwrite existing files.
         scene_path: the scene file, copied byte for byte to ``scene.toml`` when given;
             otherwise ``scene.toml`` is written from the validated scene.
+        progress (bool | None): as in :func:`draw_campaign`.
     Returns:
         dict with the paths ``calibration``, ``truth`` and ``scene``.
     Raises:
@@ -79,7 +86,7 @@ def simulate_sensor_calibration(scene, out_dir: str | Path, force: bool = False,
     video = scene.optics is not None and scene.optics.video and scene.sensor.fidelity == "images"
     out = prepare_out_dir(out_dir, CALIBRATION_FILES + (("sensor.avi",) if video else ()), force=force)
     rng = np.random.default_rng(scene.scene.seed)
-    u_cmd, u_true, f = draw_campaign(scene, rng, scene_path, out)
+    u_cmd, u_true, f = draw_campaign(scene, rng, scene_path, out, progress=progress)
     ids = np.arange(u_cmd.shape[0])
     table = np.column_stack([ids, u_cmd, f])
     np.savetxt(out / "calibration.csv", table, delimiter=",", header=_HEADER, comments="",

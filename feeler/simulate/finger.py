@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from feeler.calib.progress import progress as bar
+from feeler.calib.progress import stage
 from feeler.models.skin import SkinParams, StepProfile, loading_history, strain_history
 from feeler.models.skin.ladder import summarise
 from feeler.models.skin.mesh import MeshSpec
@@ -59,12 +60,20 @@ def mesh_spec_of(scene) -> MeshSpec:
 def finger_runs(scene, *, level: str | None = None, progress: bool | None = None) -> list[FingerRun]:
     """Strain histories for every (height, speed) of the scene, heights outer.
 
-    ``progress``: a bar on a terminal, otherwise a line per finished run with the time
-    left (:func:`feeler.calib.progress.progress`); False: silent."""
+    At L1 and L2 the finger is meshed and its stiffness assembled (L1: and the pressed
+    contact solved) once, as a stage of its own, before the runs that share it.
+
+    ``progress``: a line for that stage and a bar over the runs on a terminal, otherwise
+    a line per finished run with the time left (:func:`feeler.calib.progress.progress`);
+    False: silent."""
     params, spec = skin_params_of(scene), mesh_spec_of(scene)
     level = scene.model.level if level is None else level
     runs = []
     cases = [(h, v) for h in scene.steps.heights_um for v in scene.loading.speeds_mm_s]
+    if level in ("l1", "l2"):
+        what = "its stiffness and pressed contact" if level == "l1" else "its stiffness"
+        stage(f"skin {level.upper()}: meshing the finger, {what} (once for the {len(cases)} runs)", progress)
+        _prepare(level, params, spec)
     for height, speed in bar(cases, desc=f"skin runs ({level}, height x speed)", enabled=progress, lines=True):
         profile = StepProfile(height, scene.steps.position_mm, scene.steps.edge_um)
         dt = scene.loading.travel_step_mm / speed
@@ -74,16 +83,28 @@ def finger_runs(scene, *, level: str | None = None, progress: bool | None = None
     return runs
 
 
+def _prepare(level: str, params: SkinParams, spec: MeshSpec) -> None:
+    """Build (into the models' caches) what every run at ``level`` reuses: L1's influence
+    function (mesh, stiffness, pressed contact), L2's assembled finger."""
+    if level == "l1":
+        from feeler.models.skin.l1 import influence
+        influence(params, spec)
+    else:
+        from feeler.models.skin.fem import finger_fem
+        finger_fem(params, spec)
+
+
 def simulate_finger_steps(scene, out_dir: str | Path, force: bool = False,
-                          scene_path: str | Path | None = None) -> dict[str, Path]:
+                          scene_path: str | Path | None = None, progress: bool | None = None) -> dict[str, Path]:
     """Run the scene and write its files into ``out_dir``; returns {name: path}.
+    ``progress`` as in :func:`finger_runs`.
 
     Raises:
         OverwriteError: a file exists and not ``force``.
     """
     files = ["strain.csv", "truth.json"] + (["scene.toml"] if scene_path is not None else [])
     out = prepare_out_dir(out_dir, files, force=force)
-    runs = finger_runs(scene)
+    runs = finger_runs(scene, progress=progress)
     table = np.concatenate([np.column_stack([np.full(len(r.t_s), r.step_um), np.full(len(r.t_s), r.speed_mm_s),
                                              r.t_s, r.x_mm, r.eps_y + 0.0]) for r in runs])
     np.savetxt(out / "strain.csv", table, fmt=["%.6g", "%.6g", "%.9g", "%.9g", "%.12g"], delimiter=",",
@@ -101,6 +122,7 @@ def simulate_finger_steps(scene, out_dir: str | Path, force: bool = False,
     return {name: out / name for name in files}
 
 
-def simulate_finger_scene(scene, scene_path: str | Path, out: str | Path, force: bool) -> None:
+def simulate_finger_scene(scene, scene_path: str | Path, out: str | Path, force: bool,
+                          progress: bool | None = None) -> None:
     """The :data:`feeler.simulate.SIMULATORS` entry point for ``finger-steps`` scenes."""
-    simulate_finger_steps(scene, out, force=force, scene_path=scene_path)
+    simulate_finger_steps(scene, out, force=force, scene_path=scene_path, progress=progress)

@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from feeler.calib.progress import progress
+from feeler.calib.progress import progress as bar
+from feeler.calib.progress import stage
 from feeler.errors import ArgumentError
 from feeler.models.optics import (CameraParams, Layout, OpticsParams, areas_from_force,
                                   displacement_from_force, force_from_areas,
@@ -33,9 +34,12 @@ log = logging.getLogger(__name__)
 
 
 def frames_from_displacement(u_mm: np.ndarray, *, params: OpticsParams, layout: Layout,
-                             rng: np.random.Generator, camera: CameraParams | None = None) -> np.ndarray:
+                             rng: np.random.Generator, camera: CameraParams | None = None,
+                             progress: bool | None = False) -> np.ndarray:
     """Camera frames (n_groups · n_time, H, W) uint8 showing the series of ``u_mm``
-    (..., n_time, 3) packed onto the layout's elements as described in the module."""
+    (..., n_time, 3) packed onto the layout's elements as described in the module.
+    ``progress``: None or True, a line on stderr and a bar over the frames on a terminal
+    (True: everywhere); False, silent."""
     camera = CameraParams() if camera is None else camera
     series = _series(u_mm)
     n_series, n_time, _ = series.shape
@@ -45,13 +49,15 @@ def frames_from_displacement(u_mm: np.ndarray, *, params: OpticsParams, layout: 
     u[:n_series] = series
     areas = areas_from_force(force_from_displacement(u, params.c_matrix), params)
     per_frame = areas.reshape(n_groups, n_el, n_time, 4).transpose(0, 2, 1, 3).reshape(-1, n_el, 4)
+    stage(f"rendering {len(per_frame)} camera frames of {n_el} elements", progress)
+    chunks = range(0, len(per_frame), _CHUNK_FRAMES)
     return np.concatenate([render_frames(per_frame[i: i + _CHUNK_FRAMES], layout, camera, rng)
-                           for i in range(0, len(per_frame), _CHUNK_FRAMES)])
+                           for i in bar(chunks, desc=f"rendering batches of {_CHUNK_FRAMES} frames", enabled=progress)])
 
 
 def observe_images(u_mm: np.ndarray, *, params: OpticsParams, layout: Layout,
                    rng: np.random.Generator, video_path: str | Path | None = None,
-                   camera: CameraParams | None = None) -> np.ndarray:
+                   camera: CameraParams | None = None, progress: bool | None = False) -> np.ndarray:
     """Measured tip displacement at the `images` fidelity.
 
     Args:
@@ -63,6 +69,8 @@ def observe_images(u_mm: np.ndarray, *, params: OpticsParams, layout: Layout,
             (``.avi``/``.mkv`` FFV1 or a ``%05d.png`` pattern) and read back with
             ``cv2.VideoCapture``/``cv2.imread``; otherwise they are read in memory.
         camera (CameraParams | None): levels, blur and shot noise; default ``CameraParams()``.
+        progress (bool | None): None, a line per stage (render, write, read) on stderr and
+            bars over the frames on a terminal; True, bars everywhere; False, silent.
 
     Returns:
         ndarray[..., n_time, 3]: measured displacement (mm), NaN where a frame was bad.
@@ -71,17 +79,19 @@ def observe_images(u_mm: np.ndarray, *, params: OpticsParams, layout: Layout,
 
     camera = CameraParams() if camera is None else camera
     u = np.asarray(u_mm, dtype=float)
-    frames = frames_from_displacement(u, params=params, layout=layout, rng=rng, camera=camera)
+    frames = frames_from_displacement(u, params=params, layout=layout, rng=rng, camera=camera, progress=progress)
     n_el = len(layout.elements)
     areas = np.full((len(frames), n_el, 4), np.nan)
     if video_path is not None:
+        stage(f"writing {len(frames)} frames to {video_path} and reading them back", progress)
         write_video(frames, video_path)
         reading = read_source(video_path, layout, params, blur_sd_px=camera.blur_sd_px,
                               reject_frozen=bool(np.isfinite(camera.photons_per_level)))
         areas[reading.index] = reading.areas_px2
     else:
         extract = AreaExtractor(layout, blur_sd_px=camera.blur_sd_px)
-        for i, frame in enumerate(progress(frames, desc="reading frames")):
+        stage(f"reading the contact areas off {len(frames)} frames (OpenCV)", progress)
+        for i, frame in enumerate(bar(frames, desc="reading frames", enabled=progress)):
             found, problem = extract(frame)
             if problem is None:
                 areas[i] = found
@@ -105,12 +115,14 @@ def _series(u_mm: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class ImagesFidelity:
     """Everything the `images` fidelity needs, as one ``params`` object for
-    :func:`feeler.models.sensor.observe` (``optics``, ``layout``, ``camera``, ``video_path``)."""
+    :func:`feeler.models.sensor.observe` (``optics``, ``layout``, ``camera``, ``video_path``,
+    and ``progress`` as in :func:`observe_images`)."""
 
     optics: OpticsParams
     layout: Layout
     camera: CameraParams = CameraParams()
     video_path: str | None = None
+    progress: bool | None = False
 
 
 def register_optical_fidelities() -> None:
@@ -121,4 +133,4 @@ def register_optical_fidelities() -> None:
 
     register_fidelity("areas", lambda u, p, rng: observe_areas(u, params=p, rng=rng))
     register_fidelity("images", lambda u, p, rng: observe_images(
-        u, params=p.optics, layout=p.layout, rng=rng, video_path=p.video_path, camera=p.camera))
+        u, params=p.optics, layout=p.layout, rng=rng, video_path=p.video_path, camera=p.camera, progress=p.progress))

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from feeler.calib.progress import stage
 from feeler.models.psychometric import p_higher, sigma_from_dt
 from feeler.psydata import TRIAL_COLUMNS, write_trials
 from feeler.rundir import prepare_out_dir, write_json
@@ -68,13 +69,15 @@ def draw_trials(scene, truth: list[SubjectTruth], rng: np.random.Generator) -> p
     return pd.DataFrame(rows, columns=list(TRIAL_COLUMNS))
 
 
-def simulate_psychophysics(scene, out_dir: str | Path, force: bool = False) -> dict[str, Path]:
+def simulate_psychophysics(scene, out_dir: str | Path, force: bool = False,
+                           progress: bool | None = False) -> dict[str, Path]:
     """Write ``trials.csv`` and ``truth.json`` for ``scene`` into ``out_dir``.
 
     Args:
         scene: a loaded ``psychophysics-2afc`` scene.
         out_dir: run directory (created); existing files are kept unless ``force``.
         force (bool): overwrite existing ``trials.csv`` / ``truth.json``.
+        progress (bool | None): None or True, a line on stderr before the draws; False, silent.
     Returns:
         dict with the paths ``trials`` and ``truth``.
     Raises:
@@ -83,6 +86,7 @@ def simulate_psychophysics(scene, out_dir: str | Path, force: bool = False) -> d
     out = prepare_out_dir(out_dir, ("trials.csv", "truth.json"), force=force)
     rng = np.random.default_rng(scene.scene.seed)
     truth = draw_truth(scene, rng)
+    stage(f"drawing the 2AFC trials of {len(truth)} synthetic subject-conditions", progress)
     trials = draw_trials(scene, truth, rng)
     note = f"{SYNTHETIC_NOTE}\n{scene.scene.description}\nseed {scene.scene.seed}"
     write_trials(out / "trials.csv", trials, comment=note)

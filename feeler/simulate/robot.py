@@ -42,13 +42,14 @@ def plate_profile(surf, height_mm: float) -> surface.Profile:
     return surface.step(surf.position_mm, height_mm)
 
 
-def _sensor_params(scene, scene_path=None, out_dir=None):
+def _sensor_params(scene, scene_path=None, out_dir=None, progress: bool | None = False):
     if scene.sensor.fidelity == "displacement":
         n = scene.noise
         return sensor.DisplacementNoise(n.ux_sd_mm, n.uy_sd_mm, n.uz_sd_mm)
     from feeler.scenes._optics import fidelity_params
 
-    return fidelity_params(scene.optics, scene.sensor.fidelity, scene_path=scene_path, out_dir=out_dir)
+    return fidelity_params(scene.optics, scene.sensor.fidelity, scene_path=scene_path, out_dir=out_dir,
+                           progress=progress)
 
 
 def simulate_scans(scene, *, scene_path=None, out_dir=None,
@@ -59,8 +60,8 @@ def simulate_scans(scene, *, scene_path=None, out_dir=None,
     elements, :mod:`feeler.simulate.images`) with one extra child of the seed; ``scene_path``
     locates ``optics.layout``, ``out_dir`` receives ``sensor.avi`` when ``optics.video``.
 
-    ``progress``: a line per stage on stderr and a bar over the scans on a terminal
-    (:mod:`feeler.calib.progress`); False: silent.
+    ``progress``: a line per stage on stderr and a bar over the scans (and, at ``images``,
+    over the frames) on a terminal (:mod:`feeler.calib.progress`); False: silent.
 
     Raises:
         SceneError: frames rejected by the reader (``optics`` too blurred or noisy).
@@ -77,7 +78,7 @@ def simulate_scans(scene, *, scene_path=None, out_dir=None,
                                drift_sd_mm_s=p.drift_sd_mm_s, shear_per_normal=p.shear_per_normal,
                                breakaway_frac=p.breakaway_frac, breakaway_s=p.breakaway_s,
                                snap_prob=p.snap_prob)
-    noise = _sensor_params(scene, scene_path, out_dir)
+    noise = _sensor_params(scene, scene_path, out_dir, progress)
     fidelity = scene.sensor.fidelity
     per_plate = scene.repeats.scans_per_plate
     heights = scene.surface.heights_mm
@@ -97,8 +98,7 @@ def simulate_scans(scene, *, scene_path=None, out_dir=None,
         t_all.append(t), x_all.append(x), u_all.append(u_true)
         touches.append({"scan_id": scan_id, "plate": plate, "step_mm": height, **asdict(touch)})
     u = np.stack(u_all)
-    if fidelity == "images":
-        stage(f"rendering and reading the camera frames of {n} scans", progress)
+    if fidelity == "images":                   # its stages: rendering, (video,) reading the frames
         u = sensor.observe(u, fidelity=fidelity, params=noise, rng=np.random.default_rng(children[n]))
         bad = np.flatnonzero(np.isnan(u).any(axis=(1, 2)))
         if bad.size:
@@ -134,18 +134,21 @@ def _write_features_csv(path: Path, scans: Scans, feats, per_plate: int) -> None
                header="scan_id,plate,step_mm,peak_z,jump_uy_mm,peak_rate_uy_mm_s", comments="")
 
 
-def simulate_robot_scan(scene, scene_path: str | Path, out: str | Path, force: bool) -> None:
-    """Robot-scan scenes: ``scans.csv`` (and ``features.csv`` when asked)."""
+def simulate_robot_scan(scene, scene_path: str | Path, out: str | Path, force: bool,
+                        progress: bool | None = None) -> None:
+    """Robot-scan scenes: ``scans.csv`` (and ``features.csv`` when asked); ``progress`` as
+    in :func:`simulate_scans`."""
     outputs = set(scene.scene.outputs)
     files = ["scene.toml", "truth.json", "scans.csv"] + (["features.csv"] if "features" in outputs else [])
     if scene.optics is not None and scene.optics.video and scene.sensor.fidelity == "images":
         files.append("sensor.avi")
     out = prepare_out_dir(out, files, force=force)
-    scans, touches = simulate_scans(scene, scene_path=scene_path, out_dir=out)
+    scans, touches = simulate_scans(scene, scene_path=scene_path, out_dir=out, progress=progress)
     shutil.copyfile(scene_path, out / "scene.toml")
     write_json(out / "truth.json", {"scene": scene_as_dict(scene), "n_time": int(scans.t_s.shape[1]),
                                     "touches": touches})
     per_plate = scene.repeats.scans_per_plate
     _write_scans_csv(out / "scans.csv", scans, per_plate)
     if "features" in outputs:
+        stage(f"features of {scans.scan_id.size} scans (the scene's neuron)", progress)
         _write_features_csv(out / "features.csv", scans, features_of(scene, scans), per_plate)

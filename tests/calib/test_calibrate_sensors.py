@@ -22,12 +22,13 @@ def elements(tmp_path_factory):
     return paths
 
 
-def test_local_cluster_equals_serial(elements, tmp_path, capsys):
+def test_local_cluster_equals_serial(elements, tmp_path, capfd):
     assert main(["calibrate", "sensors", *elements, "--out", str(tmp_path / "serial"),
                  "--scheduler", "serial", "--no-progress"]) == 0
     assert main(["calibrate", "sensors", *elements, "--out", str(tmp_path / "dask"), "--no-progress"]) == 0
-    out = capsys.readouterr().out
+    out, err = capfd.readouterr()                # file descriptors: the worker processes' stderr too
     assert out.count(" ok ") >= 4
+    assert err == ""                             # no dask log line without -v, from here or a worker
     for name in ("elem1", "elem2"):
         a = pd.read_csv(tmp_path / "serial" / name / "summary.csv")
         b = pd.read_csv(tmp_path / "dask" / name / "summary.csv")

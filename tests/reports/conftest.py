@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from feeler.cli import main
+from tests.small_scenes import small_finger_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "datasets-synthetic"
@@ -27,16 +28,7 @@ def small_scenes(tmp: Path) -> tuple[Path, dict]:
     text = (SCENES / "four-plates.toml").read_text(encoding="utf-8")
     robot.write_text(text.replace('name = "four-plates"', f'name = "{EVIL}"')
                      .replace("scans_per_plate = 24", "scans_per_plate = 6"), encoding="utf-8")
-    finger = tmp / "finger-small.toml"
-    text = (SCENES / "finger-steps.toml").read_text(encoding="utf-8")
-    for old, new in (("heights_um = [5.0, 7.5, 10.0, 12.5, 15.0]", "heights_um = [5.0, 10.0, 15.0]"),
-                     ("travel_step_mm = 0.01 ", "travel_step_mm = 0.05 "), ("h_contact_mm = 0.0177", "h_contact_mm = 0.05"),
-                     ("h_corpuscle_mm = 0.0071", "h_corpuscle_mm = 0.02"), ("h_far_mm = 0.567", "h_far_mm = 1.5"),
-                     ("grade = 0.25", "grade = 0.4")):
-        assert old in text, old
-        text = text.replace(old, new)
-    finger.write_text(text, encoding="utf-8")
-    return robot, {"finger-steps": finger}
+    return robot, {"finger-steps": small_finger_scene(tmp / "finger-small.toml")}
 
 
 @pytest.fixture(scope="session")

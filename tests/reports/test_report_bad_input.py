@@ -49,7 +49,7 @@ def test_cli_corrupt_netcdf_exit_2(part_run, capsys):
     (run / "m4" / "posterior.nc").write_bytes(b"not a netcdf file")
     assert main(["report", str(run), "--no-pdf", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 2 and "m4/posterior.nc" in err[1] and err[1].startswith("feeler: error:")
+    assert len(err) == 1 and "m4/posterior.nc" in err[0] and err[0].startswith("feeler: error:")
 
 
 def test_run_dir_must_be_a_directory(tmp_path, capsys):

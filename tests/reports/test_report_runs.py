@@ -6,15 +6,14 @@ from __future__ import annotations
 import base64
 import json
 import os
-import pty
 import shutil
-import subprocess
 import sys
 
 import pytest
 
 from feeler.cli import main
 from feeler.reports import build_report, discover
+from tests.cli._run import in_a_pty
 
 
 def _sections(report) -> list[str]:
@@ -146,37 +145,51 @@ def test_an_empty_directory_lists_what_each_section_needs(tmp_path, capsys):
     assert len(pdfium.PdfDocument(tmp_path / "run" / "report.pdf")) == 2          # first page + appendix
 
 
-def test_progress_is_a_line_per_stage_off_a_terminal(run_dir, tmp_path, capsys):
+def test_progress_is_a_line_per_stage_and_figure_off_a_terminal(run_dir, tmp_path, capsys):
     fit = shutil.copytree(run_dir / "m2", tmp_path / "m2")
     assert main(["report", str(fit), "--no-pdf"]) == 0
     err = capsys.readouterr().err.splitlines()
     assert err[0] == f"feeler report: reading {fit} ..."
+    figures = [f["title"] for f in json.loads((fit / "report-manifest.json").read_text(encoding="utf-8"))["figures"]]
+    assert len(figures) >= 2                                              # the lines below are a real check
     assert err[1:] == ["report: reading the run ...",
                        "report: section 1/1: M2: neuron (a, τ, h) and decoder noise (./) ...",
+                       *[f"report: section 1/1, figure {k}: {t} ..." for k, t in enumerate(figures, 1)],
                        "report: first page ...", "report: html ..."]
     assert main(["report", str(fit), "--no-pdf", "--no-progress"]) == 0
-    assert capsys.readouterr().err.splitlines() == [f"feeler report: reading {fit} ..."]
+    assert capsys.readouterr().err == ""                       # as every command: no first line either
+
+
+def test_figures_are_counted_over_the_report(run_dir, tmp_path, capsys):
+    mix = tmp_path / "mix"
+    shutil.copytree(run_dir / "m1", mix / "m1")
+    shutil.copytree(run_dir / "m2", mix / "m2")
+    assert main(["report", str(mix), "--no-pdf"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    drawn = [ln for ln in err if ", figure " in ln]
+    n = len(json.loads((mix / "report-manifest.json").read_text(encoding="utf-8"))["figures"])
+    assert [int(ln.split(", figure ")[1].split(":")[0]) for ln in drawn] == list(range(1, n + 1))
+    assert {ln.split(",")[0] for ln in drawn} == {"report: section 1/2", "report: section 2/2"}
+
+
+def test_the_pdf_stage_says_each_step_and_page(tmp_path, capsys):
+    (tmp_path / "run").mkdir()
+    assert main(["report", str(tmp_path / "run")]) == 0
+    err = capsys.readouterr().err.splitlines()
+    pdf = err[err.index("report: html ...") + 1:]
+    assert pdf == ["report: pdf: loading WeasyPrint ...", "report: pdf: parsing the html ...",
+                   "report: pdf: applying the styles ...", "report: pdf: building the boxes ...",
+                   "report: pdf: laying out page 1 ...", "report: pdf: laying out page 2 ...",
+                   "report: pdf: writing the file ..."]                  # the empty report has 2 pages
+    import logging
+    steps = logging.getLogger("weasyprint.progress")
+    assert steps.handlers == [] and steps.propagate and steps.level == logging.NOTSET     # left as found
 
 
 def test_progress_bar_on_a_terminal(run_dir, tmp_path):
     fit = shutil.copytree(run_dir / "m2", tmp_path / "m2")
-    master, slave = pty.openpty()
     env = dict(os.environ, MPLBACKEND="Agg", COLUMNS="100")
-    proc = subprocess.Popen([sys.executable, "-m", "feeler", "report", str(fit), "--no-pdf"], stdin=subprocess.DEVNULL,
-                            stdout=subprocess.DEVNULL, stderr=slave, env=env)
-    os.close(slave)
-    chunks = []
-    while True:
-        try:
-            data = os.read(master, 4096)
-        except OSError:
-            break
-        if not data:
-            break
-        chunks.append(data)
-    assert proc.wait(timeout=120) == 0
-    os.close(master)
-    text = b"".join(chunks).decode("utf-8", "replace")
+    text = in_a_pty([sys.executable, "-m", "feeler", "report", str(fit), "--no-pdf"], env=env, stdout=False)
     assert "report: section 1/1: M2: neuron" in text and "\r" in text                       # a bar redrawn in place
     assert "report: section 1/1: M2: neuron (a, τ, h) and decoder noise (./) ...\n" not in text.replace("\r\n", "\n")
 

@@ -1,0 +1,105 @@
+"""--progress/--no-progress honoured by the commands that used to ignore it: decode (a line
+per decision, also with --follow), discriminate (a line per pair off a terminal, then the
+threshold and PSE stages), fit finger-route (its fit and check stages). Off a terminal the
+default is a line per stage; --no-progress leaves stderr empty and the results unchanged."""
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from feeler.cli import main
+from tests.cli._run import ROOT
+
+SCENES = ROOT / "datasets-synthetic"
+
+
+@pytest.fixture(scope="module")
+def neuron(tmp_path_factory) -> tuple:
+    """(M2 fit directory, its simulated four-plates run with 6 scans per plate)."""
+    tmp = tmp_path_factory.mktemp("neuron")
+    scene = tmp / "four-plates-small.toml"
+    text = (SCENES / "four-plates.toml").read_text(encoding="utf-8")
+    assert "scans_per_plate = 24" in text
+    scene.write_text(text.replace("scans_per_plate = 24", "scans_per_plate = 6"), encoding="utf-8")
+    assert main(["simulate", str(scene), "--out", str(tmp / "run"), "--no-progress"]) == 0
+    assert main(["calibrate", "neuron", str(tmp / "run"), "--out", str(tmp / "m2"), "--draws", "300",
+                 "--no-progress"]) == 0
+    return tmp / "m2", tmp / "run"
+
+
+def test_decode_a_line_per_decision_and_none_with_no_progress(neuron, tmp_path, capsys):
+    fit, run = neuron
+    capsys.readouterr()
+    assert main(["decode", str(fit), str(run), "--n-draws", "40", "--out", str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith("feeler decode: ") and len(err) > 1
+    assert all(ln.startswith("scan ") for ln in err[1:]) and any(": decided " in ln for ln in err[1:])
+    assert main(["decode", str(fit), str(run), "--n-draws", "40", "--out", str(tmp_path / "b"), "--no-progress"]) == 0
+    out = capsys.readouterr()
+    assert out.err == "" and "wrote" in out.out
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "a" / "decisions.csv"),
+                                  pd.read_csv(tmp_path / "b" / "decisions.csv"))
+
+
+def test_decode_follow_with_no_progress(neuron, tmp_path, capsys):
+    """--follow on a run nobody writes any more: decoded as far as it goes, in silence."""
+    fit, run = neuron
+    live = tmp_path / "live"
+    live.mkdir()
+    pd.read_csv(run / "scans.csv").to_csv(live / "samples.csv", index=False)
+    capsys.readouterr()
+    assert main(["decode", str(fit), str(live), "--follow", "--poll-s", "0.02", "--wait-s", "1", "--n-draws", "40",
+                 "--no-progress"]) == 0
+    out = capsys.readouterr()
+    assert out.err == "" and f"wrote {live / 'decisions.csv'}" in out.out
+    assert len(pd.read_csv(live / "decisions.csv")) == 24
+
+
+def test_discriminate_a_line_per_pair_then_its_stages(neuron, tmp_path, capsys):
+    fit, _ = neuron
+    argv = ["discriminate", str(fit), "--n-scans", "30", "--n-draws", "20", "--pair", "0", "0.1",
+            "--pair", "0.1", "0.2"]
+    capsys.readouterr()
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    lines = err.splitlines()[1:]
+    assert [ln.split(" done")[0] for ln in lines[:2]] == ["2AFC pairs: 1/2", "2AFC pairs: 2/2"]
+    assert lines[2:] == ["difference threshold at 75 % around 0.1 mm ...",
+                         "PSE of 0.1 mm between 0.5 and 1 mm/s ..."]
+    assert main([*argv, "--no-progress"]) == 0
+    quiet = capsys.readouterr()
+    assert quiet.err == "" and quiet.out == out
+
+
+def test_finger_route_says_what_it_fits(tmp_path, capsys):
+    data = tmp_path / "psy"
+    assert main(["simulate", str(SCENES / "psychophysics-2afc.toml"), "--out", str(data), "--no-progress"]) == 0
+    capsys.readouterr()
+    argv = ["fit", "finger-route", str(data / "trials.csv"), "--n-tau", "31", "--draws", "200"]
+    assert main(argv) in (0, 1)
+    out, err = capsys.readouterr()
+    assert err.splitlines()[1:] == ["fitting tau, sigma_d and the lapse through skin l0 -> neuron -> observer "
+                                    "(31 tau nodes) ..."]
+    assert main([*argv, "--no-progress"]) in (0, 1)
+    quiet = capsys.readouterr()
+    assert quiet.err == "" and _untimed(quiet.out) == _untimed(out)
+
+
+def _untimed(text: str) -> list[str]:
+    """The lines of a fit's output without its timing line ("backend ..., 0.194 s")."""
+    return [ln for ln in text.splitlines() if not ln.startswith("backend ")]
+
+
+def test_demo_passes_no_progress_to_its_simulation(tmp_path, capsys):
+    from feeler.demo import STAGES, run_demo
+
+    scene = tmp_path / "four-plates-small.toml"
+    scene.write_text((SCENES / "four-plates.toml").read_text(encoding="utf-8")
+                     .replace("scans_per_plate = 24", "scans_per_plate = 6"), encoding="utf-8")
+    said = []
+    run_demo(tmp_path / "a", scene_path=scene, stages=STAGES[:1], echo=said.append)
+    assert said == ["[1/1] simulate ..."]
+    assert capsys.readouterr().err == "simulating 24 scans of 4 plates (displacement fidelity) ...\n"
+    said.clear()
+    run_demo(tmp_path / "b", scene_path=scene, stages=STAGES[:1], echo=said.append, progress=False)
+    assert said == [] and capsys.readouterr().err == ""
