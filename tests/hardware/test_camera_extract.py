@@ -73,3 +73,24 @@ def test_dark_window_reads_zero_and_a_bright_one_is_rejected():
     w = LAYOUT.window_px
     glow[y - w + 2: y + w - 1, x - w + 2: x + w - 1] += 30  # diffuse light below the threshold
     assert AreaExtractor(LAYOUT)(glow)[1] == "no disc found in the bright window of element 1 feeler 3"
+
+
+@pytest.mark.parametrize("blur_sd_px", [0.8, 1.125, 1.2, 2.0])   # 1.125: depth 5.0, a tie at an integer distance
+def test_interior_and_levels_equal_the_distance_transform_and_masked_means(blur_sd_px):
+    """The extractor's disc interior (an erosion by the Euclidean disc) is exactly the set
+    of pixels whose precise distance transform reaches the depth, and its masked means
+    equal ``cv2.mean`` — on discs of many sizes, with noise, and on random masks."""
+    rng = np.random.default_rng(11)
+    ex = AreaExtractor(LAYOUT, blur_sd_px=blur_sd_px)
+    cam = CameraParams(blur_sd_px=blur_sd_px)
+    for area in (40.0, 150.0, 300.0, 600.0):
+        f = render_frames(np.full((1, 4, 4), area), LAYOUT, cam, rng)[0]
+        _, binary = cv2.threshold(f, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
+        depth = cv2.distanceTransform(binary, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+        ours = cv2.erode(binary, ex._interior_disc) > 0
+        np.testing.assert_array_equal(ours, depth >= ex._depth_px)
+        mask = np.where(rng.random(f.shape) < 0.3, 255, 0).astype(np.uint8)
+        from feeler.hardware.camera.extract import _masked_mean
+        assert _masked_mean(f, mask, cv2.countNonZero(mask)) == pytest.approx(cv2.mean(f, mask=mask)[0], rel=1e-12)
+        assert _masked_mean(f, ex._outside, ex._n_outside) == pytest.approx(cv2.mean(f, mask=ex._outside)[0],
+                                                                            rel=1e-12)
