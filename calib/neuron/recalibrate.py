@@ -58,7 +58,8 @@ def recalibrated(log_prob: np.ndarray, sharpness: float = 1.0, floor: float = 0.
     q = q - log_sum_exp(q, axis=-1, keepdims=True)
     if floor == 0.0:
         return q
-    return np.logaddexp(np.log1p(-floor) + q, np.log(floor / lp.shape[-1]))
+    with np.errstate(divide="ignore"):          # a subnormal floor / C rounds to 0: log 0 = −inf, no floor
+        return np.logaddexp(np.log1p(-floor) + q, np.log(floor / lp.shape[-1]))
 
 
 def fit_sharpness(loo_log_prob: np.ndarray, group: np.ndarray, *, floor: float = FLOOR) -> float:

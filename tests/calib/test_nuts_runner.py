@@ -95,12 +95,13 @@ def _in_a_new_process(data, tmp_path) -> dict:
 def test_new_processes_loading_the_cache_draw_the_same(first, data, tmp_path):
     """Once the compiled model is cached, every process draws the same bits for a seed.
     The process that compiled it rounds differently in the last bits (its JIT-compiled
-    graph against the cached object code; see feeler.calib.nuts): equal to rounding here,
-    where the chains do not amplify it."""
+    graph against the cached object code; see feeler.calib.nuts), and NUTS trajectories
+    amplify a last-bit difference: equal here to 1e-6 (measured: 1e-9 idle, up to 7e-9
+    in one chain of a run under `make test-load`)."""
     one, two = _in_a_new_process(data, tmp_path), _in_a_new_process(data, tmp_path)
     assert one["cache"] == two["cache"] == "hit"
     assert one["mu"] == two["mu"]
-    np.testing.assert_allclose(np.array(one["mu"]), first["posterior"]["mu"].values.ravel(), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(np.array(one["mu"]), first["posterior"]["mu"].values.ravel(), rtol=1e-6, atol=1e-9)
 
 
 def test_var_names_cut_the_posterior(data):
