@@ -39,7 +39,7 @@ from feeler.calib.neuron.synth import HARD_SCENES, scene_scans
 from feeler.models import neuron
 
 FULL = os.environ.get("FEELER_FULL") == "1"
-REPLICATES = 20 if FULL else 6
+REPLICATES = 20 if FULL else 5
 FRESH = 400 if FULL else 150
 SCENES = sorted(Path(HARD_SCENES).glob("*.toml"))
 ROWS = []
