@@ -18,7 +18,7 @@ import pytest
 from _ratios import LOADS, Timed, busy_loops, record_median_ratio
 
 ROOT = Path(__file__).resolve().parents[1]
-ROUNDS = int(os.environ.get("FEELER_BENCH_CLI_ROUNDS", "4"))
+ROUNDS = int(os.environ.get("FEELER_BENCH_CLI_ROUNDS", "3"))
 ENV = {**os.environ, "MPLBACKEND": "Agg", "NUMBA_CACHE_DIR": str(ROOT / ".cache" / "numba")}
 
 

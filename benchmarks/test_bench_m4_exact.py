@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "psy"))
 pytest.importorskip("psignifit")
 from psignifit_ref import grid_summary, psignifit_fit  # noqa: E402
 
-ROUNDS = int(os.environ.get("FEELER_BENCH_ROUNDS", "5"))
+ROUNDS = int(os.environ.get("FEELER_BENCH_ROUNDS", "3"))
 FINE = {"threshold": 100, "width": 100, "lambda": 40}
 
 

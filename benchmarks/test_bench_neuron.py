@@ -77,7 +77,7 @@ def test_256_channels_streamed_vs_copy(benchmark):
             # loaded: a tenth of the stream per round (each round takes seconds on a busy machine)
             timed = (Timed(call=np.asarray(benchmark.stats.stats.data), base=np.asarray(copy.times))
                      if n == 0 else Timed.interleaved(lambda: run(n_chunks // 10), lambda: copies(n_chunks // 10),
-                                                      rounds=5, warmup=0))
+                                                      rounds=3, warmup=0))
         record_median_ratio(benchmark, "throughput / copy (256 ch)", timed, ">= 0.5", load=load)
 
 

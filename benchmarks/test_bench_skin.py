@@ -20,7 +20,7 @@ PARAMS, MESH, PROFILE, SPEED = SkinParams(), MeshSpec().refined(2.0), StepProfil
 def l2_seconds():
     influence(PARAMS, MESH)          # setup outside the timing (cached)
     return best_seconds(lambda: strain_history(PROFILE, SPEED, level="l2", params=PARAMS, mesh=MESH),
-                        repeat=3)
+                        repeat=2)
 
 
 @pytest.mark.parametrize("level, goal", [("l1", 100.0), ("l0", 1e4)])
