@@ -3,11 +3,15 @@
 Cold means empty compile caches: a fresh numba cache directory and a fresh pytensor
 compile directory, in a new process. The same run is then repeated warm (caches filled),
 the baseline of the ratio. The absolute seconds are printed and attached to the JSON.
+Two whole demos, one of them compiling every model cold (~1.5–2 min): run with
+``FEELER_FULL=1`` (``make bench`` stays within 10 minutes without it).
 """
 import os
 import subprocess
 import sys
 import time
+
+import pytest
 
 from _ratios import record_ratio
 
@@ -19,6 +23,7 @@ def _demo(out, env) -> float:
     return time.perf_counter() - t0
 
 
+@pytest.mark.skipif(os.environ.get("FEELER_FULL") != "1", reason="two whole demos, one cold: FEELER_FULL=1 (1.5-2 min)")
 def test_demo_cold_start(benchmark, tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), MPLBACKEND="Agg",
                PYTENSOR_FLAGS=f"base_compiledir={tmp_path / 'pytensor'}")
