@@ -41,3 +41,14 @@ def test_first_line_comes_before_the_heavy_imports(tmp_path):
 def test_no_progress_means_no_first_line():
     out = feeler("calibrate", "sensor", ROOT / "nowhere", "--no-progress")
     assert out.returncode == 2 and out.stderr.splitlines()[0].startswith("feeler: error: ")
+
+
+def test_classify_with_a_grid_fit_needs_neither_pymc_nor_arviz_nor_scipy_stats(tmp_path):
+    """`classify` decodes with the stored draws: no sampler, no ArviZ, and no scipy.stats
+    (0.4 s of imports; the Student-t of the fit's leave-one-out is imported by the fit alone)."""
+    assert feeler("simulate", "datasets-synthetic/four-plates.toml", "--out", tmp_path / "fp").returncode == 0
+    assert feeler("calibrate", "neuron", tmp_path / "fp", "--out", tmp_path / "m2").returncode == 0
+    loaded = _modules_after(["classify", str(tmp_path / "m2"), str(tmp_path / "fp"), "--out", str(tmp_path / "cl")])
+    assert (tmp_path / "cl" / "classification.csv").is_file()
+    unwanted = tuple(m for m in HEAVY if m not in ("dask", "distributed")) + ("scipy.stats", "matplotlib")
+    assert [m for m in unwanted if m in loaded] == []
