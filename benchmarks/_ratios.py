@@ -23,7 +23,19 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["best_seconds", "record_ratio", "BaselineBetweenRounds", "RATIOS", "seconds_of", "Timed",
-           "record_median_ratio", "busy_loops", "LOADS"]
+           "record_median_ratio", "busy_loops", "LOADS", "FULL", "full_only"]
+
+# FEELER_FULL=1: heavy validations at full size, and the benchmarks only it runs (full_only)
+FULL = os.environ.get("FEELER_FULL") == "1"
+
+
+def full_only(what: str):
+    """A mark that skips a benchmark unless ``FEELER_FULL=1``; ``what`` says what it runs
+    and how long it takes (the skip reason)."""
+    import pytest
+
+    return pytest.mark.skipif(not FULL, reason=f"{what}: FEELER_FULL=1")
+
 
 # (name, ratio, goal) from record_ratio; (name, ratio, goal, extra columns) from record_median_ratio
 RATIOS: list[tuple] = []

@@ -3,8 +3,8 @@
 Each command runs as a subprocess (``python -m feeler ...``) on the shipped scenes; its
 wall time is set beside ``python -c "import numpy"`` timed in the same run (interleaved),
 idle (``make bench``; with two busy-loop processes under ``make bench-load``, which runs
-the whole suite loaded: each command takes seconds, and both loads would cost ``make
-bench`` a minute and a half). Goals (wall at idle on the 2-core machine):
+the whole suite loaded: each command takes seconds, and the loaded rounds cost ``make
+bench`` over a minute). Goals (wall at idle on the 2-core machine):
 ``feeler --help`` ≤ 0.3 s, ``calibrate sensor`` (exact) ≤ 2 s, ``calibrate neuron``
 (grid) ≤ 4 s, ``classify`` ≤ 3 s. The ratio recorded is call / baseline (lower is
 better); the medians in seconds are in the benchmark's extra_info.

@@ -3,7 +3,7 @@
 Cold means empty compile caches: a fresh numba cache directory and a fresh pytensor
 compile directory, in a new process. The same run is then repeated warm (caches filled),
 the baseline of the ratio. The absolute seconds are printed and attached to the JSON.
-Two whole demos, one of them compiling every model cold (~1.5–2 min): run with
+Two whole demos, one of them compiling every model cold (77–108 s measured): run with
 ``FEELER_FULL=1`` (``make bench`` stays within 10 minutes without it).
 """
 import os
@@ -11,9 +11,7 @@ import subprocess
 import sys
 import time
 
-import pytest
-
-from _ratios import record_ratio
+from _ratios import full_only, record_ratio
 
 
 def _demo(out, env) -> float:
@@ -23,7 +21,7 @@ def _demo(out, env) -> float:
     return time.perf_counter() - t0
 
 
-@pytest.mark.skipif(os.environ.get("FEELER_FULL") != "1", reason="two whole demos, one cold: FEELER_FULL=1 (1.5-2 min)")
+@full_only("two whole demos, one cold (77-108 s measured)")
 def test_demo_cold_start(benchmark, tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), MPLBACKEND="Agg",
                PYTENSOR_FLAGS=f"base_compiledir={tmp_path / 'pytensor'}")

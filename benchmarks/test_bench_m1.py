@@ -8,14 +8,13 @@ chains are 50 autocorrelation times long with R-hat ≤ 1.01 and bulk ESS ≥ 40
 (closed-form posterior + 4 000 independent draws + C = K⁻¹ per draw) is timed against one
 ``np.linalg.lstsq`` of the same design in the same run; the goal is ≤ 10 ms absolute.
 """
-import os
 import time
 import warnings
 
 import numpy as np
 import pytest
 
-from _ratios import best_seconds, record_ratio
+from _ratios import best_seconds, full_only, record_ratio
 from feeler.calib.matrix import CalibrationData, MatrixPrior, fit_matrix
 from feeler.calib.matrix.exact import exact_posterior
 from feeler.scene import load_scene
@@ -24,7 +23,6 @@ from feeler.simulate.calibration import draw_campaign
 SCENE = load_scene("datasets-synthetic/sensor-calibration.toml")
 PRIOR = MatrixPrior(c0_mm_per_n=SCENE.prior.c0_mm_per_n, rel_sd=SCENE.prior.rel_sd,
                     sigma_f_scale_n=SCENE.prior.sigma_f_scale_n)
-FULL = os.environ.get("FEELER_FULL") == "1"
 NAMES = [f"C[{i},{j}]" for i in range(3) for j in range(3)] + [f"sigma_n[{j}]" for j in range(3)]
 
 
@@ -49,7 +47,7 @@ def _fit(data, backend, **kw):
 # emcee on the shipped data runs until its chains are 50 autocorrelation times long: 2-3 min
 # per model here, a third of `make bench`. Its stopping rule is tested at small size in
 # tests/calib/test_emcee_run.py; the shipped-data run is part of FEELER_FULL=1.
-EMCEE_FULL_ONLY = pytest.mark.skipif(not FULL, reason="emcee on the shipped data: FEELER_FULL=1 (2-3 min)")
+EMCEE_FULL_ONLY = full_only("emcee on the shipped data (2-3 min)")
 
 
 @pytest.mark.parametrize("backend, kw", [("exact", {}), ("nuts", {"draws": 1000, "tune": 1000}),

@@ -10,17 +10,15 @@ the shipped data must be ok. The reference is 4 × 1500 NUTS draws (4 × 4000 wi
 ``FEELER_FULL=1``): its Monte Carlo error, 1/√ESS of a posterior sd (a few per cent), is below the
 errors it judges.
 """
-import os
 import warnings
 
 import numpy as np
 import pytest
 
-from _ratios import record_ratio
+from _ratios import FULL, full_only, record_ratio
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.synth import scene_scans
 
-FULL = os.environ.get("FEELER_FULL") == "1"
 REF_DRAWS, REF_TUNE = (4000, 2000) if FULL else (1500, 1000)    # NUTS reference per chain (4 chains)
 NAMES = ("a", "tau_s", "h", "sigma_mm", "plate_mean_mm[1]", "plate_sd_mm[2]")
 RESULTS = {}
@@ -60,7 +58,7 @@ def _errors(s, ref):
 # emcee on the shipped data runs until its chains are 50 autocorrelation times long: 2-3 min
 # per model here, a third of `make bench`. Its stopping rule is tested at small size in
 # tests/calib/test_emcee_run.py; the shipped-data run is part of FEELER_FULL=1.
-EMCEE_FULL_ONLY = pytest.mark.skipif(not FULL, reason="emcee on the shipped data: FEELER_FULL=1 (2-3 min)")
+EMCEE_FULL_ONLY = full_only("emcee on the shipped data (2-3 min)")
 
 
 @pytest.mark.parametrize("backend, kw", [("grid", {}), ("nuts", {"draws": 1000, "tune": 1000}),

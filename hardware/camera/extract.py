@@ -103,9 +103,9 @@ class AreaExtractor:
         else:
             peak = float(self.levels[1])
         reach = cv2.dilate(binary, self._dilate)
-        table = self._integral(reach)
-        n_mask = self._window_sums(table=table, inset=0) // 255
-        if np.any(n_mask != self._window_sums(table=table, inset=1) // 255):
+        table = _integral(reach)
+        n_mask = self._table_sums(table) // 255
+        if np.any(n_mask != self._table_sums(table, inset=1) // 255):
             return nan, "a disc reaches the edge of its feeler window"
         light = self._window_sums(cv2.bitwise_and(frame, reach)) - background * n_mask
         areas = light / (peak - background)
@@ -118,22 +118,22 @@ class AreaExtractor:
             areas[empty] = 0.0
         return areas.reshape(-1, 4), None
 
-    @staticmethod
-    def _integral(image: np.ndarray) -> np.ndarray:
-        return cv2.integral(image.view(np.uint8), sdepth=cv2.CV_64F)
+    def _window_sums(self, image: np.ndarray, inset: int = 0) -> np.ndarray:
+        """Σ of ``image`` over every feeler window shrunk by ``inset`` px (n_feelers,)."""
+        return self._table_sums(_integral(image), inset)
 
-    def _window_sums(self, image: np.ndarray | None = None, inset: int = 0, *,
-                     table: np.ndarray | None = None) -> np.ndarray:
-        """Σ of ``image`` (or of the image whose integral is ``table``) over every feeler
-        window shrunk by ``inset`` px (n_feelers,)."""
-        if table is None:
-            table = self._integral(image)
+    def _table_sums(self, table: np.ndarray, inset: int = 0) -> np.ndarray:
+        """:meth:`_window_sums` from the image's integral ``table`` (one table, many insets)."""
         x0, y0 = self._x0 + inset, self._y0 + inset
         x1, y1 = x0 + self._size - 2 * inset, y0 + self._size - 2 * inset
         return table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]
 
 
+def _integral(image: np.ndarray) -> np.ndarray:
+    return cv2.integral(image.view(np.uint8), sdepth=cv2.CV_64F)
+
+
 def _masked_mean(frame: np.ndarray, mask: np.ndarray, n: int) -> float:
     """Mean of ``frame`` over the ``n`` pixels where the 0/255 ``mask`` is set (a masked
-    ``cv2.mean`` costs ~0.4 ms on a 640×480 frame, this ~0.05 ms)."""
+    ``cv2.mean`` took 0.3–0.4 ms on the extractor's masks of a 640×480 frame, this ~0.02 ms)."""
     return cv2.sumElems(cv2.bitwise_and(frame, mask))[0] / n if n else 0.0

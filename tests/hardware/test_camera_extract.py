@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from feeler.hardware.camera import AreaExtractor
+from feeler.hardware.camera.extract import _masked_mean
 from feeler.models.optics import CameraParams, grid_layout, render_frames
 
 LAYOUT = grid_layout(2, 2, width_px=320, height_px=240)
@@ -90,7 +91,6 @@ def test_interior_and_levels_equal_the_distance_transform_and_masked_means(blur_
         ours = cv2.erode(binary, ex._interior_disc) > 0
         np.testing.assert_array_equal(ours, depth >= ex._depth_px)
         mask = np.where(rng.random(f.shape) < 0.3, 255, 0).astype(np.uint8)
-        from feeler.hardware.camera.extract import _masked_mean
         assert _masked_mean(f, mask, cv2.countNonZero(mask)) == pytest.approx(cv2.mean(f, mask=mask)[0], rel=1e-12)
         assert _masked_mean(f, ex._outside, ex._n_outside) == pytest.approx(cv2.mean(f, mask=ex._outside)[0],
                                                                             rel=1e-12)
