@@ -94,3 +94,43 @@ def test_interior_and_levels_equal_the_distance_transform_and_masked_means(blur_
         assert _masked_mean(f, mask, cv2.countNonZero(mask)) == pytest.approx(cv2.mean(f, mask=mask)[0], rel=1e-12)
         assert _masked_mean(f, ex._outside, ex._n_outside) == pytest.approx(cv2.mean(f, mask=ex._outside)[0],
                                                                             rel=1e-12)
+
+
+def test_integral_in_int32_is_exact_up_to_a_saturated_full_frame():
+    """The window sums' integral images are int32: exact while 255 × the pixel count fits,
+    checked on the worst case (a white 640×480 frame) against float64."""
+    from feeler.hardware.camera.extract import _integral
+
+    rng = np.random.default_rng(5)
+    for img in (np.full((480, 640), 255, np.uint8), rng.integers(0, 256, (480, 640), dtype=np.uint8)):
+        work = np.empty((481, 641), np.int32)
+        ours = _integral(img, work)
+        assert ours.dtype == np.int32 and np.shares_memory(ours, work)
+        np.testing.assert_array_equal(ours, cv2.integral(img, sdepth=cv2.CV_64F))
+
+
+def test_one_extractor_shared_by_threads_gives_every_frame_its_own_result():
+    """The extractor keeps its work images per thread: four threads reading the same
+    frames in different orders (rejected frames among them) each get exactly the result a
+    fresh extractor gives that frame alone."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    rng = np.random.default_rng(8)
+    frames = list(render_frames(rng.uniform(120.0, 500.0, (12, 4, 4)), LAYOUT, CAM, rng))
+    bad = frames[3].copy()
+    x, y = centre(0, 0)
+    bad[y - 2: y + 3, x - 40: x - 35] = 250                               # a blob between the windows
+    frames.append(bad)
+    alone = [AreaExtractor(LAYOUT)(f) for f in frames]
+    assert alone[-1][1] is not None and all(p is None for _, p in alone[:-1])
+    shared = AreaExtractor(LAYOUT)
+
+    def read_all(order):
+        return order, [shared(frames[i]) for i in order]
+
+    orders = [rng.permutation(len(frames)) for _ in range(4)]
+    with ThreadPoolExecutor(4) as pool:
+        for order, results in pool.map(read_all, orders * 3):
+            for i, (areas, problem) in zip(order, results):
+                assert problem == alone[i][1]
+                np.testing.assert_array_equal(areas, alone[i][0])
