@@ -28,7 +28,10 @@ yet done; Ctrl-C or SIGTERM stop a run cleanly (exit 130, RUN/summary.json says 
 frames and bad status lines are logged, counted and never used; RUN/summary.json reports the
 counts. Displacement is read as U = C F with C the posterior mean of an M1 fit
 (--calibration DIR) or the nominal optics. Progress goes to stderr: a live line on a
-terminal, a line per finished scan otherwise (--no-progress: none).
+terminal, a line per finished scan otherwise (--no-progress: none). --realtime runs the
+acquisition loop (frames, areas, decoding) at real-time priority where the system permits
+it (root, CAP_SYS_NICE or `ulimit -r`), so that a busy machine does not delay a frame by a
+scheduler tick; stderr says whether it was granted, and without it the run goes on as usual.
 """
 from __future__ import annotations
 
@@ -64,6 +67,9 @@ def register(parser) -> None:
     parser.add_argument("--decode", metavar="FIT_DIR", default=None,
                         help="decode every scan while acquiring with this neuron fit (feeler calibrate neuron "
                              "--out): RUN/decisions.csv, as `feeler decode`, and a line per decision")
+    parser.add_argument("--realtime", action="store_true",
+                        help="run the acquisition loop at real-time priority (SCHED_FIFO 10) if the system "
+                             "permits: root, CAP_SYS_NICE or ulimit -r; otherwise say why and run as usual")
     parser.set_defaults(run=run)
 
 
@@ -72,13 +78,13 @@ def _interrupt(signum, frame):
 
 
 def run(args) -> int:
+    import contextlib
     import logging
     import signal
+    import sys
 
     from feeler.errors import ArgumentError
-    from feeler.hardware.acquire import acquire
     from feeler.hardware.acquire.progress import Progress
-    from feeler.hardware.emulators import parse_fault
 
     signal.signal(signal.SIGTERM, _interrupt)      # stop like Ctrl-C: the summary says why
     if args.emulate and args.stage is not None:
@@ -92,20 +98,34 @@ def run(args) -> int:
     for progress in observers:
         for handler in handlers:
             handler.addFilter(progress.clear)
-    try:
-        summary = acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,
-                          emulate=args.emulate, resume=args.resume, force=args.force,
-                          calibration=args.calibration,
-                          emulator_faults=tuple(parse_fault(spec) for spec in args.fault),
-                          unlock=args.unlock, home=args.home, late_fraction=args.late_fraction,
-                          observers=observers + decoding)
-    finally:
-        for progress in observers:
-            for handler in handlers:
-                handler.removeFilter(progress.clear)
+    with contextlib.ExitStack() as stack:
+        if args.realtime:
+            from feeler.hardware.realtime import DEFAULT_PRIORITY, realtime_priority
+
+            refused = stack.enter_context(realtime_priority())
+            print(f"feeler: {refused}; acquiring at the normal priority" if refused else
+                  f"feeler: acquisition loop at real-time priority (SCHED_FIFO {DEFAULT_PRIORITY})", file=sys.stderr)
+        summary = _acquire(args, observers, decoding, handlers)
     state = "complete" if summary["complete"] else "incomplete"
     print(f"{args.out}: {summary['scans_done']} of {summary['scans_planned']} scans ({state}), "
           f"{summary['samples_written']} samples, {summary['bad_frames']} bad frames, "
           f"{summary['bad_lines']} bad lines, {summary['late_samples']} late samples, "
           f"{summary['partial_lines_dropped']} partial lines dropped")
     return 0 if summary["complete"] else 1
+
+
+def _acquire(args, observers, decoding, handlers) -> dict:
+    from feeler.hardware.acquire import acquire
+    from feeler.hardware.emulators import parse_fault
+
+    try:
+        return acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,
+                       emulate=args.emulate, resume=args.resume, force=args.force,
+                       calibration=args.calibration,
+                       emulator_faults=tuple(parse_fault(spec) for spec in args.fault),
+                       unlock=args.unlock, home=args.home, late_fraction=args.late_fraction,
+                       observers=observers + decoding)
+    finally:
+        for progress in observers:
+            for handler in handlers:
+                handler.removeFilter(progress.clear)
