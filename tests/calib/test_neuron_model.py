@@ -142,3 +142,23 @@ def test_height_belt_on_a_straight_curve_is_z_plus_minus_1645_sd():
     np.testing.assert_allclose(hi, z[0] + stats.norm.ppf(0.95) * 0.01, atol=1e-9)
     low = dec.height(np.array([[-0.01]]))                   # below the flat plate: clipped at 0, 0 covered
     assert low[1][0] == 0.0 and low[0][0] == 0.0 and low[2][0] > 0
+
+
+def test_height_belt_at_the_floor_is_one_sided_and_holds_90_percent_at_every_step():
+    """No step lies below 0, so at δ = 0 the band keeps every reading below its 90 %
+    quantile (one-sided), turning central over two sds: 0 is inside the interval exactly
+    when z ≤ m₀ + 1.2816·s₀, and at every true step near and away from the floor 90 % of
+    readings give an interval holding it (the clipped central belt held 95 % at δ = 0)."""
+    sd = 0.01
+    dec = _fixed([0.0, 0.1, 0.2], [sd] * 3, a=1.0, h=0.0, steps=(0.0, 0.1, 0.2))
+    q90 = stats.norm.ppf(0.9) * sd
+    _, lo, hi = dec.height(np.array([[-0.03, 0.0, q90 - 1e-7, q90 + 1e-7, 0.03]]))
+    np.testing.assert_array_equal(lo[:3], 0.0)
+    assert np.all(lo[3:] > 0) and np.all(hi > lo)
+    rng = np.random.default_rng(4)
+    n = 20000
+    for delta in (0.0, 0.005, 0.01, 0.02, 0.05, 0.1):
+        z = delta + sd * rng.standard_normal((1, n))
+        _, lo, hi = dec.height(z)
+        cover = np.mean((lo <= delta) & (delta <= hi))
+        assert abs(cover - 0.9) < 3 * np.sqrt(0.09 / n), (delta, cover)
