@@ -89,14 +89,14 @@ class AreaExtractor:
     def __call__(self, frame: np.ndarray) -> tuple[np.ndarray, str | None]:
         n_feelers = 4 * len(self.layout.elements)
         nan = np.full((n_feelers // 4, 4), np.nan)
-        buf = self._buffers()
-        binary = buf["binary"]
+        buf = self._buffers()          # OpenCV writes into them (and returns them) when the frame has their shape
         if self.levels is None:
             background = _masked_mean(frame, self._outside, self._n_outside, buf["light"])
-            cv2.threshold(frame, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU, dst=binary)
+            _, binary = cv2.threshold(frame, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU, dst=buf["binary"])
         else:
             background = float(self.levels[0])
-            cv2.threshold(frame, 0.5 * (self.levels[0] + self.levels[1]), 255, cv2.THRESH_BINARY, dst=binary)
+            _, binary = cv2.threshold(frame, 0.5 * (self.levels[0] + self.levels[1]), 255, cv2.THRESH_BINARY,
+                                      dst=buf["binary"])
         contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
         boxes = np.array([cv2.boundingRect(c) for c in contours], dtype=int).reshape(-1, 4)
         boxes = boxes[boxes[:, 2] * boxes[:, 3] >= _SPECK_PX]
