@@ -39,8 +39,8 @@ from feeler.calib.neuron.synth import HARD_SCENES, scene_scans
 from feeler.models import neuron
 
 FULL = os.environ.get("FEELER_FULL") == "1"
-REPLICATES = 20 if FULL else 5
-FRESH = 400 if FULL else 150
+REPLICATES = 20 if FULL else 10
+FRESH = 400 if FULL else 100
 SCENES = sorted(Path(HARD_SCENES).glob("*.toml"))
 ROWS = []
 
