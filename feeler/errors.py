@@ -6,6 +6,8 @@ caller can act on them without parsing the message.
 """
 from __future__ import annotations
 
+import os
+
 __all__ = [
     "FeelerError",
     "InputError",
@@ -72,10 +74,18 @@ class OverwriteError(InputError):
 
 
 def _short(value: object, limit: int = 60) -> str:
+    """``repr(value)`` within ``limit`` characters: a long path keeps its end (the file
+    that names it, whatever directory the checkout lies in), anything else its start."""
     if type(value).__module__ == "numpy" and getattr(value, "ndim", None) == 0:
         value = value.item()                     # inf, not np.float64(inf)
+    if isinstance(value, os.PathLike):
+        value = os.fspath(value)
     text = repr(value)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+    if len(text) <= limit:
+        return text
+    if isinstance(value, str) and ("/" in value or os.sep in value):
+        return text[0] + "..." + text[-(limit - 4):]
+    return text[: limit - 3] + "..."
 
 
 class CalibrationFailed(FeelerError):
