@@ -35,10 +35,10 @@ default 400 draws.
   A frame (~2 ms since the extractor reuses its work images; 3–5 ms before) is longer
   than the slice the kernel protects (0.75 ms), so under two busy loops about one frame
   in ten waits a scheduler tick (4 ms at HZ = 250) behind a busy loop: paced p99
-  loaded/idle 1.7–2.2. Frames are also measured ``paced, --realtime``: the loop at
+  loaded/idle 1.5–2.1. Frames are also measured ``paced, --realtime``: the loop at
   real-time priority as ``feeler acquire --realtime`` runs it
   (:mod:`feeler.hardware.realtime`; where the system permits it, else the row says why
-  it was not measured): 0.9–1.0. An idle core that slept clocks down with cold caches,
+  it was not measured): 0.8–1.0. An idle core that slept clocks down with cold caches,
   so paced idle medians are up to ~2× back-to-back's.
 - Wall and CPU time: every per-sample figure is given twice, as wall time and as CPU time
   (``CPU …``: this thread's for ``push``, the process's — OpenCV's workers included — for

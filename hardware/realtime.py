@@ -5,8 +5,8 @@ for about one base slice (0.75 ms) before a busy neighbour may take the core bac
 it checks at the next scheduler tick (every 4 ms at ``CONFIG_HZ=250``). A live decoder's
 sample (~0.3 ms) fits in that slice; a camera frame (~2 ms: areas of 16 elements → force
 → displacement → decode) does not, and with both cores busy about one frame in ten
-waits a tick behind a neighbour (measured: p99 loaded/idle 1.7–2.1, p90 loaded 4–7 ms
-against a 2.4 ms median; ``benchmarks/test_bench_live.py``). No request of a longer fair
+waits a tick behind a neighbour (measured: p99 loaded/idle 1.5–2.1, p90 loaded 4–7 ms
+against a 2–3 ms median; ``benchmarks/test_bench_live.py``). No request of a longer fair
 slice helps (the kernel protects at most one base slice); a real-time policy does.
 
 :func:`realtime_priority` runs a block with the calling thread under ``SCHED_FIFO``
