@@ -24,7 +24,6 @@ recorded beside the measured values (ratios), not asserted — only the scene's 
 range, the condition of the comparison, is. With ``FEELER_FULL=1`` more replicates and
 fresh touches.
 """
-import os
 import warnings
 from pathlib import Path
 
@@ -32,13 +31,12 @@ import numpy as np
 import pytest
 from scipy.special import logsumexp
 
-from _ratios import record_ratio
+from _ratios import FULL, record_ratio
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.classify import classify, expected_calibration_error, log_loss
 from feeler.calib.neuron.synth import HARD_SCENES, scene_scans
 from feeler.models import neuron
 
-FULL = os.environ.get("FEELER_FULL") == "1"
 REPLICATES = 20 if FULL else 10
 FRESH = 400 if FULL else 100
 SCENES = sorted(Path(HARD_SCENES).glob("*.toml"))

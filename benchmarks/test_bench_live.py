@@ -33,8 +33,8 @@ default 400 draws.
   is, most likely, scheduled ahead of the busy loops (the kernel's EEVDF scheduler
   places a task that slept by its lag): paced push p99 loaded/idle measured 0.8–1.0.
   A frame (~2 ms since the extractor reuses its work images; 3–5 ms before) is longer
-  than the slice the kernel protects (0.75 ms), so under two busy loops about one frame
-  in ten waits a scheduler tick (4 ms at HZ = 250) behind a busy loop: paced p99
+  than the fair scheduler's base slice (0.75 ms by default), so under two busy loops up to
+  one frame in ten waits a scheduler tick (4 ms at HZ = 250) behind a busy loop: paced p99
   loaded/idle 1.5–2.1. Frames are also measured ``paced, --realtime``: the loop at
   real-time priority as ``feeler acquire --realtime`` runs it
   (:mod:`feeler.hardware.realtime`; where the system permits it, else the row says why
@@ -65,18 +65,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from _ratios import LOADS, busy_loops, record_ratio
+from _ratios import FULL, LOADS, busy_loops, record_ratio
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.live import LiveDecoder
 from feeler.calib.neuron.live.trade import decision_index, end_row, record_pass, trade_rows
 from feeler.calib.neuron.synth import HARD_SCENES, scene_scans
 from feeler.hardware.realtime import realtime_priority
 
-FULL = os.environ.get("FEELER_FULL") == "1"
 FRESH = 150 if FULL else 40
 FRAME_SCANS = 24 if FULL else 12       # scans rendered as camera frames (41 frames each)
 GAP_S = 0.005                          # s between paced samples (push)
-GAP_FRAME_S = 0.015                    # s between paced frames (push_frame, ~5 ms each)
+GAP_FRAME_S = 0.015                    # s between paced frames (push_frame, ~2 ms each)
 ARRIVALS = {"paced": True, "back to back": False}
 #: frames: (gap s, real-time priority as ``feeler acquire --realtime``) per arrival
 FRAME_ARRIVALS = {"paced": (GAP_FRAME_S, False), "back to back": (0.0, False),

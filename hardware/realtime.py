@@ -1,13 +1,14 @@
 """Real-time scheduling for the acquisition loop, where the system permits it.
 
 On a shared machine the kernel's fair scheduler (EEVDF) lets a thread that woke up run
-for about one base slice (0.75 ms) before a busy neighbour may take the core back, and
-it checks at the next scheduler tick (every 4 ms at ``CONFIG_HZ=250``). A live decoder's
-sample (~0.3 ms) fits in that slice; a camera frame (~2 ms: areas of 16 elements → force
-→ displacement → decode) does not, and with both cores busy about one frame in ten
-waits a tick behind a neighbour (measured: p99 loaded/idle 1.5–2.1, p90 loaded 4–7 ms
-against a 2–3 ms median; ``benchmarks/test_bench_live.py``). No request of a longer fair
-slice helps (the kernel protects at most one base slice); a real-time policy does.
+for about one base slice (0.75 ms by default) before a busy neighbour may take the core
+back, and it looks at the next scheduler tick (every 4 ms on this kernel, ``CONFIG_HZ=250``).
+A live decoder's sample (~0.3 ms) fits in that; a camera frame (~2 ms: areas of 16
+elements → force → displacement → decode) does not, and with both cores busy up to one
+frame in ten waits a tick behind a neighbour (measured: p99 loaded/idle 1.5–2.1, p90
+loaded 4–7 ms against a 2–3 ms median; ``benchmarks/test_bench_live.py``). Requesting
+another fair slice (sched_setattr, 0.1–10 ms) did not help (1.8–3.4); a real-time policy
+does (0.8–1.0).
 
 :func:`realtime_priority` runs a block with the calling thread under ``SCHED_FIFO``
 (with ``SCHED_RESET_ON_FORK``, so child processes such as the stage emulator start at the
@@ -46,15 +47,17 @@ def realtime_priority(priority: int = DEFAULT_PRIORITY):
         yield "real-time scheduling is not available on this system"
         return
     before = (os.sched_getscheduler(0), os.sched_getparam(0))
+    refused = None
     try:
-        limit = min(priority, os.sched_get_priority_max(os.SCHED_FIFO))
-        os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(limit))
+        level = min(priority, os.sched_get_priority_max(os.SCHED_FIFO))
+        os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(level))
     except PermissionError:
-        yield (f"real-time priority {priority} not permitted (needs root, CAP_SYS_NICE or a real-time "
-               f"priority limit: ulimit -r is {_rtprio_limit()})")
-        return
+        refused = (f"real-time priority {priority} not permitted (needs root, CAP_SYS_NICE or a real-time "
+                   f"priority limit: ulimit -r is {_rtprio_limit()})")
     except OSError as exc:
-        yield f"real-time priority {priority} refused by the system: {exc.strerror or exc}"
+        refused = f"real-time priority {priority} refused by the system: {exc.strerror or exc}"
+    if refused is not None:       # yielded outside the handler: errors of the block are not chained to it
+        yield refused
         return
     try:
         yield None

@@ -26,6 +26,7 @@ of the scan by calling these two methods.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.special import ndtr
@@ -160,8 +161,11 @@ class DecoderDraws:
         plate at the nominal rate instead of (1 + prob)/2 — the clipping at 0 alone gave
         a one-sided 95 % (0.97–0.98 measured on the hard scenes)."""
         tail = (1.0 - prob) / 2
-        w = np.ones_like(delta)
-        if self.steps_mm[0] >= 0:
-            s0 = 2.0 * float(np.median(self.sd_mm[:, 0]))
-            w = np.clip(delta / s0, 0.0, 1.0)
+        w = np.clip(delta / self._floor_ramp_mm, 0.0, 1.0)
         return np.stack([prob + tail * w[:, 0], np.full(delta.shape[0], 0.5), tail * w[:, 2]], axis=1)
+
+    @cached_property
+    def _floor_ramp_mm(self) -> float:
+        """2 s₀ over which the belt turns central past a step of 0 (mm); 0 when steps
+        below 0 exist (central everywhere)."""
+        return 2.0 * float(np.median(self.sd_mm[:, 0])) if self.steps_mm[0] >= 0 else 0.0

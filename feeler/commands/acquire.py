@@ -84,7 +84,9 @@ def run(args) -> int:
     import sys
 
     from feeler.errors import ArgumentError
+    from feeler.hardware.acquire import acquire
     from feeler.hardware.acquire.progress import Progress
+    from feeler.hardware.emulators import parse_fault
 
     signal.signal(signal.SIGTERM, _interrupt)      # stop like Ctrl-C: the summary says why
     if args.emulate and args.stage is not None:
@@ -94,38 +96,26 @@ def run(args) -> int:
     if args.decode:                                # the fit is checked before anything moves
         from feeler.calib.neuron.live.observer import decode_observer
         decoding = (decode_observer(args.decode, args.out, observers, force=args.force or args.resume),)
-    handlers = logging.getLogger().handlers
-    for progress in observers:
-        for handler in handlers:
-            handler.addFilter(progress.clear)
-    with contextlib.ExitStack() as stack:
+    with contextlib.ExitStack() as stack:          # undone in reverse: priority first, then the log filters
+        for progress in observers:
+            for handler in logging.getLogger().handlers:
+                handler.addFilter(progress.clear)
+                stack.callback(handler.removeFilter, progress.clear)
         if args.realtime:
             from feeler.hardware.realtime import DEFAULT_PRIORITY, realtime_priority
 
             refused = stack.enter_context(realtime_priority())
             print(f"feeler: {refused}; acquiring at the normal priority" if refused else
                   f"feeler: acquisition loop at real-time priority (SCHED_FIFO {DEFAULT_PRIORITY})", file=sys.stderr)
-        summary = _acquire(args, observers, decoding, handlers)
+        summary = acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,
+                          emulate=args.emulate, resume=args.resume, force=args.force,
+                          calibration=args.calibration,
+                          emulator_faults=tuple(parse_fault(spec) for spec in args.fault),
+                          unlock=args.unlock, home=args.home, late_fraction=args.late_fraction,
+                          observers=observers + decoding)
     state = "complete" if summary["complete"] else "incomplete"
     print(f"{args.out}: {summary['scans_done']} of {summary['scans_planned']} scans ({state}), "
           f"{summary['samples_written']} samples, {summary['bad_frames']} bad frames, "
           f"{summary['bad_lines']} bad lines, {summary['late_samples']} late samples, "
           f"{summary['partial_lines_dropped']} partial lines dropped")
     return 0 if summary["complete"] else 1
-
-
-def _acquire(args, observers, decoding, handlers) -> dict:
-    from feeler.hardware.acquire import acquire
-    from feeler.hardware.emulators import parse_fault
-
-    try:
-        return acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,
-                       emulate=args.emulate, resume=args.resume, force=args.force,
-                       calibration=args.calibration,
-                       emulator_faults=tuple(parse_fault(spec) for spec in args.fault),
-                       unlock=args.unlock, home=args.home, late_fraction=args.late_fraction,
-                       observers=observers + decoding)
-    finally:
-        for progress in observers:
-            for handler in handlers:
-                handler.removeFilter(progress.clear)

