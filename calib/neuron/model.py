@@ -183,8 +183,8 @@ class Priors:
         return out
 
     def bounds(self) -> dict[str, tuple[float, float]]:
-        """Hard prior bounds (for the piling check)."""
-        return {"tau_s": (self.tau_lo_s, self.tau_hi_s)}
+        """Hard prior bounds (for the piling check); ln τ is uniform between them."""
+        return {"tau_s": (self.tau_lo_s, self.tau_hi_s, "log")}
 
 
 def make_priors(table: PeakTable, *, growth_max: float = 3.0, plate: PlatePrior = PlatePrior()) -> Priors:

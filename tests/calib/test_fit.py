@@ -108,6 +108,29 @@ def test_parameter_piling_against_prior_bound_is_flagged():
     assert res2.verdict.ok
 
 
+def test_piling_on_a_log_uniform_prior_is_measured_in_ln_tau():
+    """A window τ with ln τ ~ Uniform(ln 0.5, ln 10) that the data do not constrain is not
+    piling: on a linear strip (0.5-0.595 s) its prior alone holds 5.8 % of the draws and
+    failed the verdict; in ln τ the strip holds 1 %. Draws pressed against 0.5 still fail."""
+    rng = np.random.default_rng(7)
+    prior_like = np.exp(rng.uniform(np.log(0.5), np.log(10.0), size=(4, 2000)))
+    assert np.mean(prior_like <= 0.5 + 0.01 * 9.5) > 0.05           # the linear strip would flag it
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DiagnosticWarning)
+        res = make_result(posterior_from_draws({"tau_s": prior_like}), backend="exact", priors={},
+                          seconds=0, bounds={"tau_s": (0.5, 10.0, "log")})
+    assert res.verdict.ok
+    pressed = 0.5 * np.exp(np.abs(rng.normal(0, 0.05, size=(4, 2000))))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DiagnosticWarning)
+        res = make_result(posterior_from_draws({"tau_s": pressed}), backend="exact", priors={},
+                          seconds=0, bounds={"tau_s": (0.5, 10.0, "log")})
+    strip = 0.5 * 20.0 ** 0.01                                         # 1 % of ln(10/0.5) above 0.5
+    share = 100 * np.mean(pressed <= strip)                            # 2Φ(0.6) − 1 ≈ 45 %
+    assert res.verdict.problems == ("tau_s: posterior piles against its lower prior bound 0.5 "
+                                    f"({share:.0f} % of draws below {strip:.3g})",)
+
+
 def test_require_ok():
     good = FitResult(None, pd.DataFrame(), Verdict(True))
     bad = FitResult(None, pd.DataFrame(), Verdict(False, ("a: R-hat 1.2 > 1.01", "h: bulk ESS 3 < 400")))
