@@ -29,6 +29,7 @@ class Classification:
             the predictive belt, always inside its interval) and its 90 % interval, mm.
         p_at_tau (ndarray[S, n_scans]): each scan's P at each draw's window; tau_s (ndarray[S]):
             those windows, s (for the training-envelope checks).
+        note (str | None): why posterior draws were left out, if any (:attr:`DecoderDraws.note`).
     """
     plates_mm: np.ndarray
     log_prob: np.ndarray
@@ -37,6 +38,7 @@ class Classification:
     hi90_mm: np.ndarray
     p_at_tau: np.ndarray | None = None
     tau_s: np.ndarray | None = None
+    note: str | None = None
 
     @property
     def prob(self) -> np.ndarray:
@@ -107,7 +109,7 @@ def classify(result, strain, t_s, *, rng: np.random.Generator, n_draws: int = 40
     p = peaks_of(strain, t_s, grid, dec.tau_s, kernel=kernel)
     height, lo, hi = dec.height(p)
     return Classification(plates_mm=dec.steps_mm, log_prob=dec.class_log_prob(p), height_mm=height,
-                          lo90_mm=lo, hi90_mm=hi, p_at_tau=p, tau_s=dec.tau_s)
+                          lo90_mm=lo, hi90_mm=hi, p_at_tau=p, tau_s=dec.tau_s, note=dec.note)
 
 
 def expected_calibration_error(prob, true_index, *, n_bins: int = 10) -> float:

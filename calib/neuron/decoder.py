@@ -25,6 +25,7 @@ of the scan by calling these two methods.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -34,7 +35,9 @@ from scipy.special import ndtr
 from feeler.calib.neuron.recalibrate import log_sum_exp, recalibrated
 from feeler.errors import ArgumentError
 
-__all__ = ["DecoderDraws", "curve_at"]
+__all__ = ["DecoderDraws", "curve_at", "MAX_UNDECODABLE"]
+
+MAX_UNDECODABLE = 0.05      # share of posterior draws without a decodable line that is left out, not refused
 
 
 def curve_at(delta: np.ndarray, steps: np.ndarray, mean: np.ndarray, sd: np.ndarray):
@@ -58,6 +61,8 @@ class DecoderDraws:
         tau_s, a, h (ndarray[S]): window (s), gain (mm per unit strain), offset (mm).
         mean_mm, sd_mm (ndarray[S, C]): each plate's decoded-height mean and sd, mm.
         sharpness, floor (float): γ and ε of the plate probabilities (:mod:`.recalibrate`).
+        undecodable, n_posterior (int): draws of the posterior left out because their line
+            has no positive slope (the plates are not ordered at their τ: a = NaN), of all.
     """
     steps_mm: np.ndarray
     tau_s: np.ndarray
@@ -67,6 +72,8 @@ class DecoderDraws:
     sd_mm: np.ndarray
     sharpness: float = 1.0
     floor: float = 0.0
+    undecodable: int = 0
+    n_posterior: int = 0
 
     @classmethod
     def from_result(cls, result, *, rng: np.random.Generator | None = None, n_draws: int | None = None):
@@ -86,21 +93,33 @@ class DecoderDraws:
         out = cls(steps_mm=np.asarray(obs["plate_steps_mm"].values, float), tau_s=flat("tau_s"), a=flat("a"),
                   h=flat("h"), mean_mm=flat("plate_mean_mm"), sd_mm=flat("plate_sd_mm"),
                   sharpness=float(post.attrs.get("prob_sharpness", 1.0)), floor=float(post.attrs.get("prob_floor", 0.0)))
-        if n_draws is not None and n_draws < out.a.size:
-            if rng is None:
-                raise ArgumentError("rng", None, "a numpy Generator to subsample draws")
-            out = out.take(rng.choice(out.a.size, size=n_draws, replace=False))
         if out.steps_mm.size < 2:
             raise ArgumentError("posterior labels", f"{out.steps_mm.size} plate", ">= 2 plates to decode")
         bad = ~np.isfinite(np.column_stack([out.tau_s, out.a, out.h, out.mean_mm, out.sd_mm])).all(axis=1)
-        if bad.any() or np.any(out.sd_mm <= 0):
-            raise ArgumentError("posterior", f"{int(bad.sum())} draws with a non-finite or zero-spread decoder",
-                                "a fit whose plates can be decoded (see its verdict)")
-        return out
+        bad |= ~np.all(out.sd_mm > 0, axis=1)                     # NaN compares False: bad too
+        if bad.mean() > MAX_UNDECODABLE:
+            raise ArgumentError("posterior", f"{int(bad.sum())} of {bad.size} draws with a non-finite or zero-spread "
+                                f"decoder", f"a fit whose plates can be decoded (at most {MAX_UNDECODABLE:.0%} such "
+                                "draws; see its verdict)")
+        good = np.flatnonzero(~bad)
+        if n_draws is not None and n_draws < good.size:
+            if rng is None:
+                raise ArgumentError("rng", None, "a numpy Generator to subsample draws")
+            good = rng.choice(good, size=n_draws, replace=False)
+        out = out.take(good) if good.size < out.size else out
+        return dataclasses.replace(out, undecodable=int(bad.sum()), n_posterior=int(bad.size))
+
+    @property
+    def note(self) -> str | None:
+        """One line for the user when draws were left out, else None."""
+        if not self.undecodable:
+            return None
+        return (f"note: {self.undecodable} of {self.n_posterior} posterior draws left out: their plate means "
+                f"do not rise with the step at their window, so no height can be decoded from them")
 
     def take(self, idx) -> "DecoderDraws":
-        return DecoderDraws(self.steps_mm, self.tau_s[idx], self.a[idx], self.h[idx], self.mean_mm[idx],
-                            self.sd_mm[idx], self.sharpness, self.floor)
+        return dataclasses.replace(self, tau_s=self.tau_s[idx], a=self.a[idx], h=self.h[idx],
+                                   mean_mm=self.mean_mm[idx], sd_mm=self.sd_mm[idx])
 
     @property
     def size(self) -> int:

@@ -124,7 +124,7 @@ class Discriminator:
 
         rng = np.random.default_rng(seed)
         dec = DecoderDraws.from_result(result, rng=rng, n_draws=n_draws)
-        self.a, self.tau, self.h = dec.a, dec.tau_s, dec.h
+        self.a, self.tau, self.h, self.note = dec.a, dec.tau_s, dec.h, dec.note
         attrs = result.posterior["posterior"].attrs
         self.log_tau = np.asarray(result.posterior["observed_data"]["log_tau_grid"].values, float)
         self.kernel, self.length_mm = str(attrs.get("kernel", "boxcar")), float(attrs.get("length_mm", np.nan))

@@ -66,6 +66,8 @@ def run(args) -> int:
     for sid, f in zip(table.scan_id, flags):
         if f:
             print(f"scan {sid} flagged: {'; '.join(f)}")
+    if c.note:
+        print(c.note)
     summary = labelled_summary(table, c.plates_mm)
     print(summary or f"{len(table)} unlabelled scans (no step_mm column): no accuracy to report")
     if args.out:

@@ -92,6 +92,8 @@ def _decoder(args):
 
     live = LiveDecoder(load_checked(args), seed=args.seed, n_draws=args.n_draws, threshold=args.threshold,
                        drop=args.drop)
+    if live.dec.note:
+        print(live.dec.note)
     if args.progress is False:                          # --no-progress: no live line, no line per decision
         return RunDecoder(live)
     view = LiveView(live.plates_mm, live=args.live)

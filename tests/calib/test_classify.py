@@ -152,3 +152,26 @@ def test_degenerate_posteriors_are_refused_not_nan(fitted):
     with pytest.raises(ArgumentError, match="non-finite"):
         classify(nan, data.strain, data.t_s, rng=np.random.default_rng(0))
 
+
+
+def test_a_few_undecodable_draws_are_left_out_and_said(fitted):
+    """A hard fit can hold a few draws whose plate means fall at their τ (a = NaN): up to
+    5 % are left out with a note (the result equals the posterior without them); more
+    are refused as before."""
+    data, _ = fitted
+    tab = data.table(n_grid=8)
+    args = ([0.0, 0.1], tab, [0.0, 0.1], [0.01, 0.02])
+    a = np.full(40, 3.0)
+    a[[5, 17]] = np.nan
+    few = _fixed_posterior(*args, a=a, tau_s=2.0, h=0.0, n=40)
+    clean = _fixed_posterior(*args, a=3.0, tau_s=2.0, h=0.0, n=38)
+    c = classify(few, data.strain[:6], data.t_s, rng=np.random.default_rng(0))
+    ref = classify(clean, data.strain[:6], data.t_s, rng=np.random.default_rng(0))
+    assert c.note.startswith("note: 2 of 40 posterior draws left out")
+    assert ref.note is None
+    for name in ("log_prob", "height_mm", "lo90_mm", "hi90_mm"):
+        np.testing.assert_array_equal(getattr(c, name), getattr(ref, name))
+    a[:4] = np.nan                                                    # 6 of 40: 15 %
+    many = _fixed_posterior(*args, a=a, tau_s=2.0, h=0.0, n=40)
+    with pytest.raises(ArgumentError, match="6 of 40 draws"):
+        classify(many, data.strain[:6], data.t_s, rng=np.random.default_rng(0))
