@@ -1,7 +1,9 @@
 """Calibrated confidence of the M2 decoder on hard plates, beside plug-in baselines (issue 14).
 
 Scenes: ``datasets-synthetic/hard/*.toml`` (plates hard to tell apart: at the noise
-floor, close steps, a noisier read-out, few touches, a tilted face; accuracy 60–95 %).
+floor, close steps, a noisier read-out, few touches, a tilted face; accuracy 60–95 %),
+and two built afterwards and never tuned: six plates from 0.01 mm with 6 touches each,
+and three plates under an exponential-kernel neuron.
 Per scene, ``REPLICATES`` training sets (the scene with seeds seed+1…) are fitted with the
 default backend, and each classifies its own ``FRESH`` fresh touches per plate (seeds
 seed + 10⁶ + r: independent test sets, so the ECE's sampling noise shrinks with every
