@@ -91,9 +91,11 @@ def _tau_blocks(inv, part) -> list:
         from feeler.errors import DataFileError
         raise DataFileError(inv.run_dir / rel, f"tau_median_s = {tau_s!r} must be > 0")
     eti = [float(x) * 1e3 for x in rep.get("tau_eti95_s", [])][:2] or [float("nan")] * 2
-    blocks = [Note(f"τ posterior median {fmt(tau_s * 1e3, 3)} ms, 95 % interval {fmt(eti[0], 3)}–{fmt(eti[1], 3)} ms; "
-                   f"P(τ ≤ 300 ms | data) = {fmt(rep.get('p_tau_le_300ms'), 3)}. The paper: "
-                   f"{str(rep.get('paper', '')) or '–'}.", sources=(rel,))]
+    paper = str(rep.get("paper", ""))               # the paper's claim against P(τ ≤ 300 ms | data), P included
+    tail = (f"The paper: {paper}." if paper else
+            f"P(τ ≤ 300 ms | data) = {fmt(rep.get('p_tau_le_300ms'), 3)}.")
+    blocks = [Note(f"τ posterior median {fmt(tau_s * 1e3, 3)} ms, 95 % interval {fmt(eti[0], 3)}–{fmt(eti[1], 3)} ms. "
+                   + tail, sources=(rel,))]
     fig = finger_route_fig6(inv, tau_s, str(rep.get("skin_level") or "l0"), rel)
     if fig is not None:
         blocks.insert(0, fig)

@@ -152,6 +152,7 @@ def test_every_parameter_is_named(report):
     assert "pse[0,0]" not in m4
     route = _section_html(html, "sec-fit-finger-route")
     assert "no traces are drawn" in route and "κ is a function of τ" in route
+    assert route.count("300 ms | data)") == 1                 # the τ note gives P(τ ≤ 300 ms | data) once
 
 
 def test_tables_are_readable(report):
