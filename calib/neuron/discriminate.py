@@ -125,6 +125,7 @@ class Discriminator:
         rng = np.random.default_rng(seed)
         dec = DecoderDraws.from_result(result, rng=rng, n_draws=n_draws)
         self.a, self.tau, self.h, self.note = dec.a, dec.tau_s, dec.h, dec.note
+        self.plates_mm = dec.steps_mm
         attrs = result.posterior["posterior"].attrs
         self.log_tau = np.asarray(result.posterior["observed_data"]["log_tau_grid"].values, float)
         self.kernel, self.length_mm = str(attrs.get("kernel", "boxcar")), float(attrs.get("length_mm", np.nan))
@@ -135,6 +136,16 @@ class Discriminator:
         self.n_scans, self.seed, self.touch_seed = int(n_scans), int(seed), int(touch_seed)
         self._boot = rng.integers(0, self.n_scans, size=(2, self.a.size, self.n_scans))   # reference, comparison
         self._cache: dict = {}
+
+    def outside_note(self, height_mm: float) -> str | None:
+        """One line when ``height_mm`` lies outside the fit's training plates, else None:
+        the scene's forward model simulates any height, but the window τ was only
+        weighted by how it decodes the trained ones."""
+        lo, hi = float(self.plates_mm[0]), float(self.plates_mm[-1])
+        if lo <= height_mm <= hi:
+            return None
+        return (f"note: reference {height_mm:g} mm lies outside the plates the fit was trained on "
+                f"({lo:g}-{hi:g} mm): its threshold and PSE extrapolate the calibration (--reference)")
 
     def responses(self, height_mm: float, *, speed_mm_s: float | None = None, reference: bool = False) -> np.ndarray:
         """Peak z per draw and touch, ndarray[n_draws, n_scans], for one step height (mm)."""

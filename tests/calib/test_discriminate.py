@@ -121,3 +121,9 @@ def test_bad_arguments(disc, fit):
         disc.threshold(0.1, max_delta_mm=0.0)
     with pytest.raises(ArgumentError, match="n_scans"):
         Discriminator(fit, n_scans=1)
+
+
+def test_a_reference_outside_the_trained_plates_is_noted(disc):
+    assert disc.outside_note(0.1) is None and disc.outside_note(0.0) is None and disc.outside_note(0.2) is None
+    note = disc.outside_note(0.3)
+    assert note.startswith("note: reference 0.3 mm lies outside the plates the fit was trained on (0-0.2 mm)")
