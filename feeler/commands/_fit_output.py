@@ -76,12 +76,15 @@ def print_summary(result, *, skip_prefixes: tuple[str, ...] = ()) -> None:
     for name, text in result.priors.items():
         print(f"  {name}: {text}")
     print(f"backend {result.backend}, {result.seconds:.3f} s")
-    if result.verdict.ok:
-        print("verdict: ok")
-    else:
-        print(f"verdict: FAILED ({len(result.verdict.problems)} problems)")
-        for p in result.verdict.problems:
-            print(f"  {p}")
+    print(verdict_text(result.verdict))
+
+
+def verdict_text(verdict) -> str:
+    """``verdict: ok``, or ``verdict: FAILED (N problem[s])`` and one indented line per problem."""
+    if verdict.ok:
+        return "verdict: ok"
+    n = len(verdict.problems)
+    return "\n".join([f"verdict: FAILED ({n} problem{'' if n == 1 else 's'})"] + [f"  {p}" for p in verdict.problems])
 
 
 def finish_fit(result, args) -> int:

@@ -97,3 +97,13 @@ def test_validate_sbc_neuron(tmp_path, capsys):
     assert rc == 0 and "SBC ok" in capsys.readouterr().out
     ranks = pd.read_csv(tmp_path / "ranks.csv")
     assert {"a", "h", "growth", "plate_sd_mm[3]"} <= set(ranks.columns)
+
+
+@pytest.mark.parametrize("problems, head", [((), "verdict: ok"), (("a: x",), "verdict: FAILED (1 problem)"),
+                                            (("a: x", "b: y"), "verdict: FAILED (2 problems)")])
+def test_verdict_line_counts_its_problems(problems, head):
+    from feeler.calib.diagnostics import Verdict
+    from feeler.commands._fit_output import verdict_text
+
+    lines = verdict_text(Verdict(ok=not problems, problems=problems)).splitlines()
+    assert lines == [head] + [f"  {p}" for p in problems]
