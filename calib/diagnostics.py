@@ -56,6 +56,7 @@ class Thresholds:
     autocorr_times_min: float = 50.0
     bound_edge_fraction: float = 0.01   # width of the "edge" strip, fraction of the range
     bound_mass_max: float = 0.05        # posterior mass allowed inside that strip
+    nonfinite_max: float = 0.05         # share of draws an entry may leave undefined (NaN)
 
 
 def summarize(posterior) -> pd.DataFrame:
@@ -68,17 +69,36 @@ def summarize(posterior) -> pd.DataFrame:
 
     draws = flat_draws(posterior)
     names = list(draws)
-    x = np.stack([draws[n] for n in names], axis=-1)          # (chain, draw, entry)
-    flat = x.reshape(-1, len(names))
-    q = np.quantile(flat, [0.025, 0.975, 0.055, 0.945], axis=0)
     funcs = {"r_hat": C.rhat, "ess_bulk": C.ess_bulk, "ess_tail": C.ess_tail,
              "mcse_mean": C.mcse_mean, "mcse_sd": C.mcse_sd}
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cols = {k: [f(x[..., j]) for j in range(len(names))] for k, f in funcs.items()}
-    table = pd.DataFrame({"name": names, "mean": flat.mean(axis=0), "sd": flat.std(axis=0, ddof=1),
-                          "eti95_lb": q[0], "eti95_ub": q[1], "eti89_lb": q[2], "eti89_ub": q[3],
-                          **{k: np.asarray(v, dtype=float).reshape(len(names)) for k, v in cols.items()}})
-    return table[list(SUMMARY_COLUMNS)]
+    rows = []
+    for name in names:
+        flat = draws[name][np.isfinite(draws[name])]          # moments and intervals: every finite draw
+        x = _finite_chains(draws[name])                        # R-hat, ESS, MCSE: equal chains
+        if flat.size == 0:
+            rows.append([name] + [np.nan] * (len(SUMMARY_COLUMNS) - 1))
+            continue
+        q = np.quantile(flat, [0.025, 0.975, 0.055, 0.945])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rest = [float(np.asarray(f(x), dtype=float)) for f in funcs.values()]
+        rows.append([name, flat.mean(), flat.std(ddof=1) if flat.size > 1 else np.nan, *q, *rest])
+    return pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
+
+
+def _finite_chains(x: np.ndarray) -> np.ndarray:
+    """The finite draws of one entry ``x (ndarray[chain, draw])``, each chain cut to the
+    shortest chain's count (so R-hat and ESS see equal chains); x itself when all are
+    finite. A model whose derived quantity is undefined at some draws (the M2 decoder's
+    line where its plates are not ordered) is summarised over the draws that define it;
+    :func:`diagnose` fails the verdict when they are more than ``nonfinite_max``."""
+    ok = np.isfinite(x)
+    if ok.all():
+        return x
+    kept = [row[m] for row, m in zip(x, ok)]
+    n = min(len(k) for k in kept)
+    if n < 4:                                   # too short to compare chains: one chain of all
+        return np.concatenate(kept)[None, :]
+    return np.stack([k[:n] for k in kept])
 
 
 def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,
@@ -97,11 +117,21 @@ def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,
             flagged as piling against it.
         checks (list[str]): the model's own problems (identifiability, units, predictive
             checks), listed first. A parameter with no finite draw (the data do not
-            define it; a check names why) is reported once instead of by R-hat and ESS.
+            define it; a check names why) is reported once instead of by R-hat and ESS;
+            one with some (a derived quantity undefined at some draws) is summarised over
+            the others, and the verdict fails when they are more than
+            ``thresholds.nonfinite_max``.
     """
     summary = summarize(posterior) if summary is None else summary
     t = thresholds
     problems: list[str] = list(checks)
+    draws = flat_draws(posterior)
+    undefined = {n: float(np.mean(~np.isfinite(x))) for n, x in draws.items()}
+    partial = [n for n, f in undefined.items() if t.nonfinite_max < f < 1.0]
+    if partial:
+        worst = max(undefined[n] for n in partial)
+        problems.append(f"{', '.join(partial)}: up to {100 * worst:.0f} % of the posterior draws not finite "
+                        f"(at most {100 * t.nonfinite_max:.0f} % may be; these data leave them undefined there)")
     for row in summary.itertuples(index=False):
         if not np.isfinite(row.mean):
             problems.append(f"{row.name}: no finite posterior draws (not defined by these data)")
@@ -111,7 +141,6 @@ def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,
         if not np.isfinite(row.ess_bulk) or row.ess_bulk < t.ess_bulk_min:
             problems.append(f"{row.name}: bulk ESS {row.ess_bulk:.0f} < {t.ess_bulk_min:.0f}")
     problems += _divergences(posterior)
-    draws = flat_draws(posterior)
     if backend == "emcee":
         problems += _autocorr_problems(draws, t.autocorr_times_min)
     for name, (lo, hi, *scale) in (bounds or {}).items():
@@ -146,6 +175,7 @@ def _autocorr_problems(draws: Mapping[str, np.ndarray], times_min: float) -> lis
     level = log.level
     log.setLevel(logging.ERROR)       # quiet=True would log a warning per parameter
     try:
+        draws = {name: _finite_chains(x) for name, x in draws.items() if np.isfinite(x).any()}
         taus = {name: float(integrated_time(x.T[:, :, None], quiet=True)[0])
                 for name, x in draws.items()}          # x: (walker, step)
     finally:

@@ -32,12 +32,15 @@ from functools import cached_property
 import numpy as np
 from scipy.special import ndtr
 
+from feeler.calib.diagnostics import Thresholds
 from feeler.calib.neuron.recalibrate import log_sum_exp, recalibrated
 from feeler.errors import ArgumentError
 
 __all__ = ["DecoderDraws", "curve_at", "MAX_UNDECODABLE"]
 
-MAX_UNDECODABLE = 0.05      # share of posterior draws without a decodable line that is left out, not refused
+# share of posterior draws without a decodable line that is left out, not refused: the share
+# for which the fit's summary and verdict do the same (calib.diagnostics)
+MAX_UNDECODABLE = Thresholds.nonfinite_max
 
 
 def curve_at(delta: np.ndarray, steps: np.ndarray, mean: np.ndarray, sd: np.ndarray):

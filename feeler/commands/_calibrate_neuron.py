@@ -80,7 +80,21 @@ def run(args) -> int:
             f"{s:g} mm {100 * c:.0f} %" for s, c in zip(steps, checks["loo_coverage90"])))
     print("note: a, tau_s and h are the decoder's (z = a·P_tau − h fitted to the labels, tau_s the window "
           "that predicts them best), not the neuron parameters of a scene; a is in mm per unit of window sum")
+    left_out = _undecodable_note(result)
+    if left_out:
+        print(left_out + " (the summary leaves them out too)")
     return finish_fit(result, args)
+
+
+def _undecodable_note(result) -> str | None:
+    """The decoder's note on draws it leaves out, or None (none, or too many: the verdict says so)."""
+    from feeler.calib.neuron.decoder import DecoderDraws
+    from feeler.errors import ArgumentError
+
+    try:
+        return DecoderDraws.from_result(result).note
+    except ArgumentError:
+        return None
 
 
 def locate_scans(path: Path, length_mm: float | None):
