@@ -18,7 +18,7 @@ import pandas as pd
 
 from feeler.calib.posterior import flat_draws
 
-__all__ = ["Verdict", "DiagnosticWarning", "Thresholds", "summarize", "diagnose",
+__all__ = ["Verdict", "DiagnosticWarning", "Thresholds", "summarize", "diagnose", "bound_problems",
            "SUMMARY_COLUMNS"]
 
 SUMMARY_COLUMNS = ("name", "mean", "sd", "eti95_lb", "eti95_ub", "eti89_lb", "eti89_ub",
@@ -144,7 +144,7 @@ def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,
     if backend == "emcee":
         problems += _autocorr_problems(draws, t.autocorr_times_min)
     for name, (lo, hi, *scale) in (bounds or {}).items():
-        problems += _bound_problems(name, draws[name], lo, hi, t, *scale)
+        problems += bound_problems(name, draws[name], lo, hi, t, *scale)
     if problems:
         more = f"; and {len(problems) - 8} more" if len(problems) > 8 else ""
         warnings.warn("posterior failed its diagnostics: " + "; ".join(problems[:8]) + more,
@@ -188,7 +188,7 @@ def _autocorr_problems(draws: Mapping[str, np.ndarray], times_min: float) -> lis
     return out
 
 
-def _bound_problems(name: str, x: np.ndarray, lo: float, hi: float, t: Thresholds, scale: str = "linear") -> list[str]:
+def bound_problems(name: str, x: np.ndarray, lo: float, hi: float, t: Thresholds, scale: str = "linear") -> list[str]:
     """Piling against a hard bound: more than ``bound_mass_max`` of the draws inside the
     edge strip, ``bound_edge_fraction`` of the range measured where the prior is uniform
     (``scale`` "log" for a log-uniform parameter such as a window τ). A posterior equal

@@ -9,6 +9,8 @@ pooled, and a grid's own marginal is drawn as the curve it is.
 """
 from __future__ import annotations
 
+import json
+
 from feeler.reports.model import Note, Section, Table, fmt, interval
 from feeler.reports.readers import load_fit
 
@@ -40,7 +42,8 @@ def summary_table(result, labels: dict, src: str) -> Table:
 def _ppc_note(attrs, src) -> list:
     if "ppc_coverage90" not in attrs:
         return []
-    return [Note(f"Posterior predictive check: the 90 % predictive intervals hold "
+    edge = json.loads(attrs.get("checks", "{}")).get("window_edge", [])
+    return [Note(f"Window: {line}.", sources=(src,)) for line in edge] + [Note(f"Posterior predictive check: the 90 % predictive intervals hold "
                  f"{100 * float(attrs['ppc_coverage90']):.1f} % of the scans' labelled steps; predictive "
                  f"p-value {fmt(attrs.get('ppc_p_value'), 3)}.", sources=(src,))]
 

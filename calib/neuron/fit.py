@@ -18,7 +18,7 @@ import warnings
 import numpy as np
 
 from feeler.calib.fit import FitResult, make_result, posterior_from_draws
-from feeler.calib.neuron.checks import data_problems, posterior_problems, unit_problems
+from feeler.calib.neuron.checks import data_problems, posterior_problems, unit_problems, window_edge_notes
 from feeler.calib.neuron.data import NeuronData, data_from_scans, shared_times
 from feeler.calib.neuron.grid import sample_grid
 from feeler.calib.neuron.model import NOISE_MODELS, Plates, Priors, make_priors
@@ -110,6 +110,7 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
         problems += note
     fit_problems, info = posterior_problems(table, plates, noise, log_w, post, growth_max=pri.growth_max)
     problems += fit_problems
+    info["window_edge"] = window_edge_notes(post["tau_s"], pri)
     attrs = {"model": "neuron", "length_mm": data.length_mm, "kernel": data.kernel, "noise": noise,
              "noise_scores": json.dumps(scores), "checks": json.dumps(info),
              "prob_sharpness": sharpness, "prob_floor": FLOOR}
@@ -132,5 +133,4 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
     priors_text = pri.as_text(noise) | {
         "plate probabilities": f"pooled over tau, then p^gamma renormalised with a floor {FLOOR:g}/plates; "
                                f"ln gamma ~ Normal(0, {LOG_GAMMA_SD:g}^2), fitted by leave-one-out (gamma = {sharpness:.3g})"}
-    return make_result(tree, backend=backend, priors=priors_text, seconds=seconds, bounds=pri.bounds(),
-                       checks=problems)
+    return make_result(tree, backend=backend, priors=priors_text, seconds=seconds, checks=problems)

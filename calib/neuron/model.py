@@ -183,7 +183,8 @@ class Priors:
         return out
 
     def bounds(self) -> dict[str, tuple[float, float]]:
-        """Hard prior bounds (for the piling check); ln τ is uniform between them."""
+        """The window range, one sample interval to half a scan (ln τ is uniform between
+        them): the ends of the windows the scans have, for :func:`~.checks.window_edge_notes`."""
         return {"tau_s": (self.tau_lo_s, self.tau_hi_s, "log")}
 
 

@@ -80,6 +80,8 @@ def run(args) -> int:
             f"{s:g} mm {100 * c:.0f} %" for s, c in zip(steps, checks["loo_coverage90"])))
     print("note: a, tau_s and h are the decoder's (z = a·P_tau − h fitted to the labels, tau_s the window "
           "that predicts them best), not the neuron parameters of a scene; a is in mm per unit of window sum")
+    for line in checks.get("window_edge", []):
+        print(f"note: {line}")
     left_out = _undecodable_note(result)
     if left_out:
         print(left_out + " (the summary leaves them out too)")

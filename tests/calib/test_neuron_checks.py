@@ -132,3 +132,33 @@ def test_checks_are_recorded(data):
     res = _quiet_fit(data)
     checks = json.loads(res.posterior["posterior"].attrs["checks"])
     assert set(checks) >= {"loo_coverage90", "loo_mean_pit", "p_ordered", "tau_spread_of_prior"}
+
+
+def test_a_window_leaning_on_an_end_of_the_scans_range_is_noted_not_failed(capsys, tmp_path):
+    """The window's range is the scans' own (one sample interval to half a scan): a
+    posterior leaning on either end is a note naming that end, not a failed verdict. The
+    untuned three-exponential scene's first training set put 8 % of its draws below
+    0.515 s and failed with 'posterior piles against its lower prior bound 0.5', so
+    classify refused a fit whose plates it decodes like the others."""
+    from feeler.calib.neuron.checks import window_edge_notes
+    from feeler.calib.neuron.model import Priors
+    from feeler.calib.neuron.synth import HARD_SCENES
+    from feeler.cli import main
+
+    pri = Priors(tau_lo_s=0.5, tau_hi_s=10.0)
+    rng = np.random.default_rng(5)
+    low = 0.5 * np.exp(np.abs(rng.normal(0, 0.05, 4000)))
+    high = 10.0 * np.exp(-np.abs(rng.normal(0, 0.05, 4000)))
+    inside = np.exp(rng.normal(np.log(2.0), 0.2, 4000))
+    (lo,), (hi,) = window_edge_notes(low, pri), window_edge_notes(high, pri)
+    assert lo.startswith("tau_s: leans on its lower prior bound 0.5 (") and "shortest window these scans resolve" in lo
+    assert hi.startswith("tau_s: leans on its upper prior bound 10 (") and "longest window these scans allow" in hi
+    assert window_edge_notes(inside, pri) == []
+    run = tmp_path / "run"
+    assert main(["simulate", str(HARD_SCENES / "three-exponential.toml"), "--seed", "20040502", "--out", str(run),
+                 "--no-progress"]) == 0
+    capsys.readouterr()
+    assert main(["calibrate", "neuron", str(run), "--seed", "1", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "note: tau_s: leans on its lower prior bound 0.5 (8 % of draws below 0.515)" in out
+    assert "verdict: ok" in out and "piles" not in out

@@ -198,3 +198,16 @@ def test_failed_calibration_comes_first(part_run, tmp_path):
     verdicts = front[front.index("Verdict of every fit"):]
     assert verdicts.index("M4: human psychometric functions") < verdicts.index("M1: sensor")
     assert "FAILED: pse[0,0]: R-hat 1.2 &gt; 1.01" in verdicts
+
+
+def test_a_window_at_an_end_of_its_range_is_noted_in_the_fit_section():
+    """The M2 fit's window-edge notes (recorded in its checks) reach the report as notes
+    beside the predictive check, one each, with the posterior as their source."""
+    from feeler.reports.sec_fits import _ppc_note
+
+    line = "tau_s: leans on its lower prior bound 0.5 (8 % of draws below 0.515): the shortest window"
+    attrs = {"ppc_coverage90": 0.93, "ppc_p_value": 0.2, "checks": json.dumps({"window_edge": [line]})}
+    notes = _ppc_note(attrs, "neuron/posterior.nc")
+    assert [n.text for n in notes[:1]] == [f"Window: {line}."] and len(notes) == 2
+    assert all(n.sources == ("neuron/posterior.nc",) for n in notes)
+    assert len(_ppc_note({"ppc_coverage90": 0.93}, "p.nc")) == 1
