@@ -137,15 +137,21 @@ class Discriminator:
         self._boot = rng.integers(0, self.n_scans, size=(2, self.a.size, self.n_scans))   # reference, comparison
         self._cache: dict = {}
 
-    def outside_note(self, height_mm: float) -> str | None:
-        """One line when ``height_mm`` lies outside the fit's training plates, else None:
-        the scene's forward model simulates any height, but the window τ was only
-        weighted by how it decodes the trained ones."""
+    def outside_note(self, height_mm, *, option: str = "--reference") -> str | None:
+        """One line when a height (or any of a sequence) lies outside the fit's training
+        plates, else None: the scene's forward model simulates any height, but the window
+        τ was only weighted by how it decodes the trained ones. ``option`` names where
+        the heights came from: ``--reference`` (threshold and PSE) or ``--pair``."""
         lo, hi = float(self.plates_mm[0]), float(self.plates_mm[-1])
-        if lo <= height_mm <= hi:
+        out = sorted({float(v) for v in np.atleast_1d(height_mm) if not lo <= float(v) <= hi})
+        if not out:
             return None
-        return (f"note: reference {height_mm:g} mm lies outside the plates the fit was trained on "
-                f"({lo:g}-{hi:g} mm): its threshold and PSE extrapolate the calibration (--reference)")
+        what = "its threshold and PSE extrapolate" if option == "--reference" else "their P(correct) extrapolates"
+        heights = ", ".join(f"{v:g}" for v in out)
+        name = "reference" if option == "--reference" else ("pair height" if len(out) == 1 else "pair heights")
+        verb = "lies" if len(out) == 1 else "lie"
+        return (f"note: {name} {heights} mm {verb} outside the plates the fit was trained on "
+                f"({lo:g}-{hi:g} mm): {what} the calibration ({option})")
 
     def responses(self, height_mm: float, *, speed_mm_s: float | None = None, reference: bool = False) -> np.ndarray:
         """Peak z per draw and touch, ndarray[n_draws, n_scans], for one step height (mm)."""

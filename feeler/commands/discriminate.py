@@ -84,10 +84,11 @@ def run(args) -> int:
     scene = load_scene(disc.scene_path)
     print(f"forward model: {args.scene or 'the scene recorded in the fit'} ({scene.surface.heights_mm} mm plates), "
           f"{args.n_scans} touches per height, {disc.a.size} posterior draws")
-    for note in (disc.note, disc.outside_note(args.reference)):
+    pairs = args.pair or list(combinations(sorted(scene.surface.heights_mm), 2))
+    for note in (disc.note, disc.outside_note(args.reference),
+                 disc.outside_note([v for pair in pairs for v in pair], option="--pair")):
         if note:
             print(note)
-    pairs = args.pair or list(combinations(sorted(scene.surface.heights_mm), 2))
     rows = []
     print(f"{'low mm':>8} {'high mm':>8}  P(correct) [95 % interval]   MC se")
     for lo, hi in progress(pairs, desc="2AFC pairs", enabled=args.progress, lines=True):

@@ -34,10 +34,11 @@ def test_classify_and_discriminate_use_the_fit(run_and_fit, tmp_path, capsys):
     table = pd.read_csv(tmp_path / "cls" / "classification.csv")
     assert {"scan_id", "step_mm", "plate_mm", "p_0mm", "height_mm", "lo90_mm", "hi90_mm"} <= set(table.columns)
     assert ((table.lo90_mm <= table.height_mm) & (table.height_mm <= table.hi90_mm)).all()
-    assert main(["discriminate", str(fit), "--pair", "0.1", "0.12", "--n-scans", "40", "--n-draws", "10",
-                 "--speeds", "0.5", "0.5", "--out", str(tmp_path / "d")]) == 0
+    assert main(["discriminate", str(fit), "--pair", "0.1", "0.12", "--pair", "0.2", "0.25", "--n-scans", "40",
+                 "--n-draws", "10", "--speeds", "0.5", "0.5", "--out", str(tmp_path / "d")]) == 0
     out = capsys.readouterr().out
     assert "the scene recorded in the fit" in out and "MC se" in out and "Weber fraction" in out
+    assert out.count("note: pair height 0.25 mm lies outside the plates the fit was trained on") == 1
     d = json.loads((tmp_path / "d" / "discrimination.json").read_text())
     assert set(d["threshold_mm"]) >= {"mean", "lo95", "hi95", "found", "median", "mcse", "hi95_is_bound"}
     assert set(d["pairs"][0]) >= {"low_mm", "high_mm", "pc", "lo95", "hi95", "mcse"}

@@ -125,5 +125,10 @@ def test_bad_arguments(disc, fit):
 
 def test_a_reference_outside_the_trained_plates_is_noted(disc):
     assert disc.outside_note(0.1) is None and disc.outside_note(0.0) is None and disc.outside_note(0.2) is None
+    assert disc.outside_note([0.0, 0.05, 0.2], option="--pair") is None
+    assert disc.outside_note([0.1, 0.3], option="--pair") == (
+        "note: pair height 0.3 mm lies outside the plates the fit was trained on (0-0.2 mm): their P(correct) "
+        "extrapolates the calibration (--pair)")
+    assert disc.outside_note([0.3, -0.01, 0.3], option="--pair").startswith("note: pair heights -0.01, 0.3 mm lie")
     note = disc.outside_note(0.3)
     assert note.startswith("note: reference 0.3 mm lies outside the plates the fit was trained on (0-0.2 mm)")
