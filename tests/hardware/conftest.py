@@ -8,7 +8,10 @@ the reason, where the sources or a C compiler are missing.
 A test that fails because the driver saw no motion in Run or Jog, while the simulator is
 indeed stuck there (:meth:`~grbl_firmware.Firmware.stalled`: a fault of grbl-sim's threads on a
 loaded host, never a state of real Grbl, whose position counts the steps it sends), is run once
-more on a restarted firmware and says so on stderr; any other failure stands.
+more on a restarted firmware and says so on stderr; so is one whose single move ended Idle short
+of its target while the simulator itself still reports Idle there (seen once in a full run: a
+lone ``G53 G1 X-12`` stopped at X-9.6; Grbl ends a block early only on a reset or a hold, which
+reports Hold, so this too is the simulator's race). Any other failure stands.
 """
 import re
 import shutil
@@ -43,10 +46,15 @@ def pytest_runtest_call(item):
         return (yield)
     except Exception as failure:
         fw = item.funcargs.get("firmware")
-        stall = isinstance(failure, StageTimeout) and re.search(r"\(last (Run|Jog)\)", str(failure))
-        if not (stall and isinstance(fw, Firmware) and fw.stalled()):
+        if not isinstance(fw, Firmware) or not isinstance(failure, StageTimeout):
             raise
-        print(f"\n{item.nodeid}: grbl-sim stalled (Run without motion) after {type(failure).__name__}: "
+        stall = re.search(r"\(last (Run|Jog)\)", str(failure)) and fw.stalled()
+        short = re.search(r"\(last Idle at \(([^)]*)\), short of its target", str(failure))
+        short = short and fw.idle_at() == tuple(float(v) for v in short.group(1).split(","))
+        if not (stall or short):
+            raise
+        what = "stalled (Run without motion)" if stall else "stopped short of a move's target (Idle)"
+        print(f"\n{item.nodeid}: grbl-sim {what} after {type(failure).__name__}: "
               f"{failure}; running the test once more on a restarted firmware", file=sys.__stderr__)
         fw.restart()
         fw.prepare()

@@ -156,6 +156,20 @@ class Firmware:
             self.restart()
             self._prepare(timeout_s)
 
+    def idle_at(self) -> tuple[float, ...] | None:
+        """The machine position when the simulator reports Idle, else None (busy, or no
+        answer to ``?``). Only while no driver has the device open."""
+        fd = self._slave
+        with contextlib.suppress(OSError):
+            read_until(fd, lambda d: False, 0.05)
+            os.write(fd, b"?")
+            got = read_until(fd, lambda d: d.endswith(b">\r\n"), 10.0)
+            report = got[got.rfind(b"<"):] if got.endswith(b">\r\n") else b""
+            fields = report.strip(b"<>\r\n").split(b"|")
+            if fields[0] == b"Idle" and len(fields) > 1 and fields[1].startswith(b"MPos:"):
+                return tuple(float(v) for v in fields[1][5:].split(b","))
+        return None
+
     def stalled(self, probe_s: float = 2.0) -> bool:
         """Whether the simulator is stuck: no answer to ``?``, or in Run/Jog with the
         machine position unchanged over ``probe_s``.
