@@ -22,9 +22,9 @@ both baselines, the ECE a perfectly calibrated forecaster would show at this sam
 (``ece_floor``: labels drawn from feeler's own probabilities, median of 20 draws), the
 fitted sharpness γ (:mod:`feeler.calib.neuron.recalibrate`), and the coverage of feeler's
 90 % height intervals per plate (mean and minimum over replicates); in brackets, how far
-a figure moves with the training sets drawn: for the ECE ± 1.645 jackknife standard
-errors over the sets, for each plate's coverage the 5–95 % range over bootstrap
-resamples of them; then ECE, log-loss and
+a figure moves with the training sets drawn: for the ECE its jackknife standard error
+over the sets, for each plate's coverage the 5–95 % range over bootstrap resamples of
+them; then ECE, log-loss and
 coverage again over the fits whose verdict is ok — the ones ``classify`` accepts without
 ``--accept-failed``, so what a user is given — with the reasons the others failed. Goals (issue 14): ECE
 ≤ 0.03, log-loss below the plug-in's, coverage 0.85–0.95 on every plate; they are
@@ -81,15 +81,13 @@ def between_sets(stat, n_sets: int, rng: np.random.Generator, draws: int = 200) 
     return np.quantile([stat(rng.integers(0, n_sets, n_sets)) for _ in range(draws)], [0.05, 0.95], axis=0)
 
 
-def jackknife_90(stat, n_sets: int) -> tuple[float, float]:
-    """stat(all) ± 1.645 jackknife standard errors over the training sets left out one at
-    a time. For the ECE, not the bootstrap: a resample repeats sets, and repeated
-    predictions raise the ECE (it is biased upwards by noise), so its percentiles can
-    miss the estimate itself."""
-    full = stat(np.arange(n_sets))
+def jackknife_se(stat, n_sets: int) -> float:
+    """Jackknife standard error of ``stat(indices)`` over the training sets left out one
+    at a time. For the ECE, not the bootstrap: a resample repeats sets, and repeated
+    predictions raise the ECE (it is biased upwards by noise), so its percentiles missed
+    the estimate itself."""
     loo = np.array([stat(np.delete(np.arange(n_sets), k)) for k in range(n_sets)])
-    se = float(np.sqrt((n_sets - 1) / n_sets * np.sum((loo - loo.mean()) ** 2)))
-    return full - 1.645 * se, full + 1.645 * se
+    return float(np.sqrt((n_sets - 1) / n_sets * np.sum((loo - loo.mean()) ** 2)))
 
 
 def evaluate(path: Path) -> dict:
@@ -122,11 +120,11 @@ def evaluate(path: Path) -> dict:
                "coverage_ok": (np.mean([c for c, k in zip(cover, ok) if k], axis=0) if kept.any()
                                else np.full(len(cover[0]), np.nan))}
     rng = np.random.default_rng(seed)
-    ece_lo, ece_hi = jackknife_90(lambda i: expected_calibration_error(
+    ece_se = jackknife_se(lambda i: expected_calibration_error(
         np.exp(np.concatenate([ours[k] for k in i])), np.concatenate([truth[k] for k in i])), len(ours))
     cov_lo, cov_hi = between_sets(lambda i: np.mean([cover[k] for k in i], axis=0), len(cover), rng)
     return said_ok | {"scene": path.stem, "accuracy": float(np.mean(lo.argmax(1) == t)),
-            "ece": expected_calibration_error(np.exp(lo), t), "ece_lo90": float(ece_lo), "ece_hi90": float(ece_hi),
+            "ece": expected_calibration_error(np.exp(lo), t), "ece_se": ece_se,
             "coverage_lo90": cov_lo, "coverage_hi90": cov_hi,
             "ece_floor": ece_floor(np.exp(lo), np.random.default_rng(seed)),
             "ece_plugin": expected_calibration_error(np.exp(lt), t),
@@ -157,8 +155,8 @@ def test_calibrated_confidence(benchmark, path):
                  row["log_loss"] / row["log_loss_plugin_fitted_tau"], "< 1")
     record_ratio(benchmark, f"{row['scene']}: ECE feeler", row["ece"], "<= 0.03")
     print(f"\n{row['scene']:12s} n {row['n_predictions']}  acc {row['accuracy']:.3f} (plug-in {row['accuracy_plugin']:.3f}"
-          f" / {row['accuracy_plugin_fitted_tau']:.3f})  ECE {row['ece']:.4f} [{row['ece_lo90']:.4f}, "
-          f"{row['ece_hi90']:.4f}] (jackknife over sets) (calibrated-forecaster floor "
+          f" / {row['accuracy_plugin_fitted_tau']:.3f})  ECE {row['ece']:.4f} (jackknife se over the "
+          f"sets {row['ece_se']:.4f}; calibrated-forecaster floor "
           f"{row['ece_floor']:.4f}; plug-in {row['ece_plugin']:.4f} / {row['ece_plugin_fitted_tau']:.4f})  "
           f"log-loss {row['log_loss']:.4f} (plug-in {row['log_loss_plugin']:.4f} / "
           f"{row['log_loss_plugin_fitted_tau']:.4f}; true / fitted tau)  gamma {row['sharpness_median']:.3f}  "
