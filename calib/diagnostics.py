@@ -2,7 +2,8 @@
 
 Rules (DESIGN §6): a fit fails when any parameter has R-hat > 1.01 or bulk ESS < 400,
 when the sampler reports divergent transitions, when an emcee chain is shorter than 50
-integrated autocorrelation times, or when a parameter piles against a hard prior bound.
+integrated autocorrelation times, when a parameter piles against a hard prior bound, or
+when more than 5 % of an entry's draws are not finite (fewer are left out of its summary).
 Every problem is a one-line string naming the parameter; a failed verdict issues one
 :class:`DiagnosticWarning` that lists them. Exact/conjugate backends store independent draws from the
 exact posterior and go through the very same checks (they pass naturally).
