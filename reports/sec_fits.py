@@ -42,10 +42,11 @@ def summary_table(result, labels: dict, src: str) -> Table:
 def _ppc_note(attrs, src) -> list:
     if "ppc_coverage90" not in attrs:
         return []
-    edge = json.loads(attrs.get("checks", "{}")).get("window_edge", [])
-    return [Note(f"Window: {line}.", sources=(src,)) for line in edge] + [Note(f"Posterior predictive check: the 90 % predictive intervals hold "
-                 f"{100 * float(attrs['ppc_coverage90']):.1f} % of the scans' labelled steps; predictive "
-                 f"p-value {fmt(attrs.get('ppc_p_value'), 3)}.", sources=(src,))]
+    edge = json.loads(attrs.get("checks", "{}")).get("window_edge", [])          # M2's window at an end of its range
+    return [Note(f"Window: {line}.", sources=(src,)) for line in edge] + [
+        Note(f"Posterior predictive check: the 90 % predictive intervals hold "
+             f"{100 * float(attrs['ppc_coverage90']):.1f} % of the scans' labelled steps; predictive "
+             f"p-value {fmt(attrs.get('ppc_p_value'), 3)}.", sources=(src,))]
 
 
 def fit_section(inv, spec) -> Section:

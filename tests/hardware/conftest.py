@@ -10,8 +10,9 @@ indeed stuck there (:meth:`~grbl_firmware.Firmware.stalled`: a fault of grbl-sim
 loaded host, never a state of real Grbl, whose position counts the steps it sends), is run once
 more on a restarted firmware and says so on stderr; so is one whose single move ended Idle short
 of its target while the simulator itself still reports Idle there (seen once in a full run: a
-lone ``G53 G1 X-12`` stopped at X-9.6; Grbl ends a block early only on a reset or a hold, which
-reports Hold, so this too is the simulator's race). Any other failure stands.
+lone ``G53 G1 X-12`` stopped at X-9.6; real Grbl leaves a block early only on a feed hold,
+reported as Hold, or on a reset during motion, which raises Alarm 3 (``mc_reset``), never as
+Idle, so this too is the simulator's race). Any other failure stands.
 """
 import re
 import shutil

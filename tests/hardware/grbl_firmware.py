@@ -156,16 +156,20 @@ class Firmware:
             self.restart()
             self._prepare(timeout_s)
 
+    def _report(self) -> bytes | None:
+        """One status report ``<...>`` answering a ``?`` of ours (pending bytes dropped
+        first), or None without an answer within 10 s. Only while no driver reads the device."""
+        fd = self._slave
+        read_until(fd, lambda d: False, 0.05)
+        os.write(fd, b"?")
+        got = read_until(fd, lambda d: d.endswith(b">\r\n"), 10.0)
+        return got[got.rfind(b"<"):] if got.endswith(b">\r\n") else None
+
     def idle_at(self) -> tuple[float, ...] | None:
         """The machine position when the simulator reports Idle, else None (busy, or no
         answer to ``?``). Only while no driver has the device open."""
-        fd = self._slave
         with contextlib.suppress(OSError):
-            read_until(fd, lambda d: False, 0.05)
-            os.write(fd, b"?")
-            got = read_until(fd, lambda d: d.endswith(b">\r\n"), 10.0)
-            report = got[got.rfind(b"<"):] if got.endswith(b">\r\n") else b""
-            fields = report.strip(b"<>\r\n").split(b"|")
+            fields = (self._report() or b"<>").strip(b"<>\r\n").split(b"|")
             if fields[0] == b"Idle" and len(fields) > 1 and fields[1].startswith(b"MPos:"):
                 return tuple(float(v) for v in fields[1][5:].split(b","))
         return None
@@ -180,20 +184,12 @@ class Firmware:
         always moves (its position counts the steps it sends), so Run without motion is a
         fault of the simulator, never a state a driver has to handle.
         """
-        fd = self._slave
-
-        def report():
-            read_until(fd, lambda d: False, 0.05)
-            os.write(fd, b"?")
-            got = read_until(fd, lambda d: d.endswith(b">\r\n"), 10.0)
-            return got[got.rfind(b"<"):] if got.endswith(b">\r\n") else None
-
         with contextlib.suppress(OSError):
-            first = report()
+            first = self._report()
             if first is None:
                 return True
             time.sleep(probe_s)
-            second = report()
+            second = self._report()
             if second is None:
                 return True
             moving = first.startswith((b"<Run", b"<Jog")) and second.startswith((b"<Run", b"<Jog"))
