@@ -131,11 +131,13 @@ def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,
     partial = [n for n, f in undefined.items() if t.nonfinite_max < f < 1.0]
     if partial:
         worst = max(undefined[n] for n in partial)
-        problems.append(f"{', '.join(partial)}: up to {100 * worst:.0f} % of the posterior draws not finite "
+        problems.append(f"{_names(partial)}: up to {100 * worst:.0f} % of the posterior draws not finite "
                         f"(at most {100 * t.nonfinite_max:.0f} % may be; these data leave them undefined there)")
+    undefined_all = [row.name for row in summary.itertuples(index=False) if not np.isfinite(row.mean)]
+    if undefined_all:
+        problems.append(f"{_names(undefined_all)}: no finite posterior draws (not defined by these data)")
     for row in summary.itertuples(index=False):
         if not np.isfinite(row.mean):
-            problems.append(f"{row.name}: no finite posterior draws (not defined by these data)")
             continue
         if not np.isfinite(row.r_hat) or row.r_hat > t.r_hat_max:
             problems.append(f"{row.name}: R-hat {row.r_hat:.4f} > {t.r_hat_max}")
@@ -151,6 +153,34 @@ def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,
         warnings.warn("posterior failed its diagnostics: " + "; ".join(problems[:8]) + more,
                       DiagnosticWarning, stacklevel=3)
     return Verdict(ok=not problems, problems=tuple(problems))
+
+
+def _names(names: Sequence[str]) -> str:
+    """Entry names joined, each vector's consecutive indices as one range:
+    ``a, plate_sd_mm[0-3]`` for a, plate_sd_mm[0], ..., plate_sd_mm[3]."""
+    out, runs = [], {}
+    for name in names:
+        base, _, idx = name.partition("[")
+        if idx.endswith("]") and idx[:-1].isdigit():
+            if base not in runs:
+                runs[base] = []
+                out.append(base)
+            runs[base].append(int(idx[:-1]))
+        else:
+            out.append(name)
+    parts = []
+    for name in out:
+        if name not in runs:
+            parts.append(name)
+            continue
+        idx = runs[name]
+        spans, start = [], idx[0]
+        for prev, cur in zip(idx, idx[1:] + [None]):
+            if cur != prev + 1:
+                spans.append(f"{start}" if start == prev else f"{start}-{prev}")
+                start = cur
+        parts.append(f"{name}[{', '.join(spans)}]")
+    return ", ".join(parts)
 
 
 def _divergences(posterior) -> list[str]:

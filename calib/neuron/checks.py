@@ -8,7 +8,8 @@ support; any problem fails the verdict (:func:`feeler.calib.fit.make_result`).
   data: zero spread);
 - units (:func:`unit_problems`): the decoder's gain compares the rise of U_y with the
   labelled steps, which should agree within a factor of ~30 (the tip follows the
-  surface); ~10³ off names µm vs mm. The stage speed measured from ``x_mm`` and ``t_s``
+  surface); ~10³ off names µm vs mm, and a rise that falls as the step rises names
+  steps labelled with the wrong sign. The stage speed measured from ``x_mm`` and ``t_s``
   against the commanded one, and a sample interval over a minute, name ms vs s;
 - the decoder's fit (:func:`posterior_problems`): leave-one-out predictive integral
   transforms (PIT) of every training scan under its plate, mixed over the τ weights.
@@ -34,7 +35,7 @@ UNIT_FACTOR = 30.0    # a scale further off than this is a units mistake, not ph
 
 
 def _mm(v) -> str:
-    return f"{v:g} mm"
+    return f"{v + 0.0:g} mm"                   # + 0.0: a step of -0 reads 0
 
 
 def data_problems(table: PeakTable, plates: Plates) -> list[str]:
@@ -57,6 +58,20 @@ def data_problems(table: PeakTable, plates: Plates) -> list[str]:
     return out
 
 
+def _falls(peak: np.ndarray, plates: Plates, z: float = 3.0) -> bool:
+    """Whether ``peak (ndarray[n_scans])`` falls with the step by more than ``z`` standard
+    errors of the least-squares slope over the scans (not a chance tilt of plates that
+    overlap)."""
+    c = plates.steps_mm[plates.group]
+    if np.ptp(c) == 0 or peak.size < 3:
+        return False
+    dc = c - c.mean()
+    slope = float(np.sum(dc * (peak - peak.mean())) / np.sum(dc ** 2))
+    resid = peak - peak.mean() - slope * dc
+    se = float(np.sqrt(np.sum(resid ** 2) / (peak.size - 2) / np.sum(dc ** 2)))
+    return slope < -z * se
+
+
 def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_mm=None,
                   speed_mm_s=None) -> list[str]:
     """Scales off by ~10³: displacements vs steps, times vs the stage's speed."""
@@ -65,7 +80,10 @@ def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_
         mean, _ = plate_stats(table.peak[:, -1], plates)                   # longest window: the whole rise
         c = plates.steps_mm
         gain = float(np.polyfit(c, mean * length_mm, 1)[0])
-        if gain > UNIT_FACTOR or 0 < gain < 1 / UNIT_FACTOR:
+        if gain < 0 and _falls(table.peak[:, -1], plates):
+            out.append(f"a: the scans' rise in U_y falls as the labelled step rises (slope {gain:.3g}): steps "
+                       f"probably labelled with the wrong sign (expected heights of the step up, in mm)")
+        elif gain > UNIT_FACTOR or 0 < gain < 1 / UNIT_FACTOR:
             likely = ("U_y probably in um (or steps in m)" if gain > UNIT_FACTOR
                       else "steps probably in um (or U_y in m)")
             out.append(f"a: the scans' rise in U_y is {gain:.3g} times the labelled steps (expected about 1, both "
@@ -99,9 +117,9 @@ def loo_pit(table: PeakTable, plates: Plates, noise: str, log_w: np.ndarray, *, 
     n_c = plates.counts.astype(float)
     C, n = n_c.size, p.shape[1]
     g = plates.group
-    own_n = n_c[g]
-    loo_mean = (own_n * mean[:, g] - p) / (own_n - 1)
-    removed = (p - mean[:, g]) ** 2 * own_n / (own_n - 1)
+    own_n = np.maximum(n_c[g], 2.0)             # a scan alone on its plate: no prediction (NaN below)
+    loo_mean = np.where(n_c[g] < 2, np.nan, (own_n * mean[:, g] - p) / (own_n - 1))
+    removed = np.where(n_c[g] < 2, 0.0, (p - mean[:, g]) ** 2 * own_n / (own_n - 1))
     if noise == "per-plate":
         var, df = (ss[:, g] - removed) / (own_n - 2), own_n - 2
     else:
@@ -133,6 +151,10 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
         cover, bias, pvals = [], [], []
         for j, step in enumerate(plates.steps_mm):
             u = pit[plates.group == j]
+            u = u[np.isfinite(u)]                     # scans alone on their plate have no left-out PIT
+            if u.size == 0:
+                cover.append(float("nan")), bias.append(float("nan"))
+                continue
             k, m = int(np.sum((u >= 0.05) & (u <= 0.95))), u.size
             cover.append(k / m)
             bias.append(float(np.mean(u)))

@@ -115,7 +115,9 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
              "noise_scores": json.dumps(scores), "checks": json.dumps(info),
              "prob_sharpness": sharpness, "prob_floor": FLOOR}
     if "loo_coverage90" in info:                      # overall, kept for readers of the earlier attribute
-        attrs["ppc_coverage90"] = float(np.average(info["loo_coverage90"], weights=plates.counts))
+        cover = np.asarray(info["loo_coverage90"], float)
+        known = np.isfinite(cover)                    # a plate of one scan has no left-out check
+        attrs["ppc_coverage90"] = float(np.average(cover[known], weights=plates.counts[known]))
         attrs["ppc_p_value"] = info["p_min"]          # smallest p of the per-plate checks (fails below 0.01/C)
     if scene_toml is not None:
         attrs.update(scene_toml=scene_toml, scene_path=str(scene_path or ""))

@@ -25,7 +25,7 @@ from scipy.special import logsumexp, ndtr
 from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
 from feeler.calib.neuron.model import NOISE_MODELS, PeakTable, PlatePrior, Plates, plate_stats
 
-__all__ = ["loo_plates", "loo_class_log_prob", "loo_elpd", "choose_noise", "tau_log_weights", "continuous_log_density", "usable_noise_models"]
+__all__ = ["alone", "loo_plates", "loo_class_log_prob", "loo_elpd", "choose_noise", "tau_log_weights", "continuous_log_density", "usable_noise_models"]
 
 
 def usable_noise_models(plates: Plates) -> tuple[str, ...]:
@@ -94,10 +94,12 @@ def loo_plates(table: PeakTable, plates: Plates, noise: str, *, growth_max: floa
     n_c = plates.counts.astype(float)
     C, G, n = n_c.size, p.shape[0], p.shape[1]
     g_idx = plates.group
-    # remove scan k from its plate (Welford): (G, n) for the scan's own plate
+    # remove scan k from its plate (Welford): (G, n) for the scan's own plate; a scan alone
+    # on its plate leaves none (NaN: see :func:`alone`)
     own_mean, own_n = mean[:, g_idx], n_c[g_idx]
-    loo_mean_own = (own_n * own_mean - p) / (own_n - 1)
-    loo_ss_own = np.maximum(ss[:, g_idx] - (p - own_mean) ** 2 * own_n / (own_n - 1), 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        loo_mean_own = (own_n * own_mean - p) / (own_n - 1)
+        loo_ss_own = np.maximum(ss[:, g_idx] - (p - own_mean) ** 2 * own_n / (own_n - 1), 0.0)
     mu = np.repeat(mean[:, None, :], n, axis=1)                             # (G, n, C)
     ssk = np.repeat(ss[:, None, :], n, axis=1)
     nk = np.repeat(n_c[None, :], n, axis=0)                                 # (n, C)
@@ -117,7 +119,8 @@ def loo_plates(table: PeakTable, plates: Plates, noise: str, *, growth_max: floa
             var = np.maximum(s0[..., None] * shape[:, None, :] ** 2, floor)
         else:
             var = np.maximum(np.sum(ssk, axis=-1, keepdims=True) / dof, floor) * np.ones(C)
-    return mu, np.sqrt(var * (1 + 1 / nk))
+    with np.errstate(divide="ignore", invalid="ignore"):           # a lone scan's own plate: nk = 0
+        return mu, np.sqrt(var * (1 + 1 / nk))
 
 
 def loo_elpd(table: PeakTable, plates: Plates, noise: str, *, growth_max: float = 3.0,
@@ -127,7 +130,15 @@ def loo_elpd(table: PeakTable, plates: Plates, noise: str, *, growth_max: float 
     mu, s = loo_plates(table, plates, noise, growth_max=growth_max)
     G, n = mu.shape[:2]
     dens = continuous_log_density(table.peak.T, np.broadcast_to(plates.group, (G, n)), mu, s, plates.steps_mm)
+    dens = np.where(alone(plates), 0.0, dens)
     return dens if pointwise else np.sum(dens, axis=1)
+
+
+def alone(plates: Plates) -> np.ndarray:
+    """Scans alone on their plate, ndarray[n_scans] bool: without them their plate has no
+    scan, so no left-out prediction of them exists; they add nothing to the leave-one-out
+    scores (the verdict fails such data: :func:`.checks.data_problems`)."""
+    return plates.counts[plates.group] < 2
 
 
 def loo_class_log_prob(table: PeakTable, plates: Plates, noise: str, log_w: np.ndarray, *,
@@ -145,6 +156,7 @@ def loo_class_log_prob(table: PeakTable, plates: Plates, noise: str, log_w: np.n
     with np.errstate(divide="ignore", invalid="ignore"):
         ll = student_t.logpdf(p, dof, loc=mu, scale=s)
     ll = np.where(np.isfinite(ll), ll, -np.inf)
+    ll[:, alone(plates), :] = 0.0                                          # no prediction: even odds
     cond = ll - logsumexp(ll, axis=2, keepdims=True)                        # per node
     keep = np.isfinite(log_w) & np.all(np.isfinite(cond), axis=(1, 2))
     if not keep.any():

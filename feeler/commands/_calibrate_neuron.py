@@ -77,7 +77,8 @@ def run(args) -> int:
         f"{k} {v / scans.step_mm.size:+.3f}" for k, v in scores.items()) + ")" if scores else ""))
     if "loo_coverage90" in checks:
         print("posterior predictive check (leave-one-out): labels inside their 90 % interval per plate: " + ", ".join(
-            f"{s:g} mm {100 * c:.0f} %" for s, c in zip(steps, checks["loo_coverage90"])))
+            f"{s + 0.0:g} mm " + (f"{100 * c:.0f} %" if c == c else "- (one scan)")
+            for s, c in zip(steps, checks["loo_coverage90"])))
     print("note: a, tau_s and h are the decoder's (z = a·P_tau − h fitted to the labels, tau_s the window "
           "that predicts them best), not the neuron parameters of a scene; a is in mm per unit of window sum")
     for line in checks.get("window_edge", []):

@@ -114,6 +114,37 @@ def test_a_plate_with_one_scan(data):
     assert any("0.2 mm have one scan" in q for q in problems)
 
 
+def test_a_plate_with_one_scan_fails_for_that_alone_and_quietly(data):
+    """A lone scan has no left-out prediction. It used to make every window's score −inf
+    (numpy warnings on the way), so the τ weights went flat and the verdict added "tau_s:
+    not pinned", which these data do pin. Now the lone scan adds nothing to the scores."""
+    keep = np.r_[0:30, 30]
+    one = dataclasses.replace(data, strain=data.strain[keep], step_mm=data.step_mm[keep], x_mm=data.x_mm[keep],
+                              speed_mm_s=data.speed_mm_s[keep])
+    res = _quiet_fit(one)
+    assert res.verdict.problems == ("plate_sd_mm: plate(s) 0.2 mm have one scan; a plate's spread needs at least 2",)
+    checks = json.loads(res.posterior["posterior"].attrs["checks"])
+    assert np.isnan(checks["loo_coverage90"][3]) and np.all(np.isfinite(checks["loo_coverage90"][:3]))
+    assert np.isfinite(res.posterior["posterior"].attrs["ppc_coverage90"])
+
+
+def test_steps_labelled_with_the_wrong_sign(data):
+    """Depths for heights (steps negated): the rise falls as the label rises. One line names
+    it; the per-entry "no finite draws" of the undefined decoder come as one line too."""
+    table, plates = data.table(n_grid=16), Plates.of(-data.step_mm)
+    q = unit_problems(table, plates, length_mm=3.0, t_s=data.t_s)
+    assert len(q) == 1 and "wrong sign" in q[0] and "slope -" in q[0]
+    assert unit_problems(table, Plates.of(data.step_mm), length_mm=3.0, t_s=data.t_s) == []
+    # plates that overlap entirely (labels shuffled) tilt by chance: not a sign mistake
+    shuffled = Plates.of(np.random.default_rng(3).permutation(data.step_mm))
+    assert not any("wrong sign" in x for x in unit_problems(table, shuffled, length_mm=3.0, t_s=data.t_s))
+    res = _quiet_fit(dataclasses.replace(data, step_mm=-data.step_mm))
+    assert "wrong sign" in res.verdict.problems[0]
+    assert [x for x in res.verdict.problems if "no finite posterior draws" in x] == [
+        "a, h, sigma_mm, plate_mean_mm[0-3], plate_sd_mm[0-3]: no finite posterior draws (not defined by these data)"]
+    assert not any("-0 mm" in x for x in res.verdict.problems)
+
+
 def test_units_micrometres_and_milliseconds(data):
     table = data.table(n_grid=32)
     plates = Plates.of(data.step_mm)
