@@ -30,6 +30,19 @@ def test_unlabelled_scans_classify_and_labels_add_the_summary(fit_dir, scans_fra
     assert (b.plate_mm == b.step_mm).mean() > 0.5
 
 
+def test_labels_in_micrometres_are_named_in_the_summary(fit_dir, scans_frame, tmp_path, capsys):
+    """Step labels in µm: only the 0 plate matches a trained plate. The accuracy is over
+    those scans and says so (it read "100.0 % classified as their labelled plate" over all
+    of them), and the summary names the likely unit."""
+    um = scans_frame.assign(step_mm=scans_frame.step_mm * 1000)
+    um.to_csv(tmp_path / "um.csv", index=False)
+    assert _run(fit_dir, tmp_path / "um.csv") == 0
+    line = [ln for ln in capsys.readouterr().out.splitlines() if "labelled scans" in ln][0]
+    n_zero = int((scans_frame.groupby("scan_id").step_mm.first() == 0).sum())
+    assert f"of the {n_zero} labelled with a trained plate classified as it" in line
+    assert "labels are probably in um (expected mm)" in line
+
+
 def test_scans_of_different_lengths(fit_dir, scans_frame, tmp_path):
     short = scans_frame[~((scans_frame.scan_id == 0) & (scans_frame.t_s > scans_frame.t_s.median()))]
     short.to_csv(tmp_path / "ragged.csv", index=False)

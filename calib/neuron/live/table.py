@@ -41,6 +41,15 @@ def labelled_summary(table, plates_mm) -> str | None:
     known = np.isclose(step[:, None], np.asarray(plates_mm)[None, :]).any(axis=1)
     hit = np.isclose(lab["plate_mm"].to_numpy(float), step)
     inside = (step >= lab["lo90_mm"].to_numpy(float)) & (step <= lab["hi90_mm"].to_numpy(float))
-    extra = f" ({int((~known).sum())} labelled with a step the fit has no plate for)" if (~known).any() else ""
-    return (f"{len(lab)} labelled scans: {hit[known].mean() * 100 if known.any() else float('nan'):.1f} % classified "
-            f"as their labelled plate; {inside.mean() * 100:.1f} % of labels inside their 90 % interval{extra}")
+    plates = np.asarray(plates_mm, float)
+    extra = ""
+    if (~known).any():
+        extra = f" ({int((~known).sum())} labelled with a step the fit has no plate for"
+        if np.isclose(step[~known, None] / 1000, plates[None, :], atol=1e-9).any(axis=1).all():
+            extra += f": steps {step[~known].min():g}-{step[~known].max():g} against plates " \
+                     f"{plates.min():g}-{plates.max():g} mm, so the labels are probably in um (expected mm)"
+        extra += ")"
+    hits = (f"{hit[known].mean() * 100:.1f} % classified as their labelled plate" if known.all() else
+            f"{hit[known].mean() * 100:.1f} % of the {int(known.sum())} labelled with a trained plate classified as it"
+            if known.any() else "none labelled with a trained plate")
+    return f"{len(lab)} labelled scans: {hits}; {inside.mean() * 100:.1f} % of labels inside their 90 % interval{extra}"
