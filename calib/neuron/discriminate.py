@@ -190,8 +190,11 @@ class Discriminator:
         deltas = np.linspace(0.0, top, n_steps + 1)
         ref = self.responses(reference_mm, reference=True)
         point, boot = self._curve(ref, [self.responses(reference_mm + d) for d in deltas])
-        d75 = Interval.of(_crossing(deltas, point, 0.75), _crossing(deltas, boot, 0.75))
-        weber = Interval.of(d75.draws / reference_mm, _crossing(deltas, boot, 0.75) / reference_mm)
+        # a curve at or above 75 % already at Δ = 0 (where it is ½ but for the simulation error
+        # of few touches) crosses at 0, not −inf: the threshold is ≥ 0
+        cross, cross_boot = (np.maximum(_crossing(deltas, c, 0.75), 0.0) for c in (point, boot))
+        d75 = Interval.of(cross, cross_boot)
+        weber = Interval.of(d75.draws / reference_mm, cross_boot / reference_mm)
         return Threshold(reference_mm=float(reference_mm), delta75_mm=d75, weber=weber, found=d75.found,
                          searched_mm=float(top))
 

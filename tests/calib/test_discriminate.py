@@ -123,6 +123,15 @@ def test_bad_arguments(disc, fit):
         Discriminator(fit, n_scans=1)
 
 
+def test_a_threshold_from_few_touches_is_never_below_zero(fit):
+    """With 3 touches per height a draw's curve can start at 75 % at Δ = 0 (where it is ½
+    but for the simulation error); that crossing was −inf, printed "[-inf, 9.25] um"."""
+    th = Discriminator(fit, n_scans=3, n_draws=200, seed=0).threshold(0.1)
+    d = th.delta75_mm
+    assert np.all(d.draws[np.isfinite(d.draws)] >= 0)
+    assert d.lo95 == 0.0 and th.weber.lo95 == 0.0      # the case arose (in resampled touches): crossed at Δ = 0
+
+
 def test_a_reference_outside_the_trained_plates_is_noted(disc):
     assert disc.outside_note(0.1) is None and disc.outside_note(0.0) is None and disc.outside_note(0.2) is None
     assert disc.outside_note([0.0, 0.05, 0.2], option="--pair") is None

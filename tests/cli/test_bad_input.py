@@ -47,6 +47,16 @@ CASES = {
                                         d / "p"), ["scan-plan", "feeler acquire"]),
     "classify given an M1 fit": (lambda d: ("classify", d / "m1", d / "sc"), ["not a neuron (M2) fit"]),
     "discriminate given an M1 fit": (lambda d: ("discriminate", d / "m1"), ["not a neuron (M2) fit"]),
+    # discriminate's heights and speeds, checked before the fit is even read (an M1 fit here);
+    # they used to fail after the pairs were computed, or gave P = 0 for a reversed pair
+    "discriminate --pair reversed": (lambda d: ("discriminate", d / "m1", "--pair", "0.1", "0.05"),
+                                     ["--pair='0.1 0.05'", "LOW <= HIGH"]),
+    "discriminate --pair nan": (lambda d: ("discriminate", d / "m1", "--pair", "nan", "0.1"), ["--pair='nan 0.1'"]),
+    "discriminate --pair 1e9 mm": (lambda d: ("discriminate", d / "m1", "--pair", "0", "1e9"), ["-5..5 mm"]),
+    "discriminate --reference -0.1": (lambda d: ("discriminate", d / "m1", "--reference", "-0.1"),
+                                      ["--reference='-0.1'", "(0, 2.5] mm"]),
+    "discriminate --speeds 0 1": (lambda d: ("discriminate", d / "m1", "--speeds", "0", "1"),
+                                  ["--speeds='0'", "(0, 100] mm/s"]),
     "validate sbc --n 3": (lambda d: ("validate", "sbc", "--model", "matrix", "--n", "3"), ["--n=3", "10"]),
     "validate sbc --draws 5": (lambda d: ("validate", "sbc", "--model", "matrix", "--draws", "5"), ["--draws=5"]),
     "classify --out at a file": (lambda d: ("classify", d / "m1", d / "sc", "--out", d / "a-file"), ["--out"]),
