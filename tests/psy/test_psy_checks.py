@@ -108,3 +108,62 @@ def test_refusals_at_the_api(simulate):
         _fit(trials, lapse_per="trial")
     with pytest.raises(ArgumentError, match="number of alternatives"):
         _fit(trials.rename(columns={"n_comparison_higher": "n_correct"}))
+
+
+def _counts(k, n=20, levels=LEVELS):
+    return pd.DataFrame([("A", 10.0, 20.0, x, 20.0, n, int(kk)) for x, kk in zip(levels, k)],
+                        columns=list(TRIAL_COLUMNS))
+
+
+def _spread(result):
+    return [p for p in result.verdict.problems if "spread" in p or "do not rise" in p]
+
+
+def test_responses_that_step_between_two_levels_bound_the_spread_only_from_above():
+    """0 of 20 below 10.4 µm, 20 of 20 above: any σ below the level spacing fits (the
+    step's deviance is 0, at most the curve's). The fit said "verdict ok" with a
+    threshold interval that came from the prior."""
+    result = _fit(_counts([0, 0, 0, 0, 20, 20, 20]))
+    (line,) = _spread(result)
+    assert line.startswith("A [10 um, 20/20 mm/s]: the responses step between two adjacent tested levels")
+    assert "deviance 0.00" in line and "closer together" in line
+
+
+def test_responses_that_do_not_rise_bound_the_threshold_only_from_below():
+    """Chance at every level (an observer who cannot tell these heights apart): a flat
+    line fits as well, and the 75 % point lies beyond the tested levels."""
+    result = _fit(_counts([9, 11, 10, 12, 9, 10, 11]))
+    (line,) = _spread(result)
+    assert "do not rise across the tested levels 7.6–12.4 µm (a flat line at 0.51" in line
+
+
+def test_seven_trials_pin_neither_side():
+    """One trial per level, one of them against the rise: neither a step nor a flat line
+    can be rejected."""
+    result = _fit(_counts([0, 1, 0, 0, 1, 1, 1], n=1))
+    (line,) = _spread(result)
+    assert "cannot pin down the spread" in line and "its 7 trials" in line
+
+
+def test_a_sampled_psychometric_function_is_not_a_step_or_a_line(simulate):
+    """The shipped design (7 levels 0.8 µm apart, 20 trials, DT 0.95-2 µm): neither
+    boundary model fits. 20 datasets of 6 subjects passed this check before it shipped."""
+    trials, _ = simulate(7, n_subjects=6)
+    assert _spread(_fit(trials)) == []
+
+
+def test_the_likelihood_ratio_against_a_step_by_hand():
+    """Counts a step fits exactly but for one trial: the step's deviance at lapse λ is, in
+    closed form, D(λ) = 2[ln(1/(20·λ/2)) + 19 ln(19/(20(1 − λ/2)))] − 240 ln(1 − λ/2); the
+    check takes its minimum over the lapses up to the curve's and tests the likelihood ratio
+    against 2.71."""
+    task = Task(None)
+    n, k = np.full(LEVELS.size, 20), np.array([0, 0, 0, 1, 20, 20, 20])
+    lam = np.linspace(0.0, 0.04, 11)[1:]
+    closed = 2 * (np.log(1 / (20 * lam / 2)) + 19 * np.log(19 / (20 * (1 - lam / 2)))) - 240 * np.log(1 - lam / 2)
+    base, scale, _ = task.base_scale_rest(lam)
+    direct = [checks.deviance(n, k, b + s * (LEVELS > 10.4)) for b, s in zip(base, scale)]
+    np.testing.assert_allclose(direct, closed, rtol=1e-12)
+    best = closed.min()
+    assert checks.spread_problems("A", task, LEVELS, n, k, best - 2.70, 0.04)         # within 2.71: a step fits
+    assert not checks.spread_problems("A", task, LEVELS, n, k, best - 2.72, 0.04)     # beyond: it does not

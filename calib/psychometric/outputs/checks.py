@@ -12,8 +12,11 @@ are the heights in µm, can the data pin the function down.
   names the likely unit mistake.
 - **Units**: heights whose median is below 0.05 µm or above 1000 µm are ~10³ off the
   range of fingertip step heights: likely mm or nm.
-- **Identifiability**: fewer than two tested levels, or a 95 % interval of the location
-  reaching more than the tested range beyond the tested levels.
+- **Identifiability**: fewer than two tested levels, a 95 % interval of the location
+  reaching more than the tested range beyond the tested levels, and the boundary models
+  of the spread (:func:`spread_problems`): a step between two adjacent levels (σ → 0)
+  or a flat line (σ → ∞) that the likelihood-ratio test cannot reject against the fitted
+  curve — the data then bound the spread on one side only.
 """
 from __future__ import annotations
 
@@ -25,13 +28,16 @@ from scipy.stats import beta as beta_dist
 from feeler.models.psychometric import LAPSE_MAX
 
 __all__ = ["deviance", "gof", "unit_problems", "conflict_problems", "level_problems",
-           "bracket_problems", "gof_problems", "GOF_ALPHA", "CONFLICT_Z", "CONFLICT_TAIL",
-           "PLAUSIBLE_UM"]
+           "bracket_problems", "gof_problems", "spread_problems", "GOF_ALPHA", "CONFLICT_Z", "CONFLICT_TAIL",
+           "PLAUSIBLE_UM", "BOUNDARY_LR"]
 
 GOF_ALPHA = 0.05
 CONFLICT_Z = 4.0
 CONFLICT_TAIL = 1e-4
 PLAUSIBLE_UM = (0.05, 1000.0)   # fingertip step heights: far below the edge threshold .. 1 mm
+# 5 % critical value of a likelihood ratio for a parameter on its boundary (σ → 0 or ∞):
+# ½χ²₀ + ½χ²₁ (Self & Liang 1987), i.e. the 90 % point of χ²₁
+BOUNDARY_LR = 2.71
 
 
 def deviance(n: np.ndarray, k: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -146,4 +152,46 @@ def bracket_problems(label: str, what: str, lb: float, ub: float, lo: float, hi:
     if lo - lb > span or ub - hi > span:
         return [f"{label}: the 95 % interval of the {what} [{lb:.4g}, {ub:.4g}] µm reaches far beyond "
                 f"the tested levels {lo:.4g}–{hi:.4g} µm: the data do not pin it down"]
+    return []
+
+
+def spread_problems(label: str, task, x: np.ndarray, n: np.ndarray, k: np.ndarray, fitted_deviance: float,
+                    fitted_lapse: float) -> list[str]:
+    """A spread the data bound on one side only, by likelihood ratio against the fitted curve.
+
+    The boundary models: a step between two adjacent tested levels (σ → 0, with a lapse
+    up to the fitted one: a larger lapse turns a step into a shallow curve of its own),
+    and a flat line (σ → ∞: one proportion at every level). When either fits the counts
+    within :data:`BOUNDARY_LR` of the best deviance, the data cannot reject it, and the
+    spread, the difference threshold and the slope are bounds, not estimates: below the
+    level spacing (a step), or beyond the tested range (flat). Rows with one level are
+    :func:`level_problems`'s."""
+    x, n, k = (np.asarray(v, float) for v in (x, n, k))
+    levels = np.unique(x)
+    if levels.size < 2 or n.sum() <= 0:
+        return []
+    lam = np.linspace(0.0, min(max(float(fitted_lapse), 0.0), 0.98 * LAPSE_MAX), 11)
+    base, scale, _ = task.base_scale_rest(lam)                                    # (L,)
+    cuts = np.concatenate([[levels[0] - 1.0], (levels[:-1] + levels[1:]) / 2, [levels[-1] + 1.0]])
+    above = (x[None, :] > cuts[:, None]).astype(float)                            # (M, m)
+    p_step = np.clip(base[:, None, None] + scale[:, None, None] * above[None], 1e-12, 1 - 1e-12)
+    d_step = float(np.min(deviance(n, k, p_step)))
+    b0, s0, _ = task.base_scale_rest(0.0)
+    p_flat = float(np.clip(k.sum() / n.sum(), max(float(b0), 1e-12), min(float(b0 + s0), 1 - 1e-12)))
+    d_flat = float(deviance(n, k, np.full(x.shape, p_flat)))
+    best = min(float(fitted_deviance), d_step, d_flat)
+    step, flat = d_step - best <= BOUNDARY_LR, d_flat - best <= BOUNDARY_LR
+    span = f"{levels[0]:.4g}–{levels[-1]:.4g} µm"
+    if step and flat:
+        return [f"{label}: the data cannot pin down the spread: a step between two tested levels and a flat "
+                f"line fit its {int(n.sum())} trials as well as the curve (likelihood ratio < {BOUNDARY_LR}); "
+                f"more trials are needed"]
+    if step:
+        return [f"{label}: the responses step between two adjacent tested levels (a step function fits as well: "
+                f"deviance {d_step:.2f}, the curve's {fitted_deviance:.2f}): the spread and the threshold are below the level "
+                f"spacing and not pinned down; test levels closer together around the PSE"]
+    if flat:
+        return [f"{label}: the responses do not rise across the tested levels {span} (a flat line at "
+                f"{p_flat:.2f} fits as well: deviance {d_flat:.2f}, the curve's {fitted_deviance:.2f}): the threshold lies beyond "
+                f"them and is not pinned down; test a wider range"]
     return []
