@@ -6,7 +6,8 @@ rows b_i of B per output axis (K for the inverse model, C for the forward one).
 
 - design (:func:`design_problems`): directions of the design that carry no information
   (all-zero displacements: every direction), where B would be the prior's;
-- units (:func:`unit_problems`): the least-squares compliance against the nominal C₀;
+- units (:func:`unit_problems`): the least-squares compliance against the nominal C₀
+  (a scale ~10³ off, forces and displacements swapped, an axis of the opposite sign);
   a ratio beyond ×30 is no sensor tolerance but a unit (×10³: µm for mm, mN for N);
 - prior–data conflict (:func:`conflict_problems`): the least-squares row b̂_i against
   its prior N(b0_i, s²I): under the model b̂_i ~ N(b0_i, s²I + σ̂_i²(XᵀX)⁻¹), so its
@@ -59,13 +60,36 @@ def unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool
     except np.linalg.LinAlgError:
         return []
     ratio = float(np.linalg.norm(c) / np.linalg.norm(c0))
+    try:
+        k0 = np.linalg.inv(c0)
+    except np.linalg.LinAlgError:
+        k0 = None
+    if k0 is not None and _rel(c, k0) < 0.5 < _rel(c, c0):
+        return [f"C: the data's compliance {_flat(c)} mm/N matches the nominal stiffness C0^-1 {_flat(k0)} N/mm, "
+                f"not C0 {_flat(c0)}: forces and displacements probably swapped "
+                f"(ux_mm, uy_mm, uz_mm are the displacements, fx_n, fy_n, fz_n the forces)"]
     if ratio > UNIT_FACTOR:
         return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: displacements probably in um "
                 f"(expected mm) or forces in kN (expected N)"]
     if ratio < 1 / UNIT_FACTOR:
         return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: forces probably in mN "
                 f"(expected N) or displacements in m (expected mm)"]
+    d, d0 = np.diag(c), np.diag(c0)
+    flipped = [i for i in range(3) if d[i] * d0[i] < 0 and 0.2 < abs(d[i] / d0[i]) < 5.0]
+    if flipped:
+        return [f"C: the data's compliance on axis {'xyz'[i]} is {d[i]:.3g} mm/N against the nominal {d0[i]:.3g}: "
+                f"u{'xyz'[i]}_mm or f{'xyz'[i]}_n probably has the opposite sign (the sensor's axis convention)"
+                for i in flipped]
     return []
+
+
+def _flat(m: np.ndarray) -> str:
+    """A matrix on one line, rows separated by ';'."""
+    return "[" + "; ".join(" ".join(f"{v:.3g}" for v in row) for row in np.atleast_2d(m)) + "]"
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
 
 
 def conflict_problems(x: np.ndarray, y: np.ndarray, b0: np.ndarray, s: float, *, matrix: str, unit: str) -> list[str]:

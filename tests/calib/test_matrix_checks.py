@@ -53,6 +53,26 @@ def test_units_um_and_mn_are_named():
     assert unit_problems(d.f_n, 1000 * d.u_mm, PRIOR.c0, forward=True)[0].startswith("C: the data's compliance is")
 
 
+def test_swapped_columns_and_a_flipped_axis_are_named():
+    """Forces in the displacement columns and back: the fitted 'compliance' is the
+    sensor's stiffness, 20x the nominal compliance (inside the x30 unit check), and the
+    verdict was ok. A displacement axis of the opposite sign was a prior-data conflict
+    that named neither the axis nor the sign."""
+    d = _campaign()
+    swapped = _fit(CalibrationData(d.f_n, d.u_mm, d.point_id))
+    assert not swapped.verdict.ok
+    line = swapped.verdict.problems[0]
+    assert "matches the nominal stiffness C0^-1 [4 0 0; 0 5 0; 0 0 4] N/mm" in line and "probably swapped" in line
+    assert "\n" not in line
+    for axis in range(3):
+        u = d.u_mm.copy()
+        u[:, axis] *= -1
+        (q,) = unit_problems(u, d.f_n, PRIOR.c0, forward=False)
+        name = "xyz"[axis]
+        assert f"on axis {name} is -" in q and f"u{name}_mm or f{name}_n probably has the opposite sign" in q
+    assert unit_problems(d.u_mm, d.f_n, PRIOR.c0, forward=False) == []
+
+
 def test_all_zero_and_unidentified_designs():
     d = _campaign()
     zero = _fit(CalibrationData(0 * d.u_mm, d.f_n, d.point_id))
