@@ -8,8 +8,10 @@ support; any problem fails the verdict (:func:`feeler.calib.fit.make_result`).
   data: zero spread);
 - units (:func:`unit_problems`): the decoder's gain compares the rise of U_y with the
   labelled steps, which should agree within a factor of ~30 (the tip follows the
-  surface); ~10³ off names µm vs mm, and a rise that falls as the step rises names
-  steps labelled with the wrong sign. The stage speed measured from ``x_mm`` and ``t_s``
+  surface); ~10³ off names µm vs mm, a rise that falls as the step rises (by 3 standard
+  errors of the slope at some window, and rises at none) names steps labelled with the
+  wrong sign, and one that changes with the step at no window says the scans show no
+  step (labels unrelated to the scans, or the wrong column). The stage speed measured from ``x_mm`` and ``t_s``
   against the commanded one, and a sample interval over a minute, name ms vs s;
 - the decoder's fit (:func:`posterior_problems`): leave-one-out predictive integral
   transforms (PIT) of every training scan under its plate, mixed over the τ weights.
@@ -58,18 +60,20 @@ def data_problems(table: PeakTable, plates: Plates) -> list[str]:
     return out
 
 
-def _falls(peak: np.ndarray, plates: Plates, z: float = 3.0) -> bool:
-    """Whether ``peak (ndarray[n_scans])`` falls with the step by more than ``z`` standard
-    errors of the least-squares slope over the scans (not a chance tilt of plates that
-    overlap)."""
+def _slope_z(peak: np.ndarray, plates: Plates) -> np.ndarray:
+    """Least-squares slope of ``peak (ndarray[n_scans, ...])`` on the scans' steps over its
+    standard error, per column (0 where it cannot be computed)."""
+    peak = np.asarray(peak, float)
     c = plates.steps_mm[plates.group]
-    if np.ptp(c) == 0 or peak.size < 3:
-        return False
-    dc = c - c.mean()
-    slope = float(np.sum(dc * (peak - peak.mean())) / np.sum(dc ** 2))
-    resid = peak - peak.mean() - slope * dc
-    se = float(np.sqrt(np.sum(resid ** 2) / (peak.size - 2) / np.sum(dc ** 2)))
-    return slope < -z * se
+    shape = peak.shape[1:]
+    if np.ptp(c) == 0 or peak.shape[0] < 3:
+        return np.zeros(shape)
+    dc = (c - c.mean()).reshape((-1,) + (1,) * len(shape))
+    dev = peak - peak.mean(axis=0)
+    slope = np.sum(dc * dev, axis=0) / np.sum(dc ** 2)
+    se = np.sqrt(np.sum((dev - slope * dc) ** 2, axis=0) / (peak.shape[0] - 2) / np.sum(dc ** 2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(se > 0, slope / se, np.sign(slope) * np.inf)
 
 
 def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_mm=None,
@@ -80,9 +84,14 @@ def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_
         mean, _ = plate_stats(table.peak[:, -1], plates)                   # longest window: the whole rise
         c = plates.steps_mm
         gain = float(np.polyfit(c, mean * length_mm, 1)[0])
-        if gain < 0 and _falls(table.peak[:, -1], plates):
+        z = _slope_z(table.peak, plates)                 # per window; 3 standard errors: not chance
+        if z.max() < 3 < -z.min():
             out.append(f"a: the scans' rise in U_y falls as the labelled step rises (slope {gain:.3g}): steps "
                        f"probably labelled with the wrong sign (expected heights of the step up, in mm)")
+        elif np.abs(z).max() < 3 and plates.counts.min() >= 2:
+            out.append(f"a: the scans' rise in U_y does not change with the labelled step at any window (slope "
+                       f"{gain:.3g}, at most {np.abs(z).max():.1f} standard errors from 0): the scans show no step; "
+                       f"check that uy_mm holds the normal displacement and step_mm each scan's plate")
         elif gain > UNIT_FACTOR or 0 < gain < 1 / UNIT_FACTOR:
             likely = ("U_y probably in um (or steps in m)" if gain > UNIT_FACTOR
                       else "steps probably in um (or U_y in m)")
