@@ -56,6 +56,12 @@ def run(args) -> int:
     path = Path(args.run_dir)
     if args.poll_s <= 0:
         raise ArgumentError("--poll-s", args.poll_s, "> 0 s")
+    if not 0 < args.threshold <= 1:                 # with the option's name, before anything is read
+        raise ArgumentError("--threshold", args.threshold, "a probability in (0, 1]")
+    if not 0 < args.drop < 1:
+        raise ArgumentError("--drop", args.drop, "a fraction in (0, 1)")
+    if args.follow and not args.wait_s >= 0:
+        raise ArgumentError("--wait-s", args.wait_s, ">= 0 s")
     if args.follow and not path.is_dir():
         raise ArgumentError("RUN", str(path), "a run directory with --follow (one that `feeler acquire` writes)")
     if not args.follow and not path.exists():
