@@ -156,7 +156,31 @@ def fit_finger_route(trials: pd.DataFrame, *, rng: np.random.Generator, grid: Ro
                        f"over the simulated steps {', '.join(f'{h:g}' for h in grid.kappa_heights_um)} µm"}
     result = make_result(tree, backend=f"grid ({level})", priors=priors,
                          seconds=time.perf_counter() - start)
-    return with_problems(result, _edge_problems(prob, taus, sigmas))
+    speeds = sorted(set(zip(trials["standard_speed_mm_s"], trials["comparison_speed_mm_s"])))
+    return with_problems(result, _edge_problems(prob, taus, sigmas) + _pinned_problems(prob, taus, speeds))
+
+
+NOT_PINNED = 0.7     # a τ posterior spread (log scale) over 70 % of the prior's: the data do not pin τ
+
+
+def _pinned_problems(prob: np.ndarray, taus: np.ndarray, speeds: list) -> list[str]:
+    """τ whose posterior is nearly as wide as its log-uniform prior on the grid (the
+    same rule as M2's window, :func:`feeler.calib.neuron.checks.posterior_problems`).
+    The chain's accepted height is calibrated per speed (κ(τ)), so τ acts only through
+    how judgements change with the scan speeds; a single speed pair leaves it to the prior."""
+    lt = np.log(taus)
+    w = prob.sum(axis=(1, 2))
+    sd = float(np.sqrt(np.sum(w * (lt - np.sum(w * lt)) ** 2)))
+    prior_sd = float(np.std(lt))
+    if not sd > NOT_PINNED * prior_sd:
+        return []
+    cum = np.cumsum(w)
+    lo, hi = taus[np.searchsorted(cum, 0.05)], taus[min(np.searchsorted(cum, 0.95), taus.size - 1)]
+    pairs = ", ".join(f"{a:g}/{b:g}" for a, b in speeds)
+    return [f"tau_s: not pinned by these data: windows from {1e3 * lo:.3g} to {1e3 * hi:.3g} ms fit them about "
+            f"equally well (posterior spread {100 * sd / prior_sd:.0f} % of the prior's, log scale); tau shows only "
+            f"in how the judgements change with the scan speed, and these data have the speed pair(s) {pairs} "
+            f"mm/s (standard/comparison)"]
 
 
 def _edge_problems(prob: np.ndarray, taus: np.ndarray, sigmas: np.ndarray,

@@ -35,11 +35,13 @@ NAME = "fit"
 HELP = "fit forced-choice psychophysics: psychometric functions (M4) or τ through the finger chain"
 
 
-def _own_doc(what: str, example: str) -> str:
-    """A sub-command's --help text: ``what`` it does, the shared data/backends text of this
-    module's docstring (from "DATA.csv"), and an example."""
-    shared = __doc__[__doc__.index("DATA.csv"):]
-    return f"{what}\n\n{shared}\nExample:\n    {example}\n"
+def _own_doc(what: str, example: str, backends: str | None = None) -> str:
+    """A sub-command's --help text: ``what`` it does, the shared data text of this module's
+    docstring (from "DATA.csv"), its ``backends`` paragraph (default the docstring's, for
+    the psychometric fits), and an example."""
+    data = __doc__[__doc__.index("DATA.csv"):__doc__.index("Backends:")]
+    backends = backends or __doc__[__doc__.index("Backends:"):]
+    return f"{what}\n\n{data}{backends}\nExample:\n    {example}\n"
 
 
 def _add_psychophysics(sub) -> None:
@@ -92,7 +94,12 @@ def register(parser) -> None:
                                "The neuron's window τ and the decision noise σ_d from 2AFC trials, through the\n"
                                "finger chain (skin → FA-I neuron → observer), reported beside the paper's\n"
                                "\"τ ≤ 300 ms\".",
-                               "feeler fit finger-route runs/humans/trials.csv --out runs/route"), formatter_class=argparse.RawDescriptionHelpFormatter)
+                               "feeler fit finger-route runs/humans/trials.csv --out runs/route",
+                               "The posterior of (τ, σ_d, lapse) is computed exactly on a grid (τ log-uniform, 1 ms–10 s;\n"
+                               "comparison design only). The chain's accepted height is calibrated at each speed, so τ\n"
+                               "shows only in how judgements change with the scan speed: the data need trials at more\n"
+                               "than one speed pair. Exit status 1 when the verdict fails: τ not pinned by the data, or a\n"
+                               "posterior piling against a grid bound.\n"), formatter_class=argparse.RawDescriptionHelpFormatter)
     route.add_argument("data", metavar="DATA.csv", help="2AFC trial table (comparison design)")
     route.add_argument("--level", choices=("l0", "l1", "l2"), default="l0", help="skin fidelity (default l0)")
     route.add_argument("--check-level", choices=("l0", "l1", "l2"), default=None,

@@ -89,6 +89,18 @@ def test_edge_piling_is_flagged():
     assert len(problems) == 1 and problems[0].startswith("tau_s: posterior piles against its upper")
 
 
+def test_one_speed_pair_does_not_pin_tau(design):
+    """κ(τ) calibrates the accepted height at each speed, so τ shows only in how the
+    judgements change with the speed. The trials at equal speeds alone gave the prior
+    back (mean 1.1 s, [1.2, 8238] ms) with a verdict of ok."""
+    same = design[design.standard_speed_mm_s == design.comparison_speed_mm_s]
+    result = fit_finger_route(same, rng=np.random.default_rng(4), grid=GRID, draws=200)
+    (line,) = [p for p in result.verdict.problems if p.startswith("tau_s: not pinned")]
+    assert "the speed pair(s) 20/20 mm/s" in line
+    both = fit_finger_route(design, rng=np.random.default_rng(4), grid=GRID, draws=200)
+    assert not any("not pinned" in p for p in both.verdict.problems)
+
+
 @pytest.mark.parametrize("kwargs", [dict(tau_min_s=0.0), dict(sigma_d_min_um=30.0),
                                     dict(n_lapse=1), dict(lapse_a=0.0), dict(kappa_heights_um=())])
 def test_bad_grid(kwargs):
