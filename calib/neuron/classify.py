@@ -30,6 +30,8 @@ class Classification:
         p_at_tau (ndarray[S, n_scans]): each scan's P at each draw's window; tau_s (ndarray[S]):
             those windows, s (for the training-envelope checks).
         note (str | None): why posterior draws were left out, if any (:attr:`DecoderDraws.note`).
+        plate_sds, nearest_mm (ndarray[n_scans] | None): each scan's distance from the nearest
+            training plate, in its sds, and that plate's step, mm (:meth:`DecoderDraws.plate_distance`).
     """
     plates_mm: np.ndarray
     log_prob: np.ndarray
@@ -39,6 +41,8 @@ class Classification:
     p_at_tau: np.ndarray | None = None
     tau_s: np.ndarray | None = None
     note: str | None = None
+    plate_sds: np.ndarray | None = None
+    nearest_mm: np.ndarray | None = None
 
     @property
     def prob(self) -> np.ndarray:
@@ -108,8 +112,10 @@ def classify(result, strain, t_s, *, rng: np.random.Generator, n_draws: int = 40
     kernel = str(result.posterior["posterior"].attrs.get("kernel", "boxcar"))
     p = peaks_of(strain, t_s, grid, dec.tau_s, kernel=kernel)
     height, lo, hi = dec.height(p)
+    distance, nearest = dec.plate_distance(p)
     return Classification(plates_mm=dec.steps_mm, log_prob=dec.class_log_prob(p), height_mm=height,
-                          lo90_mm=lo, hi90_mm=hi, p_at_tau=p, tau_s=dec.tau_s, note=dec.note)
+                          lo90_mm=lo, hi90_mm=hi, p_at_tau=p, tau_s=dec.tau_s, note=dec.note,
+                          plate_sds=distance, nearest_mm=dec.steps_mm[nearest])
 
 
 def expected_calibration_error(prob, true_index, *, n_bins: int = 10) -> float:

@@ -140,6 +140,17 @@ class DecoderDraws:
         cond = ll - log_sum_exp(ll, axis=2, keepdims=True)
         return recalibrated(log_sum_exp(cond, axis=0) - np.log(self.size), self.sharpness, self.floor)
 
+    def plate_distance(self, p_at_tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """How far each scan's reading lies from the nearest training plate, in that plate's
+        sds: the median over draws of |z_s − m_cs| / s_cs per plate, then the smallest over
+        plates → (distance ndarray[n], nearest plate's index ndarray[n] int). Scans of the
+        training plates lie within 4 sds (8700 fresh touches of the hard scenes: largest
+        3.9); a step the fit was not trained on lies further (:mod:`.live.envelope`)."""
+        z = self.decoded(p_at_tau)[..., None]                                 # (S, n, 1)
+        d = np.median(np.abs(z - self.mean_mm[:, None, :]) / self.sd_mm[:, None, :], axis=0)    # (n, C)
+        k = np.argmin(d, axis=1)
+        return d[np.arange(d.shape[0]), k], k
+
     def predictive_cdf(self, z: np.ndarray, delta: np.ndarray) -> np.ndarray:
         """F(δ) = mean_s Φ((z_s − m_s(δ))/s_s(δ)) for ``z (ndarray[S, n])``, ``delta (ndarray[n])``."""
         m, s = curve_at(delta, self.steps_mm, self.mean_mm, self.sd_mm)

@@ -53,6 +53,7 @@ def run(args) -> int:
                  rng=np.random.default_rng(args.seed), n_draws=args.n_draws)
     env = Envelope.of_fit(result, c.tau_s)
     flags = [env.problems(r.t_s, c.p_at_tau[:, k], x_mm=r.x_mm, speed_mm_s=r.speed_mm_s)
+             + [f for f in [env.plates(c.plate_sds[k], c.nearest_mm[k], c.height_mm[k])] if f]
              for k, r in enumerate(records)]
     unit_mistake(path, [r.scan_id for r in records], flags)
     labels = {"step_mm": [np.nan if r.step_mm is None else r.step_mm for r in records]}

@@ -122,6 +122,33 @@ def test_far_out_scan_stays_finite_in_log_space(fitted):
     assert c.lo90_mm[1] > 10 * c.plates_mm.max()       # the decoded height shows it is off every plate
 
 
+def test_plate_distance_by_hand(fitted):
+    """|z − m_c| / s_c, median over draws, smallest over plates: with one line z = 3P − 0.01
+    and plates (0.004, 0.05, 0.1, 0.2) ± (0.003, 0.005, 0.005, 0.004) mm."""
+    data, _ = fitted
+    tab = data.table(n_grid=32)
+    tau = float(np.exp(tab.log_tau[20]))
+    mean, sd = np.array([0.004, 0.05, 0.1, 0.2]), np.array([0.003, 0.005, 0.005, 0.004])
+    res = _fixed_posterior([0.0, 0.05, 0.1, 0.2], tab, mean, sd, a=3.0, tau_s=tau, h=0.01)
+    dec = DecoderDraws.from_result(res)
+    p = np.array([[0.01, 0.02, 0.07]] * dec.size)                          # z = 0.02, 0.05, 0.2
+    d, k = dec.plate_distance(p)
+    np.testing.assert_allclose(d, [min(np.abs(0.02 - mean) / sd), 0.0, 0.0], atol=1e-12)
+    assert list(k) == [0, 1, 3]
+
+
+def test_scans_of_steps_the_fit_was_not_trained_on_lie_far_from_every_plate(fitted):
+    """A 0.3 mm scan on plates 0-0.2 mm was given P(0.2 mm) = 0.999 and nothing more;
+    its reading lies ~30 sds from the 0.2 mm plate, every training scan's within 4."""
+    data, res = fitted
+    c = classify(res, data.strain, data.t_s, rng=np.random.default_rng(4))
+    assert c.plate_sds.max() < 4
+    other = scene_scans(seed=9, per_plate=4, heights_mm=(0.3, 0.15))[2]
+    c = classify(res, other.strain, other.t_s, rng=np.random.default_rng(4))
+    assert np.all(c.plate_sds > 5) and set(c.nearest_mm) <= {0.1, 0.2}
+    assert np.all(c.prob[other.step_mm == 0.3, -1] > 0.99)     # the probabilities alone would not tell
+
+
 def test_ece_and_log_loss_exact_small_cases():
     prob = np.array([[0.9, 0.1], [0.9, 0.1], [0.6, 0.4], [0.3, 0.7]])
     true = np.array([0, 1, 0, 1])

@@ -46,3 +46,12 @@ def test_scene_speed_and_bad_factors():
     assert training_speed_mm_s({"scene_toml": "not toml ["}) is None and training_speed_mm_s({}) is None
     with pytest.raises(ArgumentError):
         Envelope(0.5, 20.0, 0.5, ENV.p_lo, ENV.p_hi, slack=1.0)
+
+
+def test_a_reading_far_from_every_plate_is_a_step_not_trained_on():
+    assert ENV.plates(4.9, 0.2, 0.21) is None
+    line = ENV.plates(27.4, 0.2, 0.3)
+    assert line.startswith("decoded height 0.3 mm lies 27 sds from the nearest trained plate (0.2 mm)")
+    assert "not trained on" in line
+    with pytest.raises(ArgumentError, match="plate_sds"):
+        Envelope(0.5, 20.0, None, ENV.p_lo, ENV.p_hi, plate_sds=1.0)

@@ -7,6 +7,7 @@ import pytest
 from feeler.calib.neuron.classify import classify
 from feeler.calib.neuron.live import LiveDecoder
 from feeler.calib.neuron.live.sums import WindowSums
+from feeler.calib.neuron.synth import scene_scans
 from feeler.errors import ArgumentError
 from feeler.models import neuron
 
@@ -132,3 +133,12 @@ def test_scans_in_wrong_units_or_speed_are_flagged(small_fit):
     if speed is not None:
         _, fast = _stream(dec, data.strain[60], t, x=t * speed * 4)
         assert any("speed" in f for f in fast.flags)
+
+
+def test_a_step_the_fit_was_not_trained_on_is_flagged_not_decided(small_fit):
+    _, res = small_fit
+    dec = LiveDecoder(res, n_draws=40)
+    other = scene_scans(seed=9, per_plate=1, heights_mm=(0.3,))[2]
+    _, last = _stream(dec, other.strain[0], np.asarray(other.t_s))
+    assert last.decision is None
+    assert any("sds from the nearest trained plate (0.2 mm)" in f for f in last.flags)

@@ -23,7 +23,8 @@ scan is decided at the first sample where
    decided only when the scan ends (:meth:`LiveDecoder.finish`), if its probability is
    then ≥ ``threshold``;
 4. the scan so far lies inside the fit's training envelope (no flags): a scan at another
-   speed, period, length or response scale is never decided, only flagged.
+   speed, period, length or response scale, or whose reading lies far from every training
+   plate (a step the fit was not trained on), is never decided, only flagged.
 
 A scan that ends below the threshold stays undecided (its final probabilities are still
 given).
@@ -180,7 +181,8 @@ class LiveDecoder:
     def _answer_of(self, p: np.ndarray):
         col = p[:, None]
         prob = np.exp(self.dec.class_log_prob(col)[0])
-        return prob, _Height(self.dec, p), median_of(self.dec.decoded(col))
+        distance, nearest = self.dec.plate_distance(col)
+        return prob, _Height(self.dec, p), median_of(self.dec.decoded(col)), (float(distance[0]), int(nearest[0]))
 
     @property
     def p_at_tau(self) -> np.ndarray:
@@ -206,12 +208,12 @@ class LiveDecoder:
         self._x1 = np.nan if x_mm is None else float(x_mm)
         if grew:
             self._answer = self._answer_of(self.p_at_tau)
-        prob, height, z = self._answer
+        prob, height, z, _ = self._answer
         now = median_of(self.at_draws(self.sums.u))
         peak = median_of(self.p_at_tau)
         peaked = bool(peak > self._floor and now < (1.0 - self.drop) * peak)
         new = False
-        flags = tuple(self._flags(t, final=False))
+        flags = tuple(self._flags(t, final=False, peaked=peaked))
         k = int(np.argmax(prob))
         if self._decision is None and peaked and k > 0 and prob[k] >= self.threshold and not flags:
             self._decision = Decision(float(self.plates_mm[k]), float(prob[k]), self.sums.n - 1, t, self._x1)
@@ -244,11 +246,16 @@ class LiveDecoder:
                                 "areas or frames")
         return self.camera
 
-    def _flags(self, t: float, *, final: bool) -> list[str]:
+    def _flags(self, t: float, *, final: bool, peaked: bool = False) -> list[str]:
         moved = np.isfinite(self._x0) and np.isfinite(self._x1) and self._x1 != self._x0
         ends = (self._x0, self._x1) if (moved or final) and np.isfinite(self._x0) else None
-        return self.env.problems_of(self.sums.n, self._t0, t, self.p_at_tau, x_ends_mm=ends,
-                                    speed_mm_s=self.speed_label, final=final)
+        out = self.env.problems_of(self.sums.n, self._t0, t, self.p_at_tau, x_ends_mm=ends,
+                                   speed_mm_s=self.speed_label, final=final)
+        if peaked or final:                     # the reading is the scan's once its response has peaked
+            _, height, _, (distance, k) = self._answer
+            if distance > self.env.plate_sds:   # the height (a bisection) only for the message
+                out.append(self.env.plates(distance, float(self.plates_mm[k]), height.get()[0]))
+        return out
 
     def finish(self) -> LiveState:
         """The scan's final state: the envelope checks only the whole scan allows, and the

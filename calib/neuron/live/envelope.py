@@ -17,6 +17,12 @@ training envelope and flagged with the reason:
   training scans' range at that window (the fit's peak table), as the median ratio
   over draws.
 
+- the plates: the decoded reading against every training plate's predictive, in that
+  plate's sds (:meth:`~feeler.calib.neuron.decoder.DecoderDraws.plate_distance`); more
+  than ``plate_sds`` (default 5) from the nearest is a step the fit was not trained on
+  (its plate probabilities assume a trained plate: a 0.3 mm scan on plates 0-0.2 mm got
+  P(0.2 mm) = 0.999). Known once the response has peaked, or at the scan's end.
+
 Period, speed and duration may differ by the factor ``slack`` (default 1.25) from
 training; the response by ``scale_factor`` (default 2) beyond the training range. A ratio
 beyond ×30 (:data:`UNIT_FACTOR`) names the likely unit mistake (µm for mm, ms for s).
@@ -79,6 +85,8 @@ class Envelope:
         p_lo, p_hi (ndarray[S]): smallest and largest training P at each draw's window.
         slack (float): allowed factor on period, speed and duration, > 1.
         scale_factor (float): allowed factor beyond the training range of P, > 1.
+        plate_sds (float): allowed distance of the decoded reading from the nearest
+            training plate, in that plate's sds, > 1.
     """
     period_s: float
     duration_s: float
@@ -87,12 +95,23 @@ class Envelope:
     p_hi: np.ndarray
     slack: float = 1.25
     scale_factor: float = 2.0
+    plate_sds: float = 5.0
 
     def __post_init__(self):
-        for name in ("slack", "scale_factor"):
+        for name in ("slack", "scale_factor", "plate_sds"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and 1.0 < v < float("inf")):
                 raise ArgumentError(name, v, "a factor > 1")
+
+    def plates(self, distance_sd: float, nearest_mm: float, height_mm: float) -> str | None:
+        """A reading ``distance_sd`` sds from its nearest training plate ``nearest_mm``
+        (:meth:`~feeler.calib.neuron.decoder.DecoderDraws.plate_distance`), decoded at
+        ``height_mm``: beyond :attr:`plate_sds`, a step the fit was not trained on."""
+        if not distance_sd > self.plate_sds:
+            return None
+        return (f"decoded height {height_mm:.3g} mm lies {distance_sd:.0f} sds from the nearest trained plate "
+                f"({nearest_mm:g} mm): a step the fit was not trained on, so its plate probabilities (which assume "
+                f"a trained plate) do not apply")
 
     @classmethod
     def of_fit(cls, result, tau_s, *, slack: float = 1.25, scale_factor: float = 2.0) -> "Envelope":
