@@ -96,7 +96,12 @@ def read_scans(path: str | Path) -> Scans:
     groups = frame.groupby("scan_id", sort=False)
     lengths = groups.size()
     if lengths.nunique() != 1:
-        raise DataFileError(path, f"column scan_id: scans have unequal lengths {sorted(set(lengths))}")
+        common = int(lengths.mode().iloc[0])
+        odd = lengths[lengths != common]
+        raise DataFileError(path, f"column scan_id: scans have unequal lengths {sorted(set(lengths))} (scan "
+                                  f"{odd.index[0]} has {int(odd.iloc[0])} samples, {len(lengths) - len(odd)} of "
+                                  f"{len(lengths)} have {common}); a fit needs scans of one length: trim them to "
+                                  f"{int(lengths.min())} samples (classify and decode take scans of any length)")
     n_scans, n_time = len(lengths), int(lengths.iloc[0])
     ids = np.asarray(lengths.index)
     frame = frame.set_index("scan_id").loc[ids].reset_index()

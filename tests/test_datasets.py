@@ -38,7 +38,8 @@ def test_round_trip_of_a_small_file(tmp_path):
     (lambda rows: (rows[:1] + [rows[1][:4] + ["-inf"] + rows[1][5:]] + rows[2:], COLUMNS), "column x_mm: -inf at data row 2"),
     (lambda rows: (rows[:2] + [rows[2][:3] + ["abc"] + rows[2][4:]] + rows[3:], COLUMNS), "column t_s"),
     (lambda rows: (rows[:2] + [rows[2][:3] + [0.25] + rows[2][4:]] + rows[3:], COLUMNS), "column t_s: not strictly"),
-    (lambda rows: (rows[:7], COLUMNS), "column scan_id: scans have unequal lengths"),
+    (lambda rows: (rows[:7], COLUMNS), "column scan_id: scans have unequal lengths [3, 4] (scan 0 has 4 samples, "
+                                       "1 of 2 have 3); a fit needs scans of one length: trim them to 3 samples"),
     (lambda rows: (rows[:1] + [rows[1][:1] + [0.2] + rows[1][2:]] + rows[2:], COLUMNS), "column step_mm"),
     (lambda rows: ([], COLUMNS), "no rows"),
 ])
