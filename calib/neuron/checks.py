@@ -11,8 +11,9 @@ support; any problem fails the verdict (:func:`feeler.calib.fit.make_result`).
   surface); ~10³ off names µm vs mm, a rise that falls as the step rises (by 3 standard
   errors of the slope at some window, and rises at none) names steps labelled with the
   wrong sign, and one that changes with the step at no window says the scans show no
-  step (labels unrelated to the scans, or the wrong column). The stage speed measured from ``x_mm`` and ``t_s``
-  against the commanded one, and a sample interval over a minute, name ms vs s;
+  step (labels unrelated to the scans, or the wrong column). The stage speed measured
+  from ``x_mm`` and ``t_s`` against the commanded one, and a sample interval over a
+  minute, name ms vs s;
 - the decoder's fit (:func:`posterior_problems`): leave-one-out predictive integral
   transforms (PIT) of every training scan under its plate, mixed over the τ weights.
   Per plate: the fraction inside the central 90 % band must be compatible with
@@ -62,7 +63,7 @@ def data_problems(table: PeakTable, plates: Plates) -> list[str]:
 
 def _slope_z(peak: np.ndarray, plates: Plates) -> np.ndarray:
     """Least-squares slope of ``peak (ndarray[n_scans, ...])`` on the scans' steps over its
-    standard error, per column (0 where it cannot be computed)."""
+    standard error, per column (0 where it cannot be computed; ±inf for a noise-free slope)."""
     peak = np.asarray(peak, float)
     c = plates.steps_mm[plates.group]
     shape = peak.shape[1:]
@@ -73,7 +74,7 @@ def _slope_z(peak: np.ndarray, plates: Plates) -> np.ndarray:
     slope = np.sum(dc * dev, axis=0) / np.sum(dc ** 2)
     se = np.sqrt(np.sum((dev - slope * dc) ** 2, axis=0) / (peak.shape[0] - 2) / np.sum(dc ** 2))
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(se > 0, slope / se, np.sign(slope) * np.inf)
+        return np.where(se > 0, slope / se, np.where(slope == 0, 0.0, np.sign(slope) * np.inf))
 
 
 def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_mm=None,
@@ -162,7 +163,8 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
             u = pit[plates.group == j]
             u = u[np.isfinite(u)]                     # scans alone on their plate have no left-out PIT
             if u.size == 0:
-                cover.append(float("nan")), bias.append(float("nan"))
+                cover.append(float("nan"))
+                bias.append(float("nan"))
                 continue
             k, m = int(np.sum((u >= 0.05) & (u <= 0.95))), u.size
             cover.append(k / m)

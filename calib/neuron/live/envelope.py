@@ -15,8 +15,7 @@ training envelope and flagged with the reason:
   its ``speed_mm_s`` label;
 - response scale: the scan's peak window sum P at each draw's window against the
   training scans' range at that window (the fit's peak table), as the median ratio
-  over draws.
-
+  over draws;
 - the plates: the decoded reading against every training plate's predictive, in that
   plate's sds (:meth:`~feeler.calib.neuron.decoder.DecoderDraws.plate_distance`); more
   than ``plate_sds`` (default 5) from the nearest is a step the fit was not trained on
