@@ -144,8 +144,9 @@ class DecoderDraws:
         """How far each scan's reading lies from the nearest training plate, in that plate's
         sds: the median over draws of |z_s − m_cs| / s_cs per plate, then the smallest over
         plates → (distance ndarray[n], nearest plate's index ndarray[n] int). Scans of the
-        training plates lie within 4 sds (8700 fresh touches of the hard scenes: largest
-        3.9); a step the fit was not trained on lies further (:mod:`.live.envelope`)."""
+        training plates lie within 4 sds (8200 fresh touches of the nine hard scenes and
+        four-plates, two fits each: largest 3.9); a step the fit was not trained on lies
+        further (:mod:`.live.envelope`)."""
         z = self.decoded(p_at_tau)[..., None]                                 # (S, n, 1)
         d = np.median(np.abs(z - self.mean_mm[:, None, :]) / self.sd_mm[:, None, :], axis=0)    # (n, C)
         k = np.argmin(d, axis=1)
