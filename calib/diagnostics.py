@@ -58,6 +58,7 @@ class Thresholds:
     bound_edge_fraction: float = 0.01   # width of the "edge" strip, fraction of the range
     bound_mass_max: float = 0.05        # posterior mass allowed inside that strip
     nonfinite_max: float = 0.05         # share of draws an entry may leave undefined (NaN)
+    spread_of_prior_max: float = 0.7    # a posterior (log) spread above this share of the prior's: not pinned
 
 
 def summarize(posterior) -> pd.DataFrame:

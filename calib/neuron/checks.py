@@ -198,7 +198,7 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
     lt = np.log(np.ravel(post["tau_s"]))
     prior_sd = (table.log_tau[-1] - table.log_tau[0]) / np.sqrt(12)
     info["tau_spread_of_prior"] = float(np.std(lt) / prior_sd)
-    if np.std(lt) > 0.7 * prior_sd and table.log_tau[-1] - table.log_tau[0] > np.log(1.5):
+    if np.std(lt) > Thresholds.spread_of_prior_max * prior_sd and table.log_tau[-1] - table.log_tau[0] > np.log(1.5):
         lo, hi = np.exp(np.quantile(lt, [0.05, 0.95]))
         out.append(f"tau_s: not pinned by these data: windows from {lo:.3g} to {hi:.3g} s decode them about "
                    f"equally well (posterior spread {100 * np.std(lt) / prior_sd:.0f} % of the prior's)")

@@ -27,6 +27,7 @@ import pandas as pd
 from scipy.special import logsumexp
 from scipy.stats import beta as beta_dist
 
+from feeler.calib.diagnostics import Thresholds
 from feeler.calib.fit import FitResult, make_result, posterior_from_draws
 from feeler.calib.psychometric.model.cells import make_cells
 from feeler.calib.psychometric.fit import with_problems
@@ -160,9 +161,6 @@ def fit_finger_route(trials: pd.DataFrame, *, rng: np.random.Generator, grid: Ro
     return with_problems(result, _edge_problems(prob, taus, sigmas) + _pinned_problems(prob, taus, speeds))
 
 
-NOT_PINNED = 0.7     # a τ posterior spread (log scale) over 70 % of the prior's: the data do not pin τ
-
-
 def _pinned_problems(prob: np.ndarray, taus: np.ndarray, speeds: list) -> list[str]:
     """τ whose posterior is nearly as wide as its log-uniform prior on the grid (the
     same rule as M2's window, :func:`feeler.calib.neuron.checks.posterior_problems`).
@@ -172,7 +170,7 @@ def _pinned_problems(prob: np.ndarray, taus: np.ndarray, speeds: list) -> list[s
     w = prob.sum(axis=(1, 2))
     sd = float(np.sqrt(np.sum(w * (lt - np.sum(w * lt)) ** 2)))
     prior_sd = float(np.std(lt))
-    if not sd > NOT_PINNED * prior_sd:
+    if not sd > Thresholds.spread_of_prior_max * prior_sd:
         return []
     cum = np.cumsum(w)
     lo, hi = taus[np.searchsorted(cum, 0.05)], taus[min(np.searchsorted(cum, 0.95), taus.size - 1)]

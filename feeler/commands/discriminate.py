@@ -66,29 +66,37 @@ def threshold_text(th, scale: float = 1e3, unit: str = "um") -> str:
     return f"{est * scale:.2f} [{d.lo95 * scale:.2f}, > {top:.2f}] {unit}{missing}"
 
 
-HEIGHT_MM = 5.0          # a scene's step heights lie within -5..5 mm (feeler.scenes.robot_scan)
-SPEED_MM_S = 100.0       # and its stage speeds within (0, 100] mm/s
+def _scene_bounds(table, name: str) -> tuple[float, float]:
+    """The (lo, hi) a robot-scan scene allows for ``name`` of ``table`` (its ``param``)."""
+    import dataclasses
+
+    meta = {f.name: f for f in dataclasses.fields(table)}[name].metadata
+    return float(meta["lo"]), float(meta["hi"])
 
 
 def check_arguments(args) -> None:
-    """One-line errors for heights, speeds and counts the forward model cannot simulate,
-    before the posterior is loaded or a touch simulated."""
+    """One-line errors for heights, speeds and counts the forward model cannot simulate
+    (outside a robot-scan scene's heights and speed), before the posterior is loaded or a
+    touch simulated."""
     import math
 
     from feeler.errors import ArgumentError
+    from feeler.scenes.robot_scan import MotionTable, Surface
 
+    low, high = _scene_bounds(Surface, "heights_mm")
+    top_speed = _scene_bounds(MotionTable, "speed_mm_s")[1]
     if args.n_scans < 2:
         raise ArgumentError("--n-scans", args.n_scans, ">= 2")
     for lo, hi in args.pair or ():
-        if not all(math.isfinite(v) and abs(v) <= HEIGHT_MM for v in (lo, hi)) or lo > hi:
-            raise ArgumentError("--pair", f"{lo:g} {hi:g}", f"two step heights within -{HEIGHT_MM:g}..{HEIGHT_MM:g} mm, the lower "
+        if not all(math.isfinite(v) and low <= v <= high for v in (lo, hi)) or lo > hi:
+            raise ArgumentError("--pair", f"{lo:g} {hi:g}", f"two step heights within {low:g}..{high:g} mm, the lower "
                                 "first (LOW <= HIGH)")
     # the threshold searches up to 1.25x the reference and the PSE up to 2x: both within the scenes' heights
-    if not (math.isfinite(args.reference) and 0 < args.reference <= HEIGHT_MM / 2):
-        raise ArgumentError("--reference", f"{args.reference:g}", f"a step height in (0, {HEIGHT_MM / 2:g}] mm")
+    if not (math.isfinite(args.reference) and 0 < args.reference <= high / 2):
+        raise ArgumentError("--reference", f"{args.reference:g}", f"a step height in (0, {high / 2:g}] mm")
     for v in args.speeds or ():
-        if not (math.isfinite(v) and 0 < v <= SPEED_MM_S):
-            raise ArgumentError("--speeds", f"{v:g}", f"scan speeds in (0, {SPEED_MM_S:g}] mm/s")
+        if not (math.isfinite(v) and 0 < v <= top_speed):
+            raise ArgumentError("--speeds", f"{v:g}", f"scan speeds in (0, {top_speed:g}] mm/s")
 
 
 def run(args) -> int:
