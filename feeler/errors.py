@@ -33,13 +33,15 @@ class ArgumentError(InputError):
 
     Attributes:
         name (str): the argument's name, e.g. ``"tau"``.
-        value (object): the offending value (possibly abbreviated).
+        value (object): the offending value (possibly abbreviated); None when the argument
+            is missing (the message then names only the argument).
         allowed (str): what would have been accepted.
     """
 
     def __init__(self, name: str, value: object, allowed: str):
         self.name, self.value, self.allowed = name, value, allowed
-        super().__init__(f"argument {name}={_short(value)}: {allowed}")
+        super().__init__(f"argument {name}: {allowed}" if value is None else
+                         f"argument {name}={_short(value)}: {allowed}")
 
 
 class SceneError(InputError):

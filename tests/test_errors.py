@@ -21,3 +21,8 @@ def test_other_long_values_keep_their_start_and_short_ones_are_whole():
     assert msg == f"argument scans='{'x' * 56}...: fewer"
     assert str(ArgumentError("tau", np.float64(np.inf), "finite")) == "argument tau=inf: finite"
     assert str(ArgumentError("--plan", "/tmp/p.toml", "a plan")) == "argument --plan='/tmp/p.toml': a plan"
+
+
+def test_a_missing_argument_is_named_without_a_value():
+    assert str(ArgumentError("--c0", None, "needed: give --c0")) == "argument --c0: needed: give --c0"
+    assert str(ArgumentError("--c0", 0, "> 0")) == "argument --c0=0: > 0"

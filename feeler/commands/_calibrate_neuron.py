@@ -119,6 +119,9 @@ def locate_scans(path: Path, length_mm: float | None):
             raise ArgumentError("DATASET", str(scene_path), "scene.toml must be a robot-scan scene")
         kernel = scene.neuron.kernel
         length_mm = scene.neuron.length_mm if length_mm is None else length_mm
-    if length_mm is None or not length_mm > 0:
-        raise ArgumentError("--length-mm", length_mm, "> 0 (or a dataset with scene.toml)")
+    if length_mm is None:
+        raise ArgumentError("--length-mm", None, f"needed: {csv.name} has no scene.toml beside it to give the "
+                            "element's representative length; give --length-mm (mm; strain = U_y / length)")
+    if not length_mm > 0:
+        raise ArgumentError("--length-mm", length_mm, "> 0 (mm; strain = U_y / length)")
     return csv, float(length_mm), kernel

@@ -21,6 +21,9 @@ def runs(tmp_path_factory):
     assert feeler("simulate", "datasets-synthetic/sensor-calibration.toml", "--out", d / "sc").returncode == 0
     assert feeler("calibrate", "sensor", d / "sc", "--out", d / "m1").returncode == 0
     (d / "a-file").write_text("x")
+    (d / "bare.csv").write_text("scan_id,step_mm\n")               # no scene.toml beside it
+    (d / "bare-cal").mkdir()
+    (d / "bare-cal" / "calibration.csv").write_text((d / "sc" / "calibration.csv").read_text())
     return d
 
 
@@ -63,6 +66,10 @@ CASES = {
     "validate sbc --n 3": (lambda d: ("validate", "sbc", "--model", "matrix", "--n", "3"), ["--n=3", "10"]),
     "validate sbc --draws 5": (lambda d: ("validate", "sbc", "--model", "matrix", "--draws", "5"), ["--draws=5"]),
     "classify --out at a file": (lambda d: ("classify", d / "m1", d / "sc", "--out", d / "a-file"), ["--out"]),
+    # a bare CSV needs what its scene.toml would have said; the message named the value None
+    "calibrate neuron on a bare CSV": (lambda d: ("calibrate", "neuron", d / "bare.csv"),
+                                       ["argument --length-mm: needed: bare.csv has no scene.toml"]),
+    "calibrate sensor on a bare CSV": (lambda d: (*FIT, d / "bare-cal"), ["argument --c0: the nominal matrix"]),
 }
 
 
