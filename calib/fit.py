@@ -127,13 +127,12 @@ def require_ok(result: FitResult, *, accept_failed: bool = False, what: str = "c
 
 def read_csv_columns(path: str | Path, columns) -> pd.DataFrame:
     """A CSV that must have ``columns``; unreadable or incomplete → one-line DataFileError."""
-    try:
-        table = pd.read_csv(path)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise DataFileError(path, f"not a readable CSV ({type(exc).__name__})") from None
-    missing = [c for c in columns if c not in table.columns]
-    if missing:
-        raise DataFileError(path, f"missing columns {', '.join(missing)}; needs {', '.join(columns)}")
+    from feeler.datasets import missing_columns_problem, read_csv_file
+
+    table = read_csv_file(path)
+    problem = missing_columns_problem(table, columns)
+    if problem:
+        raise DataFileError(path, problem)
     return table
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from feeler.errors import DataFileError
 
-__all__ = ["COLUMNS", "Scans", "Features", "read_csv_file", "read_scans", "strain", "jump_uy_mm", "peak_rate_uy_mm_s",
+__all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_csv_file", "missing_columns_problem", "read_scans", "strain", "jump_uy_mm", "peak_rate_uy_mm_s",
            "scan_features", "proportion_correct"]
 
 COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
@@ -52,16 +52,75 @@ class Features:
     peak_rate_uy_mm_s: np.ndarray
 
 
-def read_csv_file(path: Path):
-    """The CSV at ``path`` as a DataFrame; DataFileError naming it when missing or unreadable."""
+SEPARATORS = (",", ";", "\t")
+
+
+def csv_dialect(header: str) -> tuple[str, str]:
+    """(separator, decimal mark) of a CSV from its header line.
+
+    feeler writes ``,`` with ``.`` decimals. A spreadsheet in a locale whose decimal mark
+    is a comma (German, French, ...) exports ``;`` instead, with ``,`` decimals; tabs
+    come from copy-and-paste. The separator is whichever of ``,``, ``;`` and a tab the
+    header holds most of (``,`` on a tie or when it holds none); the decimal mark is ``,``
+    unless the separator is."""
+    counts = [header.count(sep) for sep in SEPARATORS]
+    sep = SEPARATORS[int(np.argmax(counts))] if max(counts) else ","
+    return sep, ("." if sep == "," else ",")
+
+
+def header_line(text: str) -> str:
+    """The first line that is neither blank nor a ``#`` comment ("" if none)."""
+    return next((ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")), "")
+
+
+def read_csv_file(path: Path, *, comment: str | None = None):
+    """The CSV at ``path`` as a DataFrame; DataFileError naming it when missing or unreadable.
+
+    Separated by commas, semicolons or tabs (:func:`csv_dialect`); in a file separated by
+    semicolons or tabs a decimal comma is read as a point (``0,05`` → 0.05). A UTF-8 byte
+    order mark (spreadsheets write one) is dropped. ``comment``: lines starting with it
+    are skipped."""
+    import io
+
     import pandas as pd
 
+    path = Path(path)
     try:
-        return pd.read_csv(path)
+        text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise DataFileError(path, "no such file") from None
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
+    except (OSError, UnicodeDecodeError) as exc:
         raise DataFileError(path, f"not a readable CSV: {exc}") from None
+    sep, decimal = csv_dialect(header_line(text))
+    try:
+        frame = pd.read_csv(io.StringIO(text), sep=sep, comment=comment,
+                            dtype=None if decimal == "." else str)
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise DataFileError(path, f"not a readable CSV: {' '.join(str(exc).split())}") from None
+    frame.columns = [str(c).strip() for c in frame.columns]
+    if decimal != ".":
+        for col in frame.columns:
+            given = frame[col].str.strip()
+            pointed = given.str.replace(",", ".", regex=False)
+            values = pd.to_numeric(pointed, errors="coerce")
+            if values.notna().sum() == given.notna().sum():                # every given value a number
+                frame[col] = values
+            elif values.notna().sum() > given.notna().sum() / 2:           # a number column with a bad entry:
+                frame[col] = pointed                                       # its reader names the entry
+    return frame
+
+
+def missing_columns_problem(frame, columns) -> str | None:
+    """"missing column(s) …; required: …" when ``frame`` lacks any of ``columns``, else None;
+    a header read as one column is shown, with the separators that are read."""
+    missing = [c for c in columns if c not in frame.columns]
+    if not missing:
+        return None
+    out = f"missing column(s) {', '.join(missing)}; required: {', '.join(columns)}"
+    if len(frame.columns) == 1:
+        out += (f" (the header is one column, {str(frame.columns[0])[:60]!r}: separate columns by "
+                "commas, semicolons or tabs)")
+    return out
 
 
 def read_scans(path: str | Path) -> Scans:
@@ -77,9 +136,9 @@ def read_scans(path: str | Path) -> Scans:
     if path.is_dir():
         path = path / "scans.csv"
     frame = read_csv_file(path)
-    missing = [c for c in COLUMNS if c not in frame.columns]
-    if missing:
-        raise DataFileError(path, f"missing column(s) {', '.join(missing)}; required: {', '.join(COLUMNS)}")
+    problem = missing_columns_problem(frame, COLUMNS)
+    if problem:
+        raise DataFileError(path, problem)
     if len(frame) == 0:
         raise DataFileError(path, "no rows")
     for col in COLUMNS:

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from feeler.datasets import csv_dialect
 from feeler.errors import DataFileError
 
 __all__ = ["TRIAL_COLUMNS", "NAFC_COLUMNS", "KEY_COLUMNS", "RESPONSES", "read_trials", "write_trials",
@@ -84,7 +85,7 @@ def read_trials(path: str | Path) -> pd.DataFrame:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")          # a spreadsheet's byte order mark dropped
     except FileNotFoundError:
         raise DataFileError(path, "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -93,7 +94,8 @@ def read_trials(path: str | Path) -> pd.DataFrame:
              if line.strip() and not line.lstrip().startswith("#")]
     if not lines:
         raise DataFileError(path, "no header line; expected columns " + ", ".join(TRIAL_COLUMNS))
-    rows = list(csv.reader([line for _, line in lines]))
+    sep, decimal = csv_dialect(lines[0][1])
+    rows = list(csv.reader([line for _, line in lines], delimiter=sep))
     header = [h.strip() for h in rows[0]]
     count, layout = _layout(path, header, lines[0][0])
     if len(rows) == 1:
@@ -108,11 +110,13 @@ def read_trials(path: str | Path) -> pd.DataFrame:
         if not subject:
             raise DataFileError(path, f"line {lineno}, column subject: empty")
         data["subject"].append(subject)
+        def field(col):
+            return row[index[col]].replace(decimal, ".")
+
         for col in KEY_COLUMNS[1:]:
-            data[col].append(_number(path, lineno, col, row[index[col]],
-                                     allow_zero=nafc and col == "standard_um"))
+            data[col].append(_number(path, lineno, col, field(col), allow_zero=nafc and col == "standard_um"))
         if layout == "counts":
-            n, k = (_count(path, lineno, col, row[index[col]]) for col in ("n_trials", count))
+            n, k = (_count(path, lineno, col, field(col)) for col in ("n_trials", count))
             if k > n:
                 raise DataFileError(path, f"line {lineno}, column {count}: {k} > n_trials {n}")
         else:

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from feeler.datasets import (COLUMNS, Scans, jump_uy_mm, peak_rate_uy_mm_s, proportion_correct, read_scans,
+from feeler.datasets import (COLUMNS, Scans, csv_dialect, jump_uy_mm, peak_rate_uy_mm_s, proportion_correct, read_scans,
                              scan_features, strain)
 from feeler.errors import DataFileError
 
@@ -89,3 +89,50 @@ def test_proportion_correct_exact():
     assert proportion_correct([3, 4], [1, 2]) == 0.0
     assert proportion_correct([1, 3], [2, 2]) == 0.5
     assert proportion_correct([1], [1]) == 0.5
+
+
+def spreadsheet_export(path, rows, columns=COLUMNS, *, sep=";", bom=False):
+    """``rows`` as a spreadsheet in a decimal-comma locale exports them: ``sep`` between
+    columns, ``,`` as the decimal mark."""
+    lines = [sep.join(columns)] + [sep.join(str(v).replace(".", ",") for v in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8-sig" if bom else "utf-8")
+    return path
+
+
+@pytest.mark.parametrize("sep, bom", [(";", False), (";", True), ("\t", False)])
+def test_a_decimal_comma_export_reads_as_the_comma_file(tmp_path, sep, bom):
+    plain = read_scans(write_csv(tmp_path / "plain.csv", good_rows()))
+    other = read_scans(spreadsheet_export(tmp_path / "eu.csv", good_rows(), sep=sep, bom=bom))
+    for name in ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm"):
+        np.testing.assert_array_equal(getattr(other, name), getattr(plain, name), err_msg=name)
+    np.testing.assert_allclose(other.uy_mm[1], [0.05, 0.06, 0.07, 0.08])     # decimals kept, not dropped
+
+
+def test_a_byte_order_mark_and_semicolons_with_decimal_points_read_too(tmp_path):
+    path = tmp_path / "semi.csv"
+    path.write_text("\n".join([";".join(COLUMNS)] + [";".join(str(v) for v in r) for r in good_rows()]) + "\n",
+                    encoding="utf-8-sig")
+    np.testing.assert_array_equal(read_scans(path).uy_mm, read_scans(write_csv(tmp_path / "p.csv", good_rows())).uy_mm)
+
+
+def test_a_bad_entry_in_a_decimal_comma_file_is_named(tmp_path):
+    rows = good_rows()
+    rows[2][6] = "abc"
+    with pytest.raises(DataFileError, match="column uy_mm: missing or non-numeric value at data row 3"):
+        read_scans(spreadsheet_export(tmp_path / "eu.csv", rows))
+
+
+def test_a_header_read_as_one_column_says_which_separators_are_read(tmp_path):
+    path = tmp_path / "spaces.csv"
+    path.write_text(" ".join(COLUMNS) + "\n" + "\n".join(" ".join(str(v) for v in r) for r in good_rows()) + "\n")
+    with pytest.raises(DataFileError, match=r"the header is one column, 'scan_id step_mm.*separate columns by "
+                                            r"commas, semicolons or tabs"):
+        read_scans(path)
+
+
+@pytest.mark.parametrize("header, expected", [
+    ("a,b,c", (",", ".")), ("a;b;c", (";", ",")), ("a\tb\tc", ("\t", ",")), ("abc", (",", ".")),
+    ("name;note, with comma;x", (";", ",")), ("a,b;c,d", (",", ".")),
+])
+def test_csv_dialect_from_the_header(header, expected):
+    assert csv_dialect(header) == expected

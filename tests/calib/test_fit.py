@@ -200,7 +200,7 @@ def saved(tmp_path):
 @pytest.mark.parametrize("name, content, match", [
     ("posterior.nc", b"\x89HDF garbage", "posterior.nc: not a readable NetCDF"),
     ("summary.csv", b"name,mean\n\"a,1\n", "summary.csv: not a readable CSV"),
-    ("summary.csv", b"name,mean\na,1\n", "summary.csv: missing columns sd"),
+    ("summary.csv", b"name,mean\na,1\n", r"summary.csv: missing column\(s\) sd"),
     ("verdict.json", b"{\"ok\": true", "verdict.json: not a verdict"),
     ("verdict.json", b"{\"ok\": true}", "verdict.json: not a verdict"),
 ])

@@ -61,7 +61,7 @@ def test_scene_errors_name_the_key(tmp_path, old, new, match):
 
 
 @pytest.mark.parametrize("content, match", [
-    ("point_id,ux_mm\n0,1\n", "missing columns uy_mm"),
+    ("point_id,ux_mm\n0,1\n", r"missing column\(s\) uy_mm"),
     ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3 + "3,0,abc,0,1,2,3\n",
      "column uy_mm, row 4: 'abc' is not a finite number"),
     ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3, "3 points; a 3x3 matrix needs at least 4"),
@@ -72,6 +72,18 @@ def test_csv_errors_name_the_file(tmp_path, content, match):
     path.write_text(content)
     with pytest.raises(DataFileError, match=match):
         read_calibration_csv(path)
+
+
+def test_a_decimal_comma_export_reads_as_the_comma_file(tmp_path):
+    head = "point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n"
+    rows = [f"{k},0.{k},0.05{k},0,1.{k},2.5,3" for k in range(5)]
+    plain, eu = tmp_path / "plain.csv", tmp_path / "eu.csv"
+    plain.write_text("\n".join([head, *rows]) + "\n")
+    eu.write_text("\n".join(ln.replace(",", ";").replace(".", ",") for ln in [head, *rows]) + "\n")
+    a, b = read_calibration_csv(plain), read_calibration_csv(eu)
+    for name in vars(a):
+        np.testing.assert_array_equal(np.asarray(getattr(b, name)), np.asarray(getattr(a, name)), err_msg=name)
+
 
 
 def test_missing_csv(tmp_path):

@@ -177,3 +177,17 @@ def test_write_trials_round_trip(tmp_path):
     write_trials(tmp_path / "o.csv", df, comment="synthetic\nline two")
     assert (tmp_path / "o.csv").read_text().startswith("# synthetic\n# line two\n")
     assert read_trials(tmp_path / "o.csv").equals(df)
+
+
+def test_a_decimal_comma_spreadsheet_export_reads_as_the_comma_file(tmp_path):
+    """';' between columns, ',' as the decimal mark, a byte order mark before the first
+    comment (what a spreadsheet in a German or French locale writes): the same table."""
+    rows = ["A,10,20,7.6,20,20,3", "A,10,20,12.4,20,20,17", "Smith J,10,40,9.8,40,20,9"]
+    plain = read_trials(_csv(tmp_path, *rows))
+    eu = tmp_path / "eu.csv"
+    eu.write_text("# synthetic, two subjects\n" + "\n".join(
+        [";".join(TRIAL_COLUMNS)] + [";".join(f.replace(".", ",") for f in r.split(",")) for r in rows]) + "\n",
+        encoding="utf-8-sig")
+    got = read_trials(eu)
+    assert got.equals(plain) and got["comparison_um"].tolist() == [7.6, 12.4, 9.8]
+    assert got.attrs["comments"] == ["synthetic, two subjects"]

@@ -12,7 +12,7 @@ FP, PSY = ("four-plates",), ("finger-route", "m4", "psychophysics")
 
 @pytest.mark.parametrize("parts, rel, content, problem", [
     (("m1",), "m1/posterior.nc", b"\x89HDF\r\n garbage", "not a readable NetCDF posterior"),
-    (("m1",), "m1/summary.csv", b"name,mean\nC,1\n", "missing columns"),
+    (("m1",), "m1/summary.csv", b"name,mean\nC,1\n", "missing column(s)"),
     (("m1",), "m1/verdict.json", b'{"ok": "maybe"', "not a verdict"),
     (("classify",), "classify/classification.csv", b"\xff\xfe\x00garbage\x00", "not a readable CSV"),
     (("classify",), "classify/classification.csv", b"scan_id,step_mm,plate_mm\n0,0,0\n",
