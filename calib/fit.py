@@ -96,7 +96,10 @@ def load(directory: str | Path) -> FitResult:
     d = Path(directory)
     for name in FIT_FILES:
         if not (d / name).is_file():
-            raise DataFileError(d / name, "missing; expected a fit directory written by --out")
+            from feeler.rundir import what_it_is
+            hint = what_it_is(d, expected="posterior.nc") if name == FIT_FILES[0] else ""
+            raise DataFileError(d / name, "missing; expected a fit directory written by --out"
+                                + (f"; {hint}" if hint else ""))
     try:
         with xr.open_datatree(d / "posterior.nc", engine="h5netcdf") as src:
             tree = src.load()

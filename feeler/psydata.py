@@ -65,6 +65,11 @@ def _layout(path, header: list[str], lineno: int) -> tuple[str, str]:
     elif not counts and not responses:
         missing.append("n_trials with n_comparison_higher or n_correct (or, one row per trial, "
                        "comparison_higher or correct)")
+    from feeler.rundir import what_it_is
+
+    hint = what_it_is(path, header=header, expected="trials.csv")
+    if hint:
+        raise DataFileError(path, f"line {lineno}: not a trial table: {hint}")
     raise DataFileError(path, f"line {lineno}: missing column(s) {', '.join(missing)}; required: "
                               f"{', '.join(KEY_COLUMNS)} and counts or responses")
 

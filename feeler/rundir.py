@@ -9,7 +9,7 @@ import numpy as np
 
 from feeler.errors import OverwriteError
 
-__all__ = ["prepare_out_dir", "write_json"]
+__all__ = ["prepare_out_dir", "write_json", "what_it_is"]
 
 
 def prepare_out_dir(out: str | Path, files: Iterable[str], *, force: bool) -> Path:
@@ -38,3 +38,40 @@ def write_json(path: str | Path, obj: Any) -> None:
             return str(o)
         raise TypeError(f"not JSON serialisable: {type(o).__name__}")
     Path(path).write_text(json.dumps(obj, indent=2, default=default) + "\n", encoding="utf-8")
+
+
+# what a user may hand one command that another one takes: (file in a run directory, or
+# columns that identify a CSV; what it is; the command that takes it)
+_KINDS = (
+    ("posterior.nc", None, "a fit", "fits are read by `feeler classify`, `discriminate`, `decode` and `report`"),
+    ("scans.csv", ("scan_id", "uy_mm"), "robot scans", "`feeler calibrate neuron` fits them and "
+                                                        "`feeler classify FIT` classifies them"),
+    ("calibration.csv", ("point_id", "fx_n"), "a sensor-calibration dataset", "`feeler calibrate sensor` fits it"),
+    ("trials.csv", ("subject", "comparison_um"), "a psychophysics trial table",
+     "`feeler fit psychophysics` and `feeler fit finger-route` fit it"),
+)
+
+
+def what_it_is(path: str | Path, *, header: list[str] | None = None, expected: str = "") -> str:
+    """A clause for an error message when ``path`` is a dataset or fit meant for another
+    command: "runs/x holds robot scans (scans.csv): `feeler calibrate neuron` fits them
+    ..." — or "" when it is none of them. ``header``: a CSV's columns, when already read;
+    ``expected``: the file of the kind the caller wanted (e.g. ``trials.csv``), not named."""
+    path = Path(path)
+    for name, columns, what, use in _KINDS:
+        if name == expected:
+            continue
+        if path.is_dir() and (path / name).is_file():
+            return f"{path} holds {what} ({name}): {use}"
+        if header is not None and columns and all(c in header for c in columns):
+            return f"{path.name} is {what}: {use}"
+    if header is None and path.is_file() and path.suffix == ".csv":
+        try:
+            with path.open(encoding="utf-8-sig") as fh:
+                first = next((ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")), "")
+        except (OSError, UnicodeDecodeError):
+            return ""
+        from feeler.datasets import csv_dialect
+        cols = [c.strip() for c in first.strip().split(csv_dialect(first)[0])]
+        return what_it_is(path, header=cols, expected=expected) if cols else ""
+    return ""

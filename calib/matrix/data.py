@@ -58,7 +58,9 @@ def read_calibration_csv(path: str | Path) -> CalibrationData:
 
     path = Path(path)
     if not path.is_file():
-        raise DataFileError(path, "no such calibration file")
+        from feeler.rundir import what_it_is
+        hint = what_it_is(path.parent if path.name == "calibration.csv" else path, expected="calibration.csv")
+        raise DataFileError(path, "no such calibration file" + (f"; {hint}" if hint else ""))
     table = read_csv_columns(path, CSV_COLUMNS)
     values = {}
     for col in U_COLUMNS + F_COLUMNS:

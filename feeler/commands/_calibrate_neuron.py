@@ -103,9 +103,13 @@ def _undecodable_note(result) -> str | None:
 def locate_scans(path: Path, length_mm: float | None):
     """(scans.csv, length_mm, kernel) from a run directory or CSV (+ optional scene.toml)."""
     from feeler.errors import ArgumentError, DataFileError
+    from feeler.rundir import what_it_is
 
     if path.is_dir():
         csv = path / "scans.csv"
+        hint = "" if csv.is_file() else what_it_is(path, expected="scans.csv")
+        if hint:
+            raise DataFileError(csv, f"no such file; {hint}")
     elif path.suffix == ".csv":
         csv = path
     else:
@@ -116,7 +120,9 @@ def locate_scans(path: Path, length_mm: float | None):
         from feeler.scene import load_scene
         scene = load_scene(scene_path)
         if not hasattr(scene, "neuron"):
-            raise ArgumentError("DATASET", str(scene_path), "scene.toml must be a robot-scan scene")
+            hint = what_it_is(csv.parent, expected="scans.csv")
+            raise ArgumentError("DATASET", str(scene_path), "scene.toml must be a robot-scan scene"
+                                + (f"; {hint}" if hint else ""))
         kernel = scene.neuron.kernel
         length_mm = scene.neuron.length_mm if length_mm is None else length_mm
     if length_mm is None:

@@ -70,6 +70,15 @@ CASES = {
     "calibrate neuron on a bare CSV": (lambda d: ("calibrate", "neuron", d / "bare.csv"),
                                        ["argument --length-mm: needed: bare.csv has no scene.toml"]),
     "calibrate sensor on a bare CSV": (lambda d: (*FIT, d / "bare-cal"), ["argument --c0: the nominal matrix"]),
+    # a dataset or fit handed to a command that takes another kind: say what it is and what takes it
+    "classify given a dataset as the fit": (lambda d: ("classify", d / "sc", d / "sc"),
+                                            ["posterior.nc: missing", "holds a sensor-calibration dataset "
+                                             "(calibration.csv): `feeler calibrate sensor` fits it"]),
+    "calibrate neuron given a sensor dataset": (lambda d: ("calibrate", "neuron", d / "sc"),
+                                                ["scans.csv: no such file", "`feeler calibrate sensor` fits it"]),
+    "calibrate sensor given a fit": (lambda d: (*FIT, d / "m1"), ["no such calibration file", "holds a fit (posterior.nc)"]),
+    "fit psychophysics given calibration.csv": (lambda d: ("fit", "psychophysics", d / "sc" / "calibration.csv"),
+                                                ["line 1: not a trial table: calibration.csv is a sensor-calibration"]),
 }
 
 
