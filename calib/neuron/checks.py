@@ -41,8 +41,9 @@ def _mm(v) -> str:
     return f"{v + 0.0:g} mm"                   # + 0.0: a step of -0 reads 0
 
 
-def data_problems(table: PeakTable, plates: Plates) -> list[str]:
-    """What the design cannot pin down, before any sampling."""
+def data_problems(table: PeakTable, plates: Plates, strain: np.ndarray | None = None) -> list[str]:
+    """What the design cannot pin down, before any sampling; with the scans' ``strain
+    (ndarray[n_scans, n_time])``, also scans that repeat another sample for sample."""
     out = []
     if plates.steps_mm.size < 2:
         out.append(f"a, h, tau_s: one plate ({_mm(plates.steps_mm[0])}) in the data: the decoder's gain, offset "
@@ -58,6 +59,17 @@ def data_problems(table: PeakTable, plates: Plates) -> list[str]:
     if flat.any():
         out.append(f"plate_sd_mm: the scans of plate(s) {', '.join(_mm(v) for v in plates.steps_mm[flat])} are "
                    f"identical at every window (zero spread, noise-free data): the decoder noise cannot be estimated")
+    if strain is not None:
+        rows = np.asarray(strain, float).reshape(len(plates.group), -1)
+        _, first, inverse = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+        earlier = first[inverse.ravel()]
+        copies = np.flatnonzero(earlier != np.arange(rows.shape[0]))       # equal to an earlier scan
+        copies = copies[~flat[plates.group[copies]]]                   # noise-free plates are reported above
+        if copies.size:
+            k = int(copies[0])
+            out.append(f"plate_sd_mm: {copies.size} of {rows.shape[0]} scans repeat an earlier scan sample for "
+                       f"sample (e.g. scan {k + 1} = scan {int(earlier[k]) + 1} in file order; no two real touches "
+                       f"agree exactly): touches counted twice make the fit surer than its data; remove the copies")
     return out
 
 

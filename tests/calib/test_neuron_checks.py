@@ -194,3 +194,18 @@ def test_a_window_leaning_on_an_end_of_the_scans_range_is_noted_not_failed(capsy
     out = capsys.readouterr().out
     assert "note: tau_s: leans on its lower prior bound 0.5 (8 % of draws below 0.515)" in out
     assert "verdict: ok" in out and "piles" not in out
+
+
+def test_scans_appended_twice_fail_naming_a_copy(data):
+    """A file appended to itself: every touch counted twice. The fit was twice as sure as its
+    data and said ok; no two real touches agree sample for sample, so copies are named."""
+    n = data.step_mm.size
+    twice = np.r_[0:n, 0:n]
+    dup = dataclasses.replace(data, strain=data.strain[twice], step_mm=data.step_mm[twice], x_mm=data.x_mm[twice],
+                              speed_mm_s=data.speed_mm_s[twice])
+    problems = data_problems(dup.table(n_grid=16), Plates.of(dup.step_mm), dup.strain)
+    assert [q for q in problems if "repeat" in q] == [
+        f"plate_sd_mm: {n} of {2 * n} scans repeat an earlier scan sample for sample (e.g. scan {n + 1} = scan 1 in "
+        f"file order; no two real touches agree exactly): touches counted twice make the fit surer than its data; "
+        f"remove the copies"]
+    assert not [q for q in data_problems(data.table(n_grid=16), Plates.of(data.step_mm), data.strain) if "repeat" in q]
