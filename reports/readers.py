@@ -40,15 +40,14 @@ def read_table(path: str | Path, columns: tuple[str, ...] = (), numeric: tuple[s
     import numpy as np
     import pandas as pd
 
+    from feeler.datasets import missing_columns_problem, read_csv_file
+
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-        frame = pd.read_csv(path, comment="#")
-    except (OSError, UnicodeDecodeError, ValueError, pd.errors.ParserError) as exc:
-        raise DataFileError(path, f"not a readable CSV ({type(exc).__name__})") from None
-    missing = [c for c in columns if c not in frame.columns]
-    if missing:
-        raise DataFileError(path, f"missing column(s) {', '.join(missing)}; needs {', '.join(columns)}")
+    frame = read_csv_file(path, comment="#")          # also a user's own file as a spreadsheet exports it
+    text = path.read_text(encoding="utf-8-sig")
+    problem = missing_columns_problem(frame, columns)
+    if problem:
+        raise DataFileError(path, problem)
     if columns and frame.empty:
         raise DataFileError(path, "no data rows")
     for col in numeric:
