@@ -19,6 +19,7 @@ __all__ = ["NAME", "HELP", "register", "run"]
 
 NAME = "classify"
 HELP = "plate probabilities and decoded step heights of new scans, from a neuron posterior"
+FLAG_LINES = 10          # flagged scans named on screen; the rest are counted (all are in the CSV)
 
 
 def register(parser) -> None:
@@ -64,9 +65,14 @@ def run(args) -> int:
                           "flagged": [bool(f) for f in flags], "flag": ["; ".join(f) for f in flags]})
     with pd.option_context("display.width", 160, "display.max_rows", 60, "display.max_colwidth", 60):
         print(table.drop(columns="flag").to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    for sid, f in zip(table.scan_id, flags):
-        if f:
-            print(f"scan {sid} flagged: {'; '.join(f)}")
+    flagged = [(sid, f) for sid, f in zip(table.scan_id, flags) if f]
+    for sid, f in flagged[:FLAG_LINES]:
+        print(f"scan {sid} flagged: {'; '.join(f)}")
+    if len(flagged) > FLAG_LINES:
+        where = (f"the flag column of {Path(args.out) / 'classification.csv'}" if args.out
+                 else "the flag column of the classification.csv that --out DIR writes")
+        print(f"... {len(flagged) - FLAG_LINES} more flagged scans ({len(flagged)} of {len(table)} in all); "
+              f"every scan's reason is in {where}")
     if c.note:
         print(c.note)
     summary = labelled_summary(table, c.plates_mm)

@@ -71,3 +71,22 @@ def test_missing_columns_and_bad_values(fit_dir, scans_frame, tmp_path, capsys):
     assert _run(fit_dir, tmp_path / "back.csv") == 2
     assert "not strictly increasing" in capsys.readouterr().err
     assert _run(fit_dir, tmp_path / "none.csv") == 2
+
+
+def test_many_flagged_scans_name_ten_and_count_the_rest(fit_dir, scans_frame, tmp_path, capsys):
+    """Every scan sampled half as often as the training scans: ten flag lines, then one line counting the
+    rest and saying where all of them are (it printed one line per scan, however many)."""
+    import pandas as pd
+
+    n = scans_frame.scan_id.nunique()
+    copies = -(-14 // n)
+    slow = pd.concat([scans_frame.assign(scan_id=scans_frame.scan_id + 1000 * k, t_s=scans_frame.t_s * 2)
+                      for k in range(copies)])
+    slow.to_csv(tmp_path / "slow.csv", index=False)
+    assert _run(fit_dir, tmp_path / "slow.csv", "--out", str(tmp_path / "c")) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert sum(" flagged: sampling period" in ln for ln in lines) == 10
+    total = n * copies
+    assert (f"... {total - 10} more flagged scans ({total} of {total} in all); every scan's reason is in the flag "
+            f"column of {tmp_path / 'c' / 'classification.csv'}") in lines
+    assert pd.read_csv(tmp_path / "c" / "classification.csv").flagged.sum() == total
