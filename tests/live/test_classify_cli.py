@@ -90,3 +90,16 @@ def test_many_flagged_scans_name_ten_and_count_the_rest(fit_dir, scans_frame, tm
     assert (f"... {total - 10} more flagged scans ({total} of {total} in all); every scan's reason is in the flag "
             f"column of {tmp_path / 'c' / 'classification.csv'}") in lines
     assert pd.read_csv(tmp_path / "c" / "classification.csv").flagged.sum() == total
+
+
+def test_a_directory_without_scans_says_so_and_what_it_holds(fit_dir, tmp_path, capsys):
+    """It named samples.csv only, the file of a run in progress; a fit handed as SCANS is named as a fit."""
+    (tmp_path / "empty").mkdir()
+    assert _run(fit_dir, tmp_path / "empty") == 2
+    assert _run(fit_dir, fit_dir) == 2
+    said = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler: ")]
+    assert said == [f"feeler: error: {tmp_path / 'empty'}: holds no scans.csv (nor the samples.csv of a run in "
+                    "progress)",
+                    f"feeler: error: {fit_dir}: holds no scans.csv (nor the samples.csv of a run in progress); "
+                    f"{fit_dir} holds a fit (posterior.nc): fits are read by `feeler classify`, `discriminate`, "
+                    "`decode` and `report`"]

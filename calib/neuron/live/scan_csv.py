@@ -50,8 +50,15 @@ def read_scan_records(path: str | Path) -> list[ScanRecord]:
     """
     from feeler.datasets import read_csv_file
 
+    from feeler.errors import DataFileError
+
     path = Path(path)
     if path.is_dir():
+        if not (path / "scans.csv").exists() and not (path / "samples.csv").exists():
+            from feeler.rundir import what_it_is
+            hint = what_it_is(path, expected="scans.csv")
+            raise DataFileError(path, "holds no scans.csv (nor the samples.csv of a run in progress)"
+                                + (f"; {hint}" if hint else ""))
         path = path / "scans.csv" if (path / "scans.csv").exists() else path / "samples.csv"
     return records_from_frame(read_csv_file(path), path)
 
