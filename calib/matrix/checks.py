@@ -33,6 +33,7 @@ __all__ = ["design_problems", "unit_problems", "conflict_problems", "ppc_problem
 
 ALPHA = 0.01
 UNIT_FACTOR = 30.0
+GRAMS_FORCE_PER_N = 1000 / 9.80665      # a force gauge's gram-force, per newton
 
 
 def design_problems(x: np.ndarray, *, matrix: str, what: str, unit: str) -> list[str]:
@@ -72,6 +73,10 @@ def unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool
         return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: displacements probably in um "
                 f"(expected mm) or forces in kN (expected N)"]
     if ratio < 1 / UNIT_FACTOR:
+        # the nearer on a log scale of the two usual mistakes: ×1000 (mN, m) or ×102 (gram-force)
+        if ratio > np.sqrt(1e-3 / GRAMS_FORCE_PER_N):
+            return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: forces probably in gram-force "
+                    f"(expected N; 1 N = {GRAMS_FORCE_PER_N:.4g} gf, a force gauge's usual unit)"]
         return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: forces probably in mN "
                 f"(expected N) or displacements in m (expected mm)"]
     d, d0 = np.diag(c), np.diag(c0)

@@ -49,6 +49,8 @@ def test_units_um_and_mn_are_named():
     assert not um.verdict.ok and "displacements probably in um" in um.verdict.problems[0]
     mn = unit_problems(d.u_mm, 1000 * d.f_n, PRIOR.c0, forward=False)
     assert len(mn) == 1 and "forces probably in mN" in mn[0]
+    gf = unit_problems(d.u_mm, 1000 / 9.80665 * d.f_n, PRIOR.c0, forward=False)      # a force gauge in gram-force
+    assert len(gf) == 1 and "forces probably in gram-force (expected N; 1 N = 102 gf" in gf[0]
     assert unit_problems(d.u_mm, d.f_n, PRIOR.c0, forward=False) == []
     assert unit_problems(d.f_n, 1000 * d.u_mm, PRIOR.c0, forward=True)[0].startswith("C: the data's compliance is")
 
