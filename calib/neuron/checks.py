@@ -29,6 +29,7 @@ from scipy import special     # not scipy.stats: 1 s more import on every fit (i
 
 from feeler.calib.diagnostics import Thresholds, bound_problems
 from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
+from feeler.calib.neuron.live.envelope import stage_units
 from feeler.calib.neuron.model import PeakTable, PlatePrior, Plates, plate_stats
 
 __all__ = ["data_problems", "unit_problems", "posterior_problems", "loo_pit", "ALPHA", "UNIT_FACTOR"]
@@ -120,8 +121,8 @@ def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_
             moved = np.abs(x[:, -1] - x[:, 0]) / (t[:, -1] - t[:, 0])
             ratio = float(np.median(moved / np.asarray(speed_mm_s, float)))
         if np.isfinite(ratio) and ratio > 0 and not 1 / UNIT_FACTOR < ratio < UNIT_FACTOR:
-            likely = "times probably in ms (expected s)" if ratio < 1 else "times probably in min or x in um"
-            out.append(f"tau_s: by x_mm and t_s the stage moved at {ratio:.3g} times its commanded speed: {likely}")
+            out.append(f"tau_s: by x_mm and t_s the stage moved at {ratio:.3g} times its commanded speed: "
+                       f"{stage_units(ratio)}")
     return out
 
 

@@ -156,6 +156,10 @@ def test_units_micrometres_and_milliseconds(data):
     assert "steps probably in um" in tiny[0]
     ms = unit_problems(table, plates, length_mm=3.0, t_s=1000 * data.t_s, x_mm=data.x_mm, speed_mm_s=data.speed_mm_s)
     assert len(ms) == 2 and all("times probably in ms" in q for q in ms)
+    minutes = unit_problems(table, plates, length_mm=3.0, t_s=data.t_s / 60, x_mm=data.x_mm, speed_mm_s=data.speed_mm_s)
+    assert [q.split(": ")[-1] for q in minutes] == ["times probably in min (expected s)"]
+    x_um = unit_problems(table, plates, length_mm=3.0, t_s=data.t_s, x_mm=1000 * data.x_mm, speed_mm_s=data.speed_mm_s)
+    assert [q.split(": ")[-1] for q in x_um] == ["x probably in um (expected mm)"]
     res = _quiet_fit(dataclasses.replace(data, strain=1000 * data.strain))
     assert not res.verdict.ok and "U_y probably in um" in res.verdict.problems[0]
 

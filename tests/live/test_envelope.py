@@ -21,6 +21,7 @@ def test_each_check_flags_and_names_units():
     assert ENV.period(0.55) is None
     assert "speed 2 mm/s, 4×" in ENV.speed(2.0)
     assert "x probably in um" in ENV.speed(500.0, labelled=0.5)
+    assert "times probably in min" in ENV.speed(30.0, labelled=0.5)          # t_s in minutes: 60× (it said x in um)
     assert "times probably in ms" in ENV.speed(0.0005, labelled=0.5)
     assert "did not move" in ENV.speed(0.0)
     assert ENV.duration(30.0, final=False) and ENV.duration(5.0, final=False) is None

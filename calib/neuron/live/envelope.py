@@ -35,7 +35,7 @@ import numpy as np
 
 from feeler.errors import ArgumentError
 
-__all__ = ["Envelope", "UNIT_FACTOR", "training_speed_mm_s", "median_of"]
+__all__ = ["Envelope", "UNIT_FACTOR", "stage_units", "training_speed_mm_s", "median_of"]
 
 
 def median_of(x: np.ndarray) -> float:
@@ -51,6 +51,15 @@ def median_of(x: np.ndarray) -> float:
 
 
 UNIT_FACTOR = 30.0     # as calib.neuron.checks: a scale further off than this is a unit mistake
+
+
+def stage_units(ratio: float) -> str:
+    """The likely unit mistake when x and t give ``ratio`` times the commanded stage speed
+    (further off than :data:`UNIT_FACTOR`): times in ms below; above, times in minutes
+    (×60) or x in µm (×1000), whichever is nearer on a log scale."""
+    if ratio < 1:
+        return "times probably in ms (expected s)"
+    return "times probably in min (expected s)" if ratio < np.sqrt(60 * 1000) else "x probably in um (expected mm)"
 
 
 def training_speed_mm_s(attrs) -> float | None:
@@ -140,12 +149,9 @@ class Envelope:
             return "the stage did not move (x_mm constant)"
         if labelled is not None and labelled > 0:
             r = speed_mm_s / labelled
-            if r < 1 / UNIT_FACTOR:
+            if not 1 / UNIT_FACTOR <= r <= UNIT_FACTOR:
                 out.append(f"x_mm and t_s give {speed_mm_s:.3g} mm/s, {_times(r)} the labelled {labelled:g} mm/s: "
-                           "times probably in ms (expected s)")
-            elif r > UNIT_FACTOR:
-                out.append(f"x_mm and t_s give {speed_mm_s:.3g} mm/s, {_times(r)} the labelled {labelled:g} mm/s: "
-                           "x probably in um (expected mm)")
+                           f"{stage_units(r)}")
         if self.speed_mm_s is not None and not out:
             r = speed_mm_s / self.speed_mm_s
             if not 1 / self.slack <= r <= self.slack:
