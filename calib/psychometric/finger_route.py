@@ -40,6 +40,9 @@ __all__ = ["RouteGrid", "fit_finger_route", "accepted_heights", "predict_p_highe
            "PAPER_TAU_MAX_S"]
 
 PAPER_TAU_MAX_S = 0.3  # paper §4.2: simulations "coincide well ... below τ = 300 msec"
+# mm/s: a fingertip exploring a surface, from a slow stroke to a fast swipe (the paper's 20 and
+# 40 mm/s; psychophysics studies use about 10-250 mm/s): ×10³ outside is m/s or µm/s
+PLAUSIBLE_SPEED_MM_S = (1.0, 1000.0)
 
 
 @dataclass(frozen=True)
@@ -158,7 +161,23 @@ def fit_finger_route(trials: pd.DataFrame, *, rng: np.random.Generator, grid: Ro
     result = make_result(tree, backend=f"grid ({level})", priors=priors,
                          seconds=time.perf_counter() - start)
     speeds = sorted(set(zip(trials["standard_speed_mm_s"], trials["comparison_speed_mm_s"])))
-    return with_problems(result, _edge_problems(prob, taus, sigmas) + _pinned_problems(prob, taus, speeds))
+    return with_problems(result, _speed_problems(np.ravel(speeds)) + _edge_problems(prob, taus, sigmas)
+                         + _pinned_problems(prob, taus, speeds))
+
+
+def _speed_problems(speeds_mm_s: np.ndarray) -> list[str]:
+    """Scan speeds ~10³ off a fingertip's (:data:`PLAUSIBLE_SPEED_MM_S`): m/s or µm/s. The
+    chain simulates the skin at the given speeds, so τ then comes out at a grid bound."""
+    v = np.asarray(speeds_mm_s, float)
+    med, (lo, hi) = float(np.median(v)), PLAUSIBLE_SPEED_MM_S
+    span = f"{v.min():.4g}–{v.max():.4g}"
+    if med < lo:
+        return [f"speeds: the scan speeds {span} 'mm/s' are below a fingertip's ({lo:g}–{hi:g} mm/s): were they "
+                f"given in m/s? (× 1000 → {1000 * v.min():.4g}–{1000 * v.max():.4g} mm/s)"]
+    if med > hi:
+        return [f"speeds: the scan speeds {span} 'mm/s' are above a fingertip's ({lo:g}–{hi:g} mm/s): were they "
+                f"given in µm/s? (÷ 1000 → {v.min() / 1000:.4g}–{v.max() / 1000:.4g} mm/s)"]
+    return []
 
 
 def _pinned_problems(prob: np.ndarray, taus: np.ndarray, speeds: list) -> list[str]:

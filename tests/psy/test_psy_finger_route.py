@@ -3,7 +3,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from feeler.calib.psychometric.finger_route import (RouteGrid, _edge_problems, accepted_heights,
+from feeler.calib.psychometric.finger_route import (RouteGrid, _edge_problems, _speed_problems, accepted_heights,
                                        fit_finger_route, paper_verdict, predict_p_higher, tau_report)
 from feeler.calib.fit import DiagnosticWarning
 from feeler.errors import ArgumentError
@@ -114,3 +114,16 @@ def test_bad_grid(kwargs):
 def test_the_paper_line_is_worded_from_the_probability(p, words):
     text = paper_verdict(p)
     assert words in text and f"P(tau <= 300 ms | data) = {p:.3f}" in text and "coincide" not in text
+
+
+def test_speeds_in_metres_per_second_are_named(design):
+    """The chain simulates the skin at the table's speeds: given in m/s (0.02, 0.04) τ piled
+    against the grid's 10 s bound and the verdict named no cause."""
+    slow = design.assign(standard_speed_mm_s=design.standard_speed_mm_s / 1000,
+                         comparison_speed_mm_s=design.comparison_speed_mm_s / 1000)
+    with pytest.warns(DiagnosticWarning):
+        result = fit_finger_route(slow, rng=np.random.default_rng(5), grid=GRID, draws=200)
+    assert result.verdict.problems[0] == ("speeds: the scan speeds 0.02–0.04 'mm/s' are below a fingertip's "
+                                          "(1–1000 mm/s): were they given in m/s? (× 1000 → 20–40 mm/s)")
+    assert _speed_problems(np.array([20.0, 40.0])) == []
+    assert "µm/s" in _speed_problems(np.array([2e4, 4e4]))[0]
