@@ -99,6 +99,13 @@ def test_follow_rows_keeps_a_partial_line_and_drops_a_cut_one(tmp_path):
     assert [r["uy_mm"] for r in rows] == ["0.1", "0.2", "0.3"] and stats["partial_lines_dropped"] == 1
 
 
+def test_follow_rows_of_a_decimal_comma_logger(tmp_path):
+    """A lab's own logger in a German locale: ';' between columns, ',' as decimal mark, a BOM."""
+    (tmp_path / "samples.csv").write_text("\ufeffscan_id;t_s;uy_mm\n0;0,5;0,1\n0;1;0,25\n", encoding="utf-8")
+    rows = list(follow_rows(tmp_path, poll_s=0.001, active=lambda: False, sleep=lambda s: None))
+    assert rows == [{"scan_id": "0", "t_s": "0.5", "uy_mm": "0.1"}, {"scan_id": "0", "t_s": "1", "uy_mm": "0.25"}]
+
+
 def test_follow_without_a_run_fails_in_one_line(fit_dir, tmp_path, capsys):
     with pytest.raises(DataFileError, match="no such file"):
         list(follow_rows(tmp_path, poll_s=0.01, wait_s=0.02, sleep=lambda s: None))

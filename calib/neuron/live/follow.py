@@ -16,6 +16,7 @@ import os
 import time
 from pathlib import Path
 
+from feeler.datasets import csv_dialect
 from feeler.errors import DataFileError
 
 __all__ = ["writer_active", "follow_rows"]
@@ -75,10 +76,13 @@ def follow_rows(run: str | Path, *, poll_s: float = 0.2, wait_s: float = 30.0, a
             for line in lines:
                 if not line.strip():
                     continue
-                values = next(csv.reader([line]))
                 if header is None:
-                    header = values
+                    sep, decimal = csv_dialect(line)                # a lab's own logger may write ';' and 0,5
+                    header = [h.strip() for h in next(csv.reader([line.lstrip("\ufeff")], delimiter=sep))]
                     continue
+                values = next(csv.reader([line], delimiter=sep))
+                if decimal != ".":
+                    values = [v.replace(decimal, ".") for v in values]
                 if len(values) != len(header):
                     raise DataFileError(path, f"a line of {len(values)} fields under a header of {len(header)}")
                 yield dict(zip(header, values))
