@@ -115,13 +115,11 @@ def read_trials(path: str | Path) -> pd.DataFrame:
         if not subject:
             raise DataFileError(path, f"line {lineno}, column subject: empty")
         data["subject"].append(subject)
-        def field(col):
-            return row[index[col]].replace(decimal, ".")
-
+        field = {col: row[i].replace(decimal, ".") for col, i in index.items()}     # a decimal comma read as a point
         for col in KEY_COLUMNS[1:]:
-            data[col].append(_number(path, lineno, col, field(col), allow_zero=nafc and col == "standard_um"))
+            data[col].append(_number(path, lineno, col, field[col], allow_zero=nafc and col == "standard_um"))
         if layout == "counts":
-            n, k = (_count(path, lineno, col, field(col)) for col in ("n_trials", count))
+            n, k = (_count(path, lineno, col, field[col]) for col in ("n_trials", count))
             if k > n:
                 raise DataFileError(path, f"line {lineno}, column {count}: {k} > n_trials {n}")
         else:

@@ -49,7 +49,6 @@ def read_scan_records(path: str | Path) -> list[ScanRecord]:
             NaN values, times not increasing within a scan, a label not constant in a scan.
     """
     from feeler.datasets import read_csv_file
-
     from feeler.errors import DataFileError
 
     path = Path(path)
