@@ -79,7 +79,7 @@ def read_csv_file(path: Path, *, comment: str | None = None):
     Separated by commas, semicolons or tabs (:func:`csv_dialect`); in a file separated by
     semicolons or tabs a decimal comma is read as a point (``0,05`` → 0.05). A UTF-8 byte
     order mark (spreadsheets write one) is dropped. ``comment``: lines starting with it
-    are skipped."""
+    are skipped, and kept (without it) in ``attrs["comments"]``."""
     import io
 
     import pandas as pd
@@ -107,6 +107,9 @@ def read_csv_file(path: Path, *, comment: str | None = None):
                 frame[col] = values
             elif values.notna().sum() > given.notna().sum() / 2:           # a number column with a bad entry:
                 frame[col] = pointed                                       # its reader names the entry
+    if comment:
+        frame.attrs["comments"] = [ln.lstrip()[len(comment):].strip() for ln in text.splitlines()
+                                   if ln.lstrip().startswith(comment)]
     return frame
 
 

@@ -44,7 +44,6 @@ def read_table(path: str | Path, columns: tuple[str, ...] = (), numeric: tuple[s
 
     path = Path(path)
     frame = read_csv_file(path, comment="#")          # also a user's own file as a spreadsheet exports it
-    text = path.read_text(encoding="utf-8-sig")
     problem = missing_columns_problem(frame, columns)
     if problem:
         raise DataFileError(path, problem)
@@ -56,7 +55,6 @@ def read_table(path: str | Path, columns: tuple[str, ...] = (), numeric: tuple[s
             row = int(np.flatnonzero(~np.isfinite(values))[0]) + 1
             raise DataFileError(path, f"column {col}: missing or non-numeric value at data row {row}")
         frame[col] = values
-    frame.attrs["comments"] = [ln.lstrip()[1:].strip() for ln in text.splitlines() if ln.lstrip().startswith("#")]
     return frame
 
 

@@ -29,13 +29,12 @@ from scipy import special     # not scipy.stats: 1 s more import on every fit (i
 
 from feeler.calib.diagnostics import Thresholds, bound_problems
 from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
-from feeler.calib.neuron.live.envelope import stage_units
+from feeler.calib.neuron.live.envelope import UNIT_FACTOR, stage_units
 from feeler.calib.neuron.model import PeakTable, PlatePrior, Plates, plate_stats
 
 __all__ = ["data_problems", "unit_problems", "posterior_problems", "loo_pit", "ALPHA", "UNIT_FACTOR"]
 
 ALPHA = 0.01          # family-wise level of each check (Bonferroni over plates)
-UNIT_FACTOR = 30.0    # a scale further off than this is a units mistake, not physics
 
 
 def _mm(v) -> str:
@@ -61,7 +60,7 @@ def data_problems(table: PeakTable, plates: Plates, strain: np.ndarray | None = 
         out.append(f"plate_sd_mm: the scans of plate(s) {', '.join(_mm(v) for v in plates.steps_mm[flat])} are "
                    f"identical at every window (zero spread, noise-free data): the decoder noise cannot be estimated")
     if strain is not None:
-        rows = np.asarray(strain, float).reshape(len(plates.group), -1)
+        rows = np.asarray(strain, float)                                # (n_scans, n_time)
         _, first, inverse = np.unique(rows, axis=0, return_index=True, return_inverse=True)
         earlier = first[inverse.ravel()]
         copies = np.flatnonzero(earlier != np.arange(rows.shape[0]))       # equal to an earlier scan

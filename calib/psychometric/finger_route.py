@@ -40,8 +40,8 @@ __all__ = ["RouteGrid", "fit_finger_route", "accepted_heights", "predict_p_highe
            "PAPER_TAU_MAX_S"]
 
 PAPER_TAU_MAX_S = 0.3  # paper §4.2: simulations "coincide well ... below τ = 300 msec"
-# mm/s: a fingertip exploring a surface, from a slow stroke to a fast swipe (the paper's 20 and
-# 40 mm/s; psychophysics studies use about 10-250 mm/s): ×10³ outside is m/s or µm/s
+# mm/s: a fingertip's scan, a window around the paper's 20 and 40 mm/s wide enough for slow
+# strokes and fast swipes; a median ×10³ outside it is m/s or µm/s
 PLAUSIBLE_SPEED_MM_S = (1.0, 1000.0)
 
 

@@ -50,7 +50,7 @@ def median_of(x: np.ndarray) -> float:
     return float(part[k] if n % 2 else 0.5 * (part[k - 1] + part[k]))
 
 
-UNIT_FACTOR = 30.0     # as calib.neuron.checks: a scale further off than this is a unit mistake
+UNIT_FACTOR = 30.0     # a scale further off than this is a unit mistake, not physics (M2's verdict uses it too)
 
 
 def stage_units(ratio: float) -> str:
