@@ -53,7 +53,8 @@ def video_path(run_dir: Path, scan_id: int) -> Path:
 class CaptureCamera:
     """A device index, video file or ``%05d.png`` sequence, read one frame per grab.
 
-    Raises (on open): DataFileError naming the source (no device, no file, undecodable).
+    Raises (on open): DataFileError naming the source (no device, no file, undecodable, a
+    file's frames not of ``size``).
     """
 
     def __init__(self, src: str, size: tuple[int, int]):
@@ -64,6 +65,21 @@ class CaptureCamera:
         self.is_device = str(src).isdigit()
         self._cap = open_source(int(src) if self.is_device else src)
         self._previous, self.n_read = None, 0
+        if not self.is_device:
+            self._check_size()
+
+    def _check_size(self) -> None:
+        """A video file or image sequence whose frames are not the layout's size fails here,
+        before the stage moves, instead of as bad frames once the campaign has started (a
+        source whose container does not state its size is checked frame by frame)."""
+        import cv2
+
+        shape = (int(self._cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(self._cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
+        if min(shape) > 0 and shape != self.size:
+            self._cap.release()
+            raise DataFileError(self.name, f"frames are {shape[0]}×{shape[1]} px; the plan's camera layout is "
+                                f"{self.size[0]}×{self.size[1]} px (record at that size, or name this camera's "
+                                "layout file in the plan's [optics] layout)")
 
     def start_scan(self, scan_id: int) -> None:
         pass
@@ -87,7 +103,7 @@ class CaptureCamera:
         gray = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
         shape = (gray.shape[1], gray.shape[0])
         if shape != self.size:
-            return Grab(now, None, f"size {shape[0]}×{shape[1]} px instead of {self.size[0]}×{self.size[1]}")
+            return Grab(now, None, f"size {shape[0]}×{shape[1]} px instead of {self.size[0]}×{self.size[1]} px")
         frozen, self._previous = _frozen_tile(gray, self._previous), gray
         if frozen is not None:
             return Grab(now, None, f"tile at column {frozen[0]}, row {frozen[1]} identical to the previous "

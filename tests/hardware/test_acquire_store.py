@@ -118,8 +118,8 @@ def test_capture_camera_counts_bad_frames_and_names_a_short_video(tmp_path):
     assert "identical to the previous frame" in cam.grab(None).problem
     with pytest.raises(DataFileError, match=r"v\.avi: no frame after 3 frames"):
         cam.grab(None)
-    wrong = CaptureCamera(str(path), (32, 48))
-    assert "instead of 32×48" in wrong.grab(None).problem
+    with pytest.raises(DataFileError, match=r"v\.avi: frames are 64×48 px; the plan's camera layout is 32×48 px"):
+        CaptureCamera(str(path), (32, 48))
     with pytest.raises(DataFileError, match="camera 57: no camera device"):
         CaptureCamera("57", (64, 48))
     with pytest.raises(DataFileError, match="no such video file"):
@@ -172,9 +172,34 @@ def test_a_missing_stage_port_is_one_line_and_writes_nothing(tmp_path, capsys):
     from feeler.cli import main
     from feeler.hardware.camera import write_video
 
-    video = write_video(np.zeros((2, 48, 64), np.uint8), tmp_path / "v.avi")
-    code = main(["acquire", "--stage", str(tmp_path / "ttyNOPE"), "--camera", str(video), "--plan", str(PLAN),
-                 "--out", str(tmp_path / "run")])
-    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
-    assert code == 2 and len(err) == 1 and "ttyNOPE" in err[0]
-    assert not (tmp_path / "run").exists()
+    def acquire(video):
+        code = main(["acquire", "--stage", str(tmp_path / "ttyNOPE"), "--camera", str(video), "--plan", str(PLAN),
+                     "--out", str(tmp_path / "run")])
+        err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
+        assert code == 2 and len(err) == 1 and not (tmp_path / "run").exists()
+        return err[0]
+
+    assert "ttyNOPE" in acquire(write_video(np.zeros((2, 480, 640), np.uint8), tmp_path / "v.avi"))
+    small = write_video(np.zeros((2, 48, 64), np.uint8), tmp_path / "small.avi")
+    assert acquire(small) == (f"feeler: error: {small}: frames are 64×48 px; the plan's camera layout is 640×480 px "
+                              "(record at that size, or name this camera's layout file in the plan's [optics] layout)")
+
+
+def test_an_image_sequence_of_another_size_fails_on_open_and_a_later_odd_frame_is_bad(tmp_path):
+    """The container's size is checked before the campaign; a sequence whose later file
+    differs from its first is still caught frame by frame."""
+    import cv2
+
+    from feeler.hardware.acquire.cameras import CaptureCamera
+    from feeler.hardware.camera import write_video
+
+    rng = np.random.default_rng(1)
+    pattern = str(tmp_path / "f%03d.png")
+    write_video(rng.integers(10, 30, (3, 48, 64), dtype=np.uint8), pattern)
+    with pytest.raises(DataFileError, match=r"f%03d\.png: frames are 64×48 px; the plan's camera layout is 64×40"):
+        CaptureCamera(pattern, (64, 40))
+    cv2.imwrite(pattern % 1, rng.integers(10, 30, (40, 64), dtype=np.uint8))
+    cam = CaptureCamera(pattern, (64, 48))
+    assert cam.grab(None).problem is None
+    assert cam.grab(None).problem == "size 64×40 px instead of 64×48 px"
+    assert cam.grab(None).problem is None
