@@ -4,11 +4,13 @@ from __future__ import annotations
 __all__ = ["add_use_arguments", "load_checked"]
 
 
-def add_use_arguments(parser, *, n_draws: int, out_file: str) -> None:
-    """POSTERIOR, --n-draws, --seed, --out, --force, --accept-failed, --progress/--no-progress."""
+def add_use_arguments(parser, *, n_draws: int, out_file: str,
+                      seed_help: str = "seed of the subsample of posterior draws (default 0)") -> None:
+    """POSTERIOR, --n-draws, --seed (``seed_help`` says what it seeds), --out, --force,
+    --accept-failed, --progress/--no-progress."""
     parser.add_argument("posterior", metavar="POSTERIOR", help="directory of a `calibrate neuron --out` fit")
     parser.add_argument("--n-draws", type=int, default=n_draws, help=f"posterior draws used (default {n_draws})")
-    parser.add_argument("--seed", type=int, default=0, help="seed of draws and simulations (default 0)")
+    parser.add_argument("--seed", type=int, default=0, help=seed_help)
     parser.add_argument("--out", default=None, metavar="DIR", help=f"write {out_file} into DIR")
     parser.add_argument("--force", action="store_true", help="overwrite an earlier result in DIR")
     parser.add_argument("--accept-failed", action="store_true", help="use a posterior that failed its diagnostics")

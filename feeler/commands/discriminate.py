@@ -25,7 +25,9 @@ HELP = "2AFC discrimination probabilities, threshold, Weber fraction and speed P
 
 
 def register(parser) -> None:
-    add_use_arguments(parser, n_draws=200, out_file="discrimination.json")
+    add_use_arguments(parser, n_draws=200, out_file="discrimination.json",
+                      seed_help="seed of the posterior draws and bootstrap resamples (default 0); the simulated "
+                                "touches have --touch-seed")
     parser.add_argument("--scene", default=None, help="robot-scan scene of the forward model (default: the fit's)")
     parser.add_argument("--backend", choices=("forward",), default="forward",
                         help="forward: simulated touches decoded per posterior draw (the only one)")
