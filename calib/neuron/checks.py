@@ -10,7 +10,7 @@ support; any problem fails the verdict (:func:`feeler.calib.fit.make_result`).
   labelled steps, which should agree within a factor of ~30 (the tip follows the
   surface); ~10³ off names µm vs mm, a rise that falls as the step rises (by 3 standard
   errors of the slope at some window, and rises at none) names steps labelled with the
-  wrong sign, and one that changes with the step at no window says the scans show no
+  wrong sign (or, all steps ≥ 0, in reverse order), and one that changes with the step at no window says the scans show no
   step (labels unrelated to the scans, or the wrong column). The stage speed measured
   from ``x_mm`` and ``t_s`` against the commanded one, and a sample interval over a
   minute, name ms vs s;
@@ -99,8 +99,12 @@ def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_
         gain = float(np.polyfit(c, mean * length_mm, 1)[0])
         z = _slope_z(table.peak, plates)                 # per window; 3 standard errors: not chance
         if z.max() < 3 < -z.min():
-            out.append(f"a: the scans' rise in U_y falls as the labelled step rises (slope {gain:.3g}): steps "
-                       f"probably labelled with the wrong sign (expected heights of the step up, in mm)")
+            if c.min() >= 0:        # no sign to be wrong (and the neuron reads |rate|: U_y's sign is moot)
+                why = "the steps probably labelled in reverse order (the rise is largest on the plate labelled lowest)"
+            else:
+                why = ("steps probably labelled with the wrong sign" + (" or in reverse order" if c.max() > 0 else "")
+                       + " (expected heights of the step up, in mm)")
+            out.append(f"a: the scans' rise in U_y falls as the labelled step rises (slope {gain:.3g}): {why}")
         elif np.abs(z).max() < 3 and plates.counts.min() >= 2:
             out.append(f"a: the scans' rise in U_y does not change with the labelled step at any window (slope "
                        f"{gain:.3g}, at most {np.abs(z).max():.1f} standard errors from 0): the scans show no step; "

@@ -135,6 +135,12 @@ def test_steps_labelled_with_the_wrong_sign(data):
     q = unit_problems(table, plates, length_mm=3.0, t_s=data.t_s)
     assert len(q) == 1 and "wrong sign" in q[0] and "slope -" in q[0]
     assert unit_problems(table, Plates.of(data.step_mm), length_mm=3.0, t_s=data.t_s) == []
+    # heights >= 0 in reverse order (0 <-> top): no sign to be wrong; the order is named
+    top = data.step_mm.max()
+    (q,) = unit_problems(table, Plates.of(top - data.step_mm), length_mm=3.0, t_s=data.t_s)
+    assert "slope -" in q and "labelled in reverse order" in q and "sign" not in q
+    (q,) = unit_problems(table, Plates.of(top / 2 - data.step_mm), length_mm=3.0, t_s=data.t_s)
+    assert "wrong sign or in reverse order" in q
     # labels shuffled: the scans tilt by chance, no sign mistake, but no step is seen either
     shuffled = Plates.of(np.random.default_rng(3).permutation(data.step_mm))
     (q,) = unit_problems(table, shuffled, length_mm=3.0, t_s=data.t_s)
