@@ -19,7 +19,7 @@ support; any problem fails the verdict (:func:`feeler.calib.fit.make_result`).
   Per plate: the fraction inside the central 90 % band must be compatible with
   0.85–0.95 (the interval coverage the decoder promises), and the mean PIT with ½ (a
   plate whose scans sit high or low: bias). Then: adjacent plates whose order the
-  posterior cannot tell, and a window τ the data do not pin (its posterior spread over
+  posterior cannot tell (or puts the other way round: swapped labels), and a window τ the data do not pin (its posterior spread over
   70 % of the prior's, on a prior range wider than ×1.5).
 """
 from __future__ import annotations
@@ -205,12 +205,17 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
                    f"(numerically) zero spread at the windows the fit uses (noise-free data): neither the decoder "
                    f"noise nor the window can be pinned")
     means = np.asarray(post["plate_mean_mm"]).reshape(-1, C)
-    order = np.mean(np.diff(means, axis=1) > 0, axis=0)
+    means = means[np.isfinite(means).all(axis=1)]           # none finite: said once by bound_problems
+    order = np.mean(np.diff(means, axis=1) > 0, axis=0) if len(means) else np.full(C - 1, np.nan)
     info["p_ordered"] = order.tolist()
     for j in np.flatnonzero(order < 0.9):
-        out.append(f"plate_mean_mm: the decoder cannot order plates {_mm(plates.steps_mm[j])} and "
-                   f"{_mm(plates.steps_mm[j + 1])} (P = {order[j]:.2f}); their scans overlap too much to decode "
-                   f"heights between them")
+        lo, hi = _mm(plates.steps_mm[j]), _mm(plates.steps_mm[j + 1])
+        if order[j] < 0.01:     # the other way round beyond chance (equal plates give ~0.05 one time in ten)
+            out.append(f"plate_mean_mm: plate {hi}'s scans decode below plate {lo}'s (P = {order[j]:.2f} that they "
+                       f"are in order): their labels are probably swapped")
+        else:
+            out.append(f"plate_mean_mm: the decoder cannot order plates {lo} and {hi} (P = {order[j]:.2f}); their "
+                       f"scans overlap too much to decode heights between them")
     lt = np.log(np.ravel(post["tau_s"]))
     prior_sd = (table.log_tau[-1] - table.log_tau[0]) / np.sqrt(12)
     info["tau_spread_of_prior"] = float(np.std(lt) / prior_sd)

@@ -79,6 +79,17 @@ def test_plates_the_decoder_cannot_order():
     assert any("cannot order plates 0 mm and 0.05 mm" in q for q in problems), info
 
 
+def test_two_plates_with_swapped_labels_are_named_not_called_an_overlap():
+    """Middle plates' labels swapped: their scans are well apart, in the wrong order."""
+    rng = np.random.default_rng(9)
+    plates = Plates.of(np.repeat([0.0, 0.05, 0.1, 0.2], 12))
+    p = np.repeat([1.0, 3.0, 2.0, 5.0], 12) + 0.1 * rng.standard_normal(48)
+    problems, info = _fit(_table(p), plates, "per-plate", rng)
+    order = [q for q in problems if "plate 0.1 mm's scans decode below plate 0.05 mm's" in q]
+    assert len(order) == 1 and "labels are probably swapped" in order[0], problems
+    assert not any("cannot order" in q for q in problems) and info["p_ordered"][1] < 0.01
+
+
 def test_a_window_the_data_do_not_pin():
     rng = np.random.default_rng(8)
     plates = Plates.of(np.repeat([0.0, 0.1], 12))
@@ -150,6 +161,7 @@ def test_steps_labelled_with_the_wrong_sign(data):
     assert [x for x in res.verdict.problems if "no finite posterior draws" in x] == [
         "a, h, sigma_mm, plate_mean_mm[0-3], plate_sd_mm[0-3]: no finite posterior draws (not defined by these data)"]
     assert not any("-0 mm" in x for x in res.verdict.problems)
+    assert not any("order" in x for x in res.verdict.problems)      # no finite plate means: nothing to order
 
 
 def test_units_micrometres_and_milliseconds(data):
