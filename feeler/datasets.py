@@ -17,6 +17,7 @@ import numpy as np
 from feeler.errors import DataFileError
 
 __all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_csv_file", "missing_columns_problem",
+           "shared_scan_id_problem", "starts_again", "varying_label_problem",
            "read_scans", "strain", "jump_uy_mm", "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
 
 COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
@@ -156,6 +157,17 @@ def read_scans(path: str | Path) -> Scans:
                                       f"values must be finite numbers")
         frame[col] = values
     groups = frame.groupby("scan_id", sort=False)
+    restart = ((groups["t_s"].diff() < 0) & (frame["t_s"] <= groups["t_s"].transform("first"))).to_numpy()
+    if restart.any():                           # before lengths: shared ids make "unequal lengths" too
+        sid = frame["scan_id"].iloc[int(np.flatnonzero(restart)[0])]
+        rows = frame["scan_id"] == sid
+        raise DataFileError(path, shared_scan_id_problem(sid, frame.loc[rows, "t_s"].to_numpy(float),
+                                                         frame.loc[rows, "step_mm"].to_numpy(float)))
+    for col in ("step_mm", "speed_mm_s"):               # before lengths too, for the same reason
+        varying = groups[col].transform("nunique").to_numpy() > 1
+        if varying.any():
+            sid = frame["scan_id"].iloc[int(np.flatnonzero(varying)[0])]
+            raise DataFileError(path, varying_label_problem(col, sid, frame.loc[frame["scan_id"] == sid, col]))
     lengths = groups.size()
     if lengths.nunique() != 1:
         common = int(lengths.mode().iloc[0])
@@ -175,12 +187,33 @@ def read_scans(path: str | Path) -> Scans:
     bad = np.flatnonzero(np.any(np.diff(t, axis=1) <= 0, axis=1))
     if bad.size:
         raise DataFileError(path, f"column t_s: not strictly increasing within scan_id {ids[bad[0]]}")
-    for col in ("step_mm", "speed_mm_s"):
-        per_scan = grid(col)
-        if np.any(per_scan != per_scan[:, :1]):
-            raise DataFileError(path, f"column {col}: must be constant within each scan")
     return Scans(scan_id=ids.astype(int), step_mm=grid("step_mm")[:, 0], speed_mm_s=grid("speed_mm_s")[:, 0],
                  t_s=t, x_mm=grid("x_mm"), ux_mm=grid("ux_mm"), uy_mm=grid("uy_mm"), uz_mm=grid("uz_mm"))
+
+
+def shared_scan_id_problem(scan_id, t_s, step_mm=None) -> str:
+    """The line for a scan_id whose times start again (fall back to the scan's first time):
+    several scans share the id (lab files often number scans afresh on each plate)."""
+    t = np.asarray(t_s, float)
+    restarts = int(np.sum(starts_again(t)))
+    steps = np.unique(np.asarray(step_mm, float)) if step_mm is not None else np.empty(0)
+    steps = steps[np.isfinite(steps)]
+    held = f", with steps {', '.join(f'{v:g}' for v in steps)} mm" if steps.size > 1 else ""
+    return (f"column scan_id: t_s restarts {restarts} time(s) within scan_id {scan_id:g}{held}: about {restarts + 1} "
+            f"scans share this id; give every scan its own scan_id across the file (ids that start again on "
+            f"each plate are not unique)")
+
+
+def varying_label_problem(col: str, scan_id, values) -> str:
+    """The line for a label column that changes within one scan."""
+    seen = ", ".join(f"{v:g}" for v in dict.fromkeys(np.asarray(values, float).tolist()))
+    return (f"column {col}: must be constant within each scan; scan_id {scan_id:g} holds {seen} (if these rows are "
+            f"several scans, give each its own scan_id)")
+
+
+def starts_again(t: np.ndarray) -> np.ndarray:
+    """Where one scan's times fall back to its first time or before (ndarray[n − 1] bool)."""
+    return (np.diff(t) < 0) & (t[1:] <= t[0])
 
 
 def strain(uy_mm, length_mm: float) -> np.ndarray:

@@ -136,3 +136,29 @@ def test_a_header_read_as_one_column_says_which_separators_are_read(tmp_path):
 ])
 def test_csv_dialect_from_the_header(header, expected):
     assert csv_dialect(header) == expected
+
+
+def test_scan_ids_that_start_again_on_each_plate_are_named(tmp_path):
+    """A lab file numbering scans afresh per plate: both readers (the fit's and classify's)
+    say that several scans share an id, with their steps, before any length check (plates
+    with unequal counts would otherwise read as scans of unequal length)."""
+    from feeler.calib.neuron.live.scan_csv import read_scan_records
+
+    rows = []
+    for step, n in ((0.0, 2), (0.05, 1)):                   # two scans on plate 0, one on plate 1: ids 0, 1 then 0
+        for sid in range(n):
+            rows += [[sid, step, 0.5, 0.5 * i, 0.25 * i, -0.01, 0.05 + step * i, 0.0] for i in range(4)]
+    path = write_csv(tmp_path / "scans.csv", rows)
+    words = ("column scan_id: t_s restarts 1 time(s) within scan_id 0, with steps 0, 0.05 mm: about 2 scans share "
+             "this id; give every scan its own scan_id across the file")
+    for read in (read_scans, read_scan_records):
+        with pytest.raises(DataFileError) as info:
+            read(path)
+        assert str(info.value) == f"{path}: {words} (ids that start again on each plate are not unique)"
+    clock = [[r[0], r[1], r[2], r[3] + 10 * k, *r[4:]] for k, r in enumerate(rows)]   # one clock for the file
+    path = write_csv(tmp_path / "clock.csv", clock)
+    for read in (read_scans, read_scan_records):
+        with pytest.raises(DataFileError) as info:
+            read(path)
+        assert str(info.value) == (f"{path}: column step_mm: must be constant within each scan; scan_id 0 holds "
+                                   "0, 0.05 (if these rows are several scans, give each its own scan_id)")

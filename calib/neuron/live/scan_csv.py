@@ -66,6 +66,8 @@ def records_from_frame(frame, path) -> list[ScanRecord]:
     """:class:`ScanRecord` s of a long-format frame (``path`` names it in errors)."""
     import pandas as pd
 
+    from feeler.datasets import shared_scan_id_problem, starts_again, varying_label_problem
+
     missing = [c for c in REQUIRED if c not in frame.columns]
     if missing:
         raise DataFileError(path, f"missing column(s) {', '.join(missing)}; required: {', '.join(REQUIRED)} "
@@ -86,6 +88,8 @@ def records_from_frame(frame, path) -> list[ScanRecord]:
     out = []
     for sid, g in frame.groupby("scan_id", sort=False):
         t = g["t_s"].to_numpy(float)
+        if np.any(starts_again(t)):
+            raise DataFileError(path, shared_scan_id_problem(sid, t, g["step_mm"] if "step_mm" in g.columns else None))
         if np.any(np.diff(t) <= 0):
             raise DataFileError(path, f"column t_s: not strictly increasing within scan_id {sid:g}")
         labels = {}
@@ -95,7 +99,7 @@ def records_from_frame(frame, path) -> list[ScanRecord]:
                 if np.isnan(v).all():
                     continue
                 if np.any(v != v[0]):
-                    raise DataFileError(path, f"column {col}: must be constant within each scan (scan_id {sid:g})")
+                    raise DataFileError(path, varying_label_problem(col, sid, v))
                 labels[col] = float(v[0])
         out.append(ScanRecord(scan_id=int(sid), t_s=t, uy_mm=g["uy_mm"].to_numpy(float),
                               x_mm=g["x_mm"].to_numpy(float) if "x_mm" in g.columns else None, **labels))
