@@ -17,7 +17,7 @@ import numpy as np
 from feeler.errors import DataFileError
 
 __all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_csv_file", "missing_columns_problem",
-           "shared_scan_id_problem", "starts_again", "varying_label_problem",
+           "shared_scan_id_problem", "starts_again", "varying_label_problem", "repeated_header_problem",
            "read_scans", "strain", "jump_uy_mm", "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
 
 COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
@@ -74,13 +74,37 @@ def header_line(text: str) -> str:
     return next((ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")), "")
 
 
+def repeated_header_problem(lines: list[int]) -> str:
+    """The line for a header repeated at ``lines`` (1-based line numbers)."""
+    return (f"line {lines[0]} repeats the header ({len(lines)} repeat(s): files joined with their headers?); "
+            f"delete the repeated header lines")
+
+
+def _repeated_header(text: str, header: str) -> list[int]:
+    """Line numbers (1-based) of the lines after the header that repeat it."""
+    import re
+
+    if not header.strip():
+        return []
+    start = text.find(header) + len(header)
+    pattern = re.compile(r"^[ \t]*" + re.escape(header.strip()) + r"[ \t\r]*$", re.MULTILINE)
+    before = text.count("\n", 0, start) + 1
+    out, line, pos = [], before, start
+    for m in pattern.finditer(text, start):
+        line += text.count("\n", pos, m.start())
+        out.append(line)
+        pos = m.start()
+    return out
+
+
 def read_csv_file(path: Path, *, comment: str | None = None):
     """The CSV at ``path`` as a DataFrame; DataFileError naming it when missing or unreadable.
 
     Separated by commas, semicolons or tabs (:func:`csv_dialect`); in a file separated by
     semicolons or tabs a decimal comma is read as a point (``0,05`` → 0.05). A UTF-8 byte
     order mark (spreadsheets write one) is dropped. ``comment``: lines starting with it
-    are skipped, and kept (without it) in ``attrs["comments"]``."""
+    are skipped, and kept (without it) in ``attrs["comments"]``. The header repeated
+    further down (files joined with ``cat``) is an error naming its line."""
     import io
 
     import pandas as pd
@@ -92,7 +116,11 @@ def read_csv_file(path: Path, *, comment: str | None = None):
         raise DataFileError(path, "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise DataFileError(path, f"not a readable CSV: {exc}") from None
-    sep, decimal = csv_dialect(header_line(text))
+    header = header_line(text)
+    sep, decimal = csv_dialect(header)
+    repeats = _repeated_header(text, header)
+    if repeats:
+        raise DataFileError(path, repeated_header_problem(repeats))
     try:
         frame = pd.read_csv(io.StringIO(text), sep=sep, comment=comment,
                             dtype=None if decimal == "." else str)

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from feeler.datasets import csv_dialect
+from feeler.datasets import csv_dialect, repeated_header_problem
 from feeler.errors import DataFileError
 
 __all__ = ["TRIAL_COLUMNS", "NAFC_COLUMNS", "KEY_COLUMNS", "RESPONSES", "read_trials", "write_trials",
@@ -108,6 +108,9 @@ def read_trials(path: str | Path) -> pd.DataFrame:
     nafc = count in ("n_correct", "correct")
     index = {c: header.index(c) for c in header}
     data: dict[str, list] = {c: [] for c in KEY_COLUMNS + ("n_trials", "k")}
+    repeats = [lineno for (lineno, _), row in zip(lines[1:], rows[1:]) if [h.strip() for h in row] == header]
+    if repeats:
+        raise DataFileError(path, repeated_header_problem(repeats))
     for (lineno, _), row in zip(lines[1:], rows[1:]):
         if len(row) != len(header):
             raise DataFileError(path, f"line {lineno}: {len(row)} fields, header has {len(header)}")

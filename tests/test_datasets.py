@@ -162,3 +162,25 @@ def test_scan_ids_that_start_again_on_each_plate_are_named(tmp_path):
             read(path)
         assert str(info.value) == (f"{path}: column step_mm: must be constant within each scan; scan_id 0 holds "
                                    "0, 0.05 (if these rows are several scans, give each its own scan_id)")
+
+
+def test_files_joined_with_their_headers_name_the_repeated_header_line(tmp_path):
+    """``cat a.csv b.csv``: every user CSV reader (scans, calibration.csv, trials) names the
+    line where the header comes again, instead of a non-numeric value in some column."""
+    from feeler.calib.fit import read_csv_columns
+    from feeler.psydata import read_trials
+
+    words = "line 6 repeats the header (2 repeat(s): files joined with their headers?); delete the repeated header lines"
+    scans = write_csv(tmp_path / "scans.csv", good_rows())
+    lines = scans.read_text().splitlines()
+    scans.write_text("\n".join(lines[:5] + lines[:5] + [" " + lines[0] + " \r"] + lines[5:]) + "\n")
+    trials = tmp_path / "trials.csv"
+    head = "subject,standard_um,standard_speed_mm_s,comparison_um,comparison_speed_mm_s,n_trials,n_comparison_higher"
+    row = "S1,10,20,{},20,20,{}"
+    trials.write_text("\n".join(["# joined", head, row.format(8, 3), row.format(9, 6), row.format(11, 14), head,
+                                 row.format(12, 17), head]) + "\n")
+    for read, path in ((read_scans, scans), (lambda p: read_csv_columns(p, COLUMNS), scans), (read_trials, trials)):
+        with pytest.raises(DataFileError) as info:
+            read(path)
+        assert str(info.value) == f"{path}: {words}"
+    assert read_scans(write_csv(tmp_path / "ok.csv", good_rows())).t_s.shape == (2, 4)
