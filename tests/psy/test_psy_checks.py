@@ -137,6 +137,27 @@ def test_responses_that_do_not_rise_bound_the_threshold_only_from_below():
     assert "do not rise across the tested levels 7.6–12.4 µm (a flat line at 0.51" in line
 
 
+@pytest.mark.parametrize("k, nafc, words", [
+    (20, None, "A [10 um, 20/20 mm/s]: all 140 trials 'comparison judged higher' at the tested levels 7.6–12.4 µm: "
+               "the PSE lies below them"),
+    (0, None, "none of its 140 trials 'comparison judged higher' at the tested levels 7.6–12.4 µm: the PSE lies "
+              "above them"),
+    (20, 2, "all 140 trials correct at the tested levels 7.6–12.4 µm: the threshold lies below them"),
+    (0, 2, "none of its 140 trials correct, where guessing alone gives 1/2: the responses are probably coded the "
+           "other way round"),
+])
+def test_one_answer_throughout_names_where_the_function_lies(k, nafc, words):
+    """A subject who pressed one key all session (or a range the function lies outside):
+    said as such, not as 'a step and a flat line fit as well; more trials are needed'."""
+    trials = _counts([k] * LEVELS.size)
+    if nafc:
+        trials = trials.rename(columns={"n_comparison_higher": "n_correct"})
+    result = _fit(trials, **({"nafc": nafc} if nafc else {}))
+    lines = [p for p in result.verdict.problems if words in p]
+    assert not result.verdict.ok and len(lines) == 1, result.verdict.problems
+    assert not any("more trials are needed" in p for p in result.verdict.problems)
+
+
 def test_seven_trials_pin_neither_side():
     """One trial per level, one of them against the rise: neither a step nor a flat line
     can be rejected."""

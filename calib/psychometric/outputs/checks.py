@@ -28,7 +28,7 @@ from scipy.stats import beta as beta_dist
 from feeler.models.psychometric import LAPSE_MAX
 
 __all__ = ["deviance", "gof", "unit_problems", "conflict_problems", "level_problems",
-           "bracket_problems", "gof_problems", "spread_problems", "GOF_ALPHA", "CONFLICT_Z", "CONFLICT_TAIL",
+           "bracket_problems", "gof_problems", "spread_problems", "one_answer_problem", "GOF_ALPHA", "CONFLICT_Z", "CONFLICT_TAIL",
            "PLAUSIBLE_UM", "BOUNDARY_LR"]
 
 GOF_ALPHA = 0.05
@@ -155,6 +155,23 @@ def bracket_problems(label: str, what: str, lb: float, ub: float, lo: float, hi:
     return []
 
 
+def one_answer_problem(label: str, task, n_trials: int, counted: bool, span: str) -> str:
+    """The line for a row whose every trial gave the response counted (``counted``) or
+    none did: the function's location lies outside the tested levels, or the responses
+    are coded the other way round."""
+    if not task.is_nafc:
+        what = f"all {n_trials} trials" if counted else f"none of its {n_trials} trials"
+        side = "below" if counted else "above"
+        return (f"{label}: {what} '{task.response}' at the tested levels {span}: the PSE lies {side} them, and "
+                f"neither it nor the spread is pinned down; test levels that bracket it (or check the response "
+                f"column)")
+    if counted:
+        return (f"{label}: all {n_trials} trials correct at the tested levels {span}: the threshold lies below them "
+                f"and is not pinned down; test smaller steps")
+    return (f"{label}: none of its {n_trials} trials correct, where guessing alone gives 1/{task.n_alternatives}: "
+            f"the responses are probably coded the other way round (1 = incorrect)")
+
+
 def spread_problems(label: str, task, x: np.ndarray, n: np.ndarray, k: np.ndarray, fitted_deviance: float,
                     fitted_lapse: float) -> list[str]:
     """A spread the data bound on one side only, by likelihood ratio against the fitted curve.
@@ -182,6 +199,8 @@ def spread_problems(label: str, task, x: np.ndarray, n: np.ndarray, k: np.ndarra
     best = min(float(fitted_deviance), d_step, d_flat)
     step, flat = d_step - best <= BOUNDARY_LR, d_flat - best <= BOUNDARY_LR
     span = f"{levels[0]:.4g}–{levels[-1]:.4g} µm"
+    if k.sum() in (0, n.sum()):                     # one answer throughout: a flat line and a step fit exactly
+        return [one_answer_problem(label, task, int(n.sum()), bool(k.sum()), span)]
     if step and flat:
         return [f"{label}: the data cannot pin down the spread: a step between two tested levels and a flat "
                 f"line fit its {int(n.sum())} trials as well as the curve (likelihood ratio < {BOUNDARY_LR}); "
