@@ -74,10 +74,11 @@ def header_line(text: str) -> str:
     return next((ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")), "")
 
 
-def repeated_header_problem(lines: list[int]) -> str:
-    """The line for a header repeated at ``lines`` (1-based line numbers)."""
-    return (f"line {lines[0]} repeats the header ({len(lines)} repeat(s): files joined with their headers?); "
-            f"delete the repeated header lines")
+def repeated_header_problem(lines: list[int], *, why: str | None = None) -> str:
+    """The line for a header repeated at ``lines`` (1-based line numbers of a whole file),
+    or, given ``why``, at the one line ``lines[0]`` of a file still being read."""
+    why = why or f"{len(lines)} repeat(s): files joined with their headers?"
+    return f"line {lines[0]} repeats the header ({why}); delete the repeated header lines"
 
 
 def _repeated_header(text: str, header: str) -> list[int]:

@@ -106,6 +106,19 @@ def test_follow_rows_of_a_decimal_comma_logger(tmp_path):
     assert rows == [{"scan_id": "0", "t_s": "0.5", "uy_mm": "0.1"}, {"scan_id": "0", "t_s": "1", "uy_mm": "0.25"}]
 
 
+def test_follow_rows_stop_at_a_header_written_again(tmp_path):
+    """A lab logger restarted onto the same file writes its header once more: the rows before
+    it are decoded, then one line names where (not 'non-numeric value' in some column)."""
+    (tmp_path / "samples.csv").write_text("scan_id,t_s,uy_mm\n0,0.5,0.1\n\n scan_id, t_s ,uy_mm\n0,0.5,0.2\n")
+    got = []
+    with pytest.raises(DataFileError) as info:
+        for row in follow_rows(tmp_path, poll_s=0.001, active=lambda: False, sleep=lambda s: None):
+            got.append(row)
+    assert got == [{"scan_id": "0", "t_s": "0.5", "uy_mm": "0.1"}]
+    assert str(info.value) == (f"{tmp_path / 'samples.csv'}: line 4 repeats the header (a logger restarted onto this "
+                               "file?); delete the repeated header lines")
+
+
 def test_follow_without_a_run_fails_in_one_line(fit_dir, tmp_path, capsys):
     with pytest.raises(DataFileError, match="no such file"):
         list(follow_rows(tmp_path, poll_s=0.01, wait_s=0.02, sleep=lambda s: None))

@@ -16,7 +16,7 @@ import os
 import time
 from pathlib import Path
 
-from feeler.datasets import csv_dialect
+from feeler.datasets import csv_dialect, repeated_header_problem
 from feeler.errors import DataFileError
 
 __all__ = ["writer_active", "follow_rows"]
@@ -60,7 +60,7 @@ def follow_rows(run: str | Path, *, poll_s: float = 0.2, wait_s: float = 30.0, a
             raise DataFileError(path, f"no such file after {wait_s:g} s, and no acquisition is writing {run}")
         sleep(poll_s)
         waited += poll_s
-    buf, header = "", None
+    buf, header, lineno = "", None, 0
     with open(path, newline="") as f:
         while True:
             chunk = f.read()
@@ -74,6 +74,7 @@ def follow_rows(run: str | Path, *, poll_s: float = 0.2, wait_s: float = 30.0, a
             buf += chunk
             *lines, buf = buf.split("\n")
             for line in lines:
+                lineno += 1
                 if not line.strip():
                     continue
                 if header is None:
@@ -81,6 +82,8 @@ def follow_rows(run: str | Path, *, poll_s: float = 0.2, wait_s: float = 30.0, a
                     header = [h.strip() for h in next(csv.reader([line.lstrip("\ufeff")], delimiter=sep))]
                     continue
                 values = next(csv.reader([line], delimiter=sep))
+                if [v.strip() for v in values] == header:          # a logger restarted onto the same file
+                    raise DataFileError(path, repeated_header_problem([lineno], why="a logger restarted onto this file?"))
                 if decimal != ".":
                     values = [v.replace(decimal, ".") for v in values]
                 if len(values) != len(header):
