@@ -7,7 +7,8 @@ rows b_i of B per output axis (K for the inverse model, C for the forward one).
 - design (:func:`design_problems`): directions of the design that carry no information
   (all-zero displacements: every direction), where B would be the prior's;
 - units (:func:`unit_problems`): the least-squares compliance against the nominal C₀
-  (a scale ~10³ off, forces and displacements swapped, an axis of the opposite sign);
+  (a scale ~10³ off, forces and displacements swapped, axes exchanged, an axis of the
+  opposite sign);
   a ratio beyond ×30 is no sensor tolerance but a unit (×10³: µm for mm, mN for N);
 - prior–data conflict (:func:`conflict_problems`): the least-squares row b̂_i against
   its prior N(b0_i, s²I): under the model b̂_i ~ N(b0_i, s²I + σ̂_i²(XᵀX)⁻¹), so its
@@ -79,6 +80,9 @@ def unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool
                     f"(expected N; 1 N = {GRAMS_FORCE_PER_N:.4g} gf, a force gauge's usual unit)"]
         return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: forces probably in mN "
                 f"(expected N) or displacements in m (expected mm)"]
+    exchanged = _exchanged_axes(c, c0)
+    if exchanged:
+        return [exchanged]
     d, d0 = np.diag(c), np.diag(c0)
     flipped = [i for i in range(3) if d[i] * d0[i] < 0 and 0.2 < abs(d[i] / d0[i]) < 5.0]
     if flipped:
@@ -86,6 +90,34 @@ def unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool
                 f"u{'xyz'[i]}_mm or f{'xyz'[i]}_n probably has the opposite sign (the sensor's axis convention)"
                 for i in flipped]
     return []
+
+
+def _exchanged_axes(c: np.ndarray, c0: np.ndarray) -> str | None:
+    """A line when the data's compliance ``c`` matches the nominal ``c0`` with two or three
+    axes exchanged (its rows: the displacement columns; its columns: the force columns)
+    — within half of C0's norm while C0 itself is not — else None."""
+    from itertools import permutations
+
+    if _rel(c, c0) < 0.5:
+        return None
+    best = None
+    for perm in permutations(range(3)):
+        if perm == (0, 1, 2):
+            continue
+        p = np.eye(3)[list(perm)]
+        for cand in (p @ c0, c0 @ p.T):          # displacement columns, or force columns, in another order
+            err = _rel(c, cand)
+            if err < 0.5 and (best is None or err < best[0]):
+                best = (err, perm)
+    if best is None:
+        return None
+    moved = [i for i in range(3) if best[1][i] != i]
+    names = ["xyz"[i] for i in moved]
+    axes = ", ".join(names[:-1]) + " and " + names[-1]
+    u = ", ".join(f"u{'xyz'[i]}_mm" for i in moved)
+    f = ", ".join(f"f{'xyz'[i]}_n" for i in moved)
+    return (f"C: the data's compliance {_flat(c)} mm/N matches the nominal C0 {_flat(c0)} with axes {axes} "
+            f"exchanged: the columns {u} (or {f}) are probably in the wrong order, or the sensor is mounted turned")
 
 
 def _flat(m: np.ndarray) -> str:

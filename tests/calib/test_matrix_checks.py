@@ -75,6 +75,25 @@ def test_swapped_columns_and_a_flipped_axis_are_named():
     assert unit_problems(d.u_mm, d.f_n, PRIOR.c0, forward=False) == []
 
 
+@pytest.mark.parametrize("order, words", [
+    ([1, 0, 2], "with axes x and y exchanged: the columns ux_mm, uy_mm (or fx_n, fy_n) are probably in the wrong order"),
+    ([0, 2, 1], "with axes y and z exchanged: the columns uy_mm, uz_mm (or fy_n, fz_n)"),
+    ([1, 2, 0], "with axes x, y and z exchanged: the columns ux_mm, uy_mm, uz_mm (or fx_n, fy_n, fz_n)"),
+])
+def test_exchanged_axes_are_named(order, words):
+    """fx_n and fy_n written in each other's column: the compliance is C0 with two columns
+    exchanged, the default prior is wide enough that no conflict fires, and the verdict
+    was ok. The force columns or the displacement columns, or a 3-cycle, say the same."""
+    d = _campaign()
+    res = _fit(CalibrationData(d.u_mm, d.f_n[:, order], d.point_id))
+    assert not res.verdict.ok and len(res.verdict.problems) == 1 and words in res.verdict.problems[0]
+    (q,) = unit_problems(d.u_mm[:, order], d.f_n, PRIOR.c0, forward=False)
+    assert words.split(":")[0] in q
+    tilted = PRIOR.c0 + 0.3 * np.max(PRIOR.c0) * np.array([[0, 1, 0], [1, 0, 0], [0, 0, 0]])   # coupled, not exchanged
+    u = d.f_n @ tilted.T
+    assert unit_problems(u, d.f_n, PRIOR.c0, forward=False) == []
+
+
 def test_all_zero_and_unidentified_designs():
     d = _campaign()
     zero = _fit(CalibrationData(0 * d.u_mm, d.f_n, d.point_id))
