@@ -5,7 +5,8 @@ verdict (:func:`feeler.calib.fit.make_result`). The regression is Y = X Bᵀ + E
 rows b_i of B per output axis (K for the inverse model, C for the forward one).
 
 - design (:func:`design_problems`): directions of the design that carry no information
-  (all-zero displacements: every direction), where B would be the prior's;
+  (all-zero displacements: every direction), where B would be the prior's; rows that
+  repeat an earlier row exactly (:func:`repeat_problems`: a file appended to itself);
 - units (:func:`unit_problems`): the least-squares compliance against the nominal C₀
   (a scale ~10³ off, forces and displacements swapped, axes exchanged, an axis of the
   opposite sign);
@@ -30,7 +31,7 @@ import numpy as np
 
 from feeler.calib.matrix.data import AXES, weak_directions
 
-__all__ = ["design_problems", "unit_problems", "conflict_problems", "ppc_problems", "ALPHA", "UNIT_FACTOR"]
+__all__ = ["design_problems", "repeat_problems", "unit_problems", "conflict_problems", "ppc_problems", "ALPHA", "UNIT_FACTOR"]
 
 ALPHA = 0.01
 UNIT_FACTOR = 30.0
@@ -47,6 +48,22 @@ def design_problems(x: np.ndarray, *, matrix: str, what: str, unit: str) -> list
         out.append(f"{matrix}: the data do not pin {matrix} along the {what} direction ({coords}) [{unit}]; "
                    f"there it is the prior's")
     return out
+
+
+def repeat_problems(point_id: np.ndarray, u: np.ndarray, f: np.ndarray, *, matrix: str) -> list[str]:
+    """Rows that repeat an earlier row exactly (its point, displacements and forces): a
+    file appended to itself, whose copies would count as independent measurements."""
+    table = np.column_stack([np.asarray(point_id).astype(str), np.asarray(u, float).astype(str),
+                             np.asarray(f, float).astype(str)])
+    _, first = np.unique(table, axis=0, return_index=True)
+    repeats = np.setdiff1d(np.arange(len(table)), first)
+    if not repeats.size:
+        return []
+    k = int(repeats[0])
+    src = int(np.flatnonzero((table[:k] == table[k]).all(axis=1))[0])
+    return [f"{matrix}: {repeats.size} of {len(table)} rows repeat an earlier row exactly (point, displacements and "
+            f"forces; e.g. data row {k + 1} = data row {src + 1}): the file was probably appended to itself, and its "
+            f"copies would count as new measurements; keep each measurement once"]
 
 
 def _lstsq(x, y):

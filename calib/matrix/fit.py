@@ -28,7 +28,8 @@ import numpy as np
 
 from feeler.calib.fit import FitResult, make_result, posterior_from_draws
 from feeler.calib.matrix.backends import sample_emcee, sample_nuts
-from feeler.calib.matrix.checks import conflict_problems, design_problems, ppc_problems, unit_problems
+from feeler.calib.matrix.checks import (conflict_problems, design_problems, ppc_problems, repeat_problems,
+                                        unit_problems)
 from feeler.calib.matrix.data import CalibrationData, weak_directions
 from feeler.calib.matrix.exact import exact_posterior
 from feeler.calib.matrix.prior import MatrixPrior
@@ -77,6 +78,7 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
     if np.any(x):
         weak_directions(x, what=what, unit=unit)
     problems = design_problems(x, matrix=rp.matrix, what=what, unit=unit)
+    problems += repeat_problems(data.point_id, data.u_mm, data.f_n, matrix=rp.matrix)
     if not problems:
         b_unit = "mm/N" if model == "forward" else "N/mm"
         problems += unit_problems(x, y, prior.c0, forward=model == "forward")

@@ -127,3 +127,23 @@ def test_posterior_predictive_checks_catch_a_nonlinear_sensor_and_an_outlier():
     assert clean.verdict.ok
     B = np.tile(np.linalg.lstsq(d.u_mm, d.f_n, rcond=None)[0].T, (50, 1, 1))
     assert ppc_problems(d.u_mm, d.f_n, B, np.full((50, 3), 0.02), np.random.default_rng(5), matrix="K") == []
+
+
+def test_a_file_appended_to_itself_is_named():
+    """Every row twice: the copies halve the intervals as if measured again, and the verdict
+    blamed the Gaussian linear model. One line names the copies; a replicated design
+    (the same displacement measured again, other forces) is not a copy."""
+    d = _campaign()
+    twice = CalibrationData(np.vstack([d.u_mm, d.u_mm]), np.vstack([d.f_n, d.f_n]), np.r_[d.point_id, d.point_id])
+    res = _fit(twice)
+    n = len(d.u_mm)
+    assert res.verdict.problems[0] == (
+        f"K: {n} of {2 * n} rows repeat an earlier row exactly (point, displacements and forces; e.g. data row {n + 1} "
+        f"= data row 1): the file was probably appended to itself, and its copies would count as new measurements; "
+        f"keep each measurement once")
+    again = _campaign(seed=7)
+    replicated = CalibrationData(np.vstack([d.u_mm, d.u_mm]), np.vstack([d.f_n, again.f_n]),
+                                 np.r_[d.point_id, d.point_id])
+    from feeler.calib.matrix.checks import repeat_problems
+
+    assert repeat_problems(replicated.point_id, replicated.u_mm, replicated.f_n, matrix="K") == []
