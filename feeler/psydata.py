@@ -74,6 +74,25 @@ def _layout(path, header: list[str], lineno: int) -> tuple[str, str]:
                               f"{', '.join(KEY_COLUMNS)} and counts or responses")
 
 
+def _refuse_a_doubled_table(path, lines, rows) -> None:
+    """A table of counts whose rows repeat earlier rows, every field the same, for at least
+    half of it (and 3 rows): a file appended to itself, whose copies would count as more
+    trials. Two sessions of one condition share a row only by chance (mostly 0 or all
+    'higher' at the extreme levels), and a trial-by-trial file repeats rows by nature."""
+    seen: dict[tuple, int] = {}
+    repeats = []
+    for (lineno, _), row in zip(lines, rows):
+        key = tuple(v.strip() for v in row)
+        if key in seen:
+            repeats.append((lineno, seen[key]))
+        else:
+            seen[key] = lineno
+    if len(repeats) >= max(3, len(rows) / 2):
+        raise DataFileError(path, f"{len(repeats)} of {len(rows)} rows repeat an earlier row in every field (e.g. "
+                                  f"line {repeats[0][0]} = line {repeats[0][1]}): the file was probably appended to "
+                                  f"itself, and the copies would count as more trials; keep each row once")
+
+
 def read_trials(path: str | Path) -> pd.DataFrame:
     """Read, validate and (for trial-by-trial files) aggregate a trial table.
 
@@ -85,8 +104,9 @@ def read_trials(path: str | Path) -> pd.DataFrame:
     Raises:
         DataFileError: missing file or columns, empty table, non-numeric value, negative
             or non-integer count, a count above n_trials, a response that is not 1/0, a
-            non-positive height or speed (a standard may be 0 in nAFC), no trial at all
-            (one line naming the file, the line and the column).
+            non-positive height or speed (a standard may be 0 in nAFC), no trial at all,
+            a table of counts appended to itself (one line naming the file, the line and
+            the column).
     """
     path = Path(path)
     try:
@@ -111,6 +131,8 @@ def read_trials(path: str | Path) -> pd.DataFrame:
     repeats = [lineno for (lineno, _), row in zip(lines[1:], rows[1:]) if [h.strip() for h in row] == header]
     if repeats:
         raise DataFileError(path, repeated_header_problem(repeats))
+    if layout == "counts":
+        _refuse_a_doubled_table(path, lines[1:], rows[1:])
     for (lineno, _), row in zip(lines[1:], rows[1:]):
         if len(row) != len(header):
             raise DataFileError(path, f"line {lineno}: {len(row)} fields, header has {len(header)}")

@@ -191,3 +191,24 @@ def test_a_decimal_comma_spreadsheet_export_reads_as_the_comma_file(tmp_path):
     got = read_trials(eu)
     assert got.equals(plain) and got["comparison_um"].tolist() == [7.6, 12.4, 9.8]
     assert got.attrs["comments"] == ["synthetic, two subjects"]
+
+
+def test_a_table_of_counts_appended_to_itself_is_refused(tmp_path):
+    """Every row twice: read as twice the trials, with intervals to match. A second session
+    sharing a few rows by chance, and a trial-by-trial file (rows repeat by nature), read."""
+    head = ",".join(TRIAL_COLUMNS)
+    rows = [f"S1,10,20,{x},20,20,{k}" for x, k in ((8, 2), (9, 6), (10, 10), (11, 15), (12, 19))]
+    path = tmp_path / "twice.csv"
+    path.write_text("\n".join(["# session 1", head] + rows + rows) + "\n")
+    with pytest.raises(DataFileError) as info:
+        read_trials(path)
+    assert str(info.value) == (f"{path}: 5 of 10 rows repeat an earlier row in every field (e.g. line 8 = line 3): "
+                               "the file was probably appended to itself, and the copies would count as more "
+                               "trials; keep each row once")
+    again = [f"S1,10,20,{x},20,20,{k}" for x, k in ((8, 2), (9, 7), (10, 11), (11, 14), (12, 19))]
+    path.write_text("\n".join([head] + rows + again) + "\n")
+    assert read_trials(path)["n_trials"].sum() == 200
+    per_trial = tmp_path / "per_trial.csv"
+    per_trial.write_text("\n".join([",".join(KEY_COLUMNS) + ",comparison_higher"] + ["S1,10,20,9,20,1"] * 6
+                                   + ["S1,10,20,9,20,0"] * 4) + "\n")
+    assert read_trials(per_trial)["n_comparison_higher"].tolist() == [6]
