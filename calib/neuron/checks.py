@@ -205,8 +205,10 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
                    f"(numerically) zero spread at the windows the fit uses (noise-free data): neither the decoder "
                    f"noise nor the window can be pinned")
     means = np.asarray(post["plate_mean_mm"]).reshape(-1, C)
-    means = means[np.isfinite(means).all(axis=1)]           # none finite: said once by bound_problems
-    order = np.mean(np.diff(means, axis=1) > 0, axis=0) if len(means) else np.full(C - 1, np.nan)
+    # a draw without a decodable line (NaN: its plates are not ordered at its τ) counts as
+    # not ordered; with none decodable there is nothing to order (bound_problems says so)
+    decodable = np.isfinite(means).all(axis=1).any()
+    order = np.mean(np.diff(means, axis=1) > 0, axis=0) if decodable else np.full(C - 1, np.nan)
     info["p_ordered"] = order.tolist()
     for j in np.flatnonzero(order < 0.9):
         lo, hi = _mm(plates.steps_mm[j]), _mm(plates.steps_mm[j + 1])
