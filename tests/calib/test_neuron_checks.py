@@ -88,6 +88,14 @@ def test_two_plates_with_swapped_labels_are_named_not_called_an_overlap():
     order = [q for q in problems if "plate 0.1 mm's scans decode below plate 0.05 mm's" in q]
     assert len(order) == 1 and "labels are probably swapped" in order[0], problems
     assert not any("cannot order" in q for q in problems) and info["p_ordered"][1] < 0.01
+    # ordered plates, but most draws without a decodable line (NaN means): not ordered, not swapped
+    p = np.repeat([1.0, 2.0, 3.0, 5.0], 12) + 0.1 * rng.standard_normal(48)
+    table, lw = _table(p), np.zeros(2)
+    post = sample_grid(table, plates, make_priors(table), "per-plate", lw, chains=1, draws=400, rng=rng)
+    post["plate_mean_mm"] = np.where(np.arange(400)[None, :, None] < 398, np.nan, post["plate_mean_mm"])
+    problems, info = posterior_problems(table, plates, "per-plate", lw, post)
+    lines = [q for q in problems if q.startswith("plate_mean_mm:")]
+    assert len(lines) == 3 and all("cannot order" in q for q in lines), lines      # P = 0.005
 
 
 def test_a_window_the_data_do_not_pin():
