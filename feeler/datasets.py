@@ -160,8 +160,10 @@ def read_scans(path: str | Path) -> Scans:
     """Read a run directory's ``scans.csv`` (or the CSV itself).
 
     Raises:
-        DataFileError: missing file or column, non-numeric, NaN or infinite values, scans of
-            unequal length, or t not strictly increasing within a scan (naming the column).
+        DataFileError: missing file or column, non-numeric, NaN or infinite values, an id
+            shared by several scans (its times start again, or its step label changes),
+            scans of unequal length, or t not strictly increasing within a scan (naming the
+            column).
     """
     import pandas as pd
 

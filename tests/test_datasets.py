@@ -170,7 +170,8 @@ def test_files_joined_with_their_headers_name_the_repeated_header_line(tmp_path)
     from feeler.calib.fit import read_csv_columns
     from feeler.psydata import read_trials
 
-    words = "line 6 repeats the header (2 repeat(s): files joined with their headers?); delete the repeated header lines"
+    words = ("line 6 repeats the header (2 repeat(s): files joined with their headers?); delete the repeated "
+             "header lines")
     scans = write_csv(tmp_path / "scans.csv", good_rows())
     lines = scans.read_text().splitlines()
     scans.write_text("\n".join(lines[:5] + lines[:5] + [" " + lines[0] + " \r"] + lines[5:]) + "\n")

@@ -31,7 +31,8 @@ import numpy as np
 
 from feeler.calib.matrix.data import AXES, weak_directions
 
-__all__ = ["design_problems", "repeat_problems", "unit_problems", "conflict_problems", "ppc_problems", "ALPHA", "UNIT_FACTOR"]
+__all__ = ["design_problems", "repeat_problems", "unit_problems", "conflict_problems", "ppc_problems", "ALPHA",
+           "UNIT_FACTOR"]
 
 ALPHA = 0.01
 UNIT_FACTOR = 30.0

@@ -10,8 +10,9 @@ support; any problem fails the verdict (:func:`feeler.calib.fit.make_result`).
   labelled steps, which should agree within a factor of ~30 (the tip follows the
   surface); ~10³ off names µm vs mm, a rise that falls as the step rises (by 3 standard
   errors of the slope at some window, and rises at none) names steps labelled with the
-  wrong sign (or, all steps ≥ 0, in reverse order), and one that changes with the step at no window says the scans show no
-  step (labels unrelated to the scans, or the wrong column). The stage speed measured
+  wrong sign (or, all steps ≥ 0, in reverse order), and one that changes with the step at
+  no window says the scans show no step (labels unrelated to the scans, or the wrong
+  column). The stage speed measured
   from ``x_mm`` and ``t_s`` against the commanded one, and a sample interval over a
   minute, name ms vs s;
 - the decoder's fit (:func:`posterior_problems`): leave-one-out predictive integral
@@ -19,8 +20,9 @@ support; any problem fails the verdict (:func:`feeler.calib.fit.make_result`).
   Per plate: the fraction inside the central 90 % band must be compatible with
   0.85–0.95 (the interval coverage the decoder promises), and the mean PIT with ½ (a
   plate whose scans sit high or low: bias). Then: adjacent plates whose order the
-  posterior cannot tell (or puts the other way round: swapped labels), and a window τ the data do not pin (its posterior spread over
-  70 % of the prior's, on a prior range wider than ×1.5).
+  posterior cannot tell (or puts the other way round: swapped labels), and a window τ
+  the data do not pin (its posterior spread over 70 % of the prior's, on a prior range
+  wider than ×1.5).
 """
 from __future__ import annotations
 
@@ -210,7 +212,8 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
     decodable = np.isfinite(means).all(axis=1)
     order = np.mean(np.diff(means, axis=1) > 0, axis=0) if decodable.any() else np.full(C - 1, np.nan)
     # reversed among the decodable draws beyond chance (equal plates give ~0.05 one time in ten)
-    reversed_ = np.mean(np.diff(means[decodable], axis=1) > 0, axis=0) < 0.01 if decodable.any() else order > 1
+    reversed_ = (np.mean(np.diff(means[decodable], axis=1) > 0, axis=0) < 0.01 if decodable.any()
+                 else np.zeros(C - 1, bool))
     info["p_ordered"] = order.tolist()
     for j in np.flatnonzero(order < 0.9):
         lo, hi = _mm(plates.steps_mm[j]), _mm(plates.steps_mm[j + 1])

@@ -76,7 +76,8 @@ def test_swapped_columns_and_a_flipped_axis_are_named():
 
 
 @pytest.mark.parametrize("order, words", [
-    ([1, 0, 2], "with axes x and y exchanged: the columns ux_mm, uy_mm (or fx_n, fy_n) are probably in the wrong order"),
+    ([1, 0, 2], "with axes x and y exchanged: the columns ux_mm, uy_mm (or fx_n, fy_n) are probably in the "
+                "wrong order"),
     ([0, 2, 1], "with axes y and z exchanged: the columns uy_mm, uz_mm (or fy_n, fz_n)"),
     ([1, 2, 0], "with axes x, y and z exchanged: the columns ux_mm, uy_mm, uz_mm (or fx_n, fy_n, fz_n)"),
 ])

@@ -83,7 +83,8 @@ def follow_rows(run: str | Path, *, poll_s: float = 0.2, wait_s: float = 30.0, a
                     continue
                 values = next(csv.reader([line], delimiter=sep))
                 if [v.strip() for v in values] == header:          # a logger restarted onto the same file
-                    raise DataFileError(path, repeated_header_problem([lineno], why="a logger restarted onto this file?"))
+                    raise DataFileError(path, repeated_header_problem([lineno],
+                                                                      why="a logger restarted onto this file?"))
                 if decimal != ".":
                     values = [v.replace(decimal, ".") for v in values]
                 if len(values) != len(header):

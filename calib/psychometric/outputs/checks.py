@@ -28,8 +28,8 @@ from scipy.stats import beta as beta_dist
 from feeler.models.psychometric import LAPSE_MAX
 
 __all__ = ["deviance", "gof", "unit_problems", "conflict_problems", "level_problems",
-           "bracket_problems", "gof_problems", "spread_problems", "one_answer_problem", "GOF_ALPHA", "CONFLICT_Z", "CONFLICT_TAIL",
-           "PLAUSIBLE_UM", "BOUNDARY_LR"]
+           "bracket_problems", "gof_problems", "spread_problems", "one_answer_problem", "GOF_ALPHA", "CONFLICT_Z",
+           "CONFLICT_TAIL", "PLAUSIBLE_UM", "BOUNDARY_LR"]
 
 GOF_ALPHA = 0.05
 CONFLICT_Z = 4.0
