@@ -43,10 +43,24 @@ def test_labels_in_micrometres_are_named_in_the_summary(fit_dir, scans_frame, tm
     assert "labels are probably in um (expected mm)" in line
 
 
-def test_scans_of_different_lengths(fit_dir, scans_frame, tmp_path):
+def test_scans_of_different_lengths(fit_dir, scans_frame, tmp_path, capsys):
+    """A scan cut at half its length is flagged and left out of the accuracy, which says
+    so; scans of one or two samples are flags too, never a unit error, and with every
+    scan flagged there is no accuracy to report (it gave one, over scans the fit does not
+    answer for)."""
     short = scans_frame[~((scans_frame.scan_id == 0) & (scans_frame.t_s > scans_frame.t_s.median()))]
     short.to_csv(tmp_path / "ragged.csv", index=False)
     assert _run(fit_dir, tmp_path / "ragged.csv") == 0
+    out = capsys.readouterr().out
+    n = scans_frame.scan_id.nunique()
+    assert f"{n - 1} labelled scans: " in out and out.rstrip().endswith("; 1 flagged scan(s) left out")
+    for k in (1, 2):
+        stub = scans_frame[scans_frame.groupby("scan_id").cumcount() < k]
+        stub.to_csv(tmp_path / "stub.csv", index=False)
+        assert _run(fit_dir, tmp_path / "stub.csv") == 0
+        out = capsys.readouterr().out
+        assert out.rstrip().endswith(f"{n} labelled scans, all flagged (outside the fit's training envelope: see the "
+                                     "flags): no accuracy to report") and "probably in" not in out
 
 
 @pytest.mark.parametrize("column, factor, words", [("t_s", 1000.0, "ms"), ("uy_mm", 1000.0, "um")])

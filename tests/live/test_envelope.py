@@ -29,6 +29,19 @@ def test_each_check_flags_and_names_units():
     assert "um" in ENV.response([50.0, 100.0], final=False)
     assert ENV.response([0.001, 0.002], final=False) is None and ENV.response([0.001, 0.002], final=True)
     assert "no response" in ENV.response([0.0, 0.0], final=True)
+    assert "U_y probably in m" in ENV.response([1e-5, 2e-5], final=True)
+    assert ENV.response([1e-5, 2e-5], final=True, short=True) == "response 0.001× the smallest training scan's"
+
+
+def test_a_short_scan_names_no_unit_and_one_sample_is_no_scan():
+    """Two samples of a 20 s scan: it ended before its step, so its small response is
+    no sign of U_y in m (classify refused the file for 'U_y probably in m'). One sample
+    has no change to sum at all (it read 'no response (U_y constant)')."""
+    q = ENV.problems(np.array([0.0, 0.5]), [1e-5, 2e-5])
+    assert q[0].startswith("scan of 0.5 s, 0.025× the fit's 20 s") and not any("probably in" in r for r in q)
+    assert ENV.problems(np.array([0.0]), [0.0, 0.0]) == ["1 sample: a scan needs samples over the fit's 20 s to be "
+                                                         "decoded"]
+    assert ENV.problems_of(1, 0.0, 0.0, [0.0, 0.0], final=False) == []          # a stream's first sample: wait
     assert Envelope(0.5, 20.0, None, ENV.p_lo, ENV.p_hi).speed(2.0) is None       # no recorded speed
 
 

@@ -165,8 +165,10 @@ class Envelope:
             return f"scan of {duration_s:.3g} s, {_times(r)} the fit's {self.duration_s:.3g} s"
         return None
 
-    def response(self, p_at_tau, *, final: bool) -> str | None:
-        """P (ndarray[S]) beyond the training range (above at once; below at the end)."""
+    def response(self, p_at_tau, *, final: bool, short: bool = False) -> str | None:
+        """P (ndarray[S]) beyond the training range (above at once; below at the end). A
+        ``short`` scan (shorter than training) may end before its step: a small response
+        then names no unit."""
         p = np.asarray(p_at_tau, float).ravel()
         with np.errstate(divide="ignore", invalid="ignore"):
             hi = median_of(p / self.p_hi)
@@ -175,7 +177,7 @@ class Envelope:
             hint = ": U_y probably in um (expected mm)" if hi > UNIT_FACTOR else ""
             return f"response {_times(hi)} the largest training scan's{hint}"
         if final and lo < 1 / self.scale_factor:
-            hint = ": U_y probably in m (expected mm)" if 0 < lo < 1 / UNIT_FACTOR else ""
+            hint = ": U_y probably in m (expected mm)" if 0 < lo < 1 / UNIT_FACTOR and not short else ""
             what = "no response (U_y constant)" if lo == 0 else f"response {_times(lo)} the smallest training scan's"
             return what + hint
         return None
@@ -198,14 +200,17 @@ class Envelope:
         """:meth:`problems` from what a stream keeps: ``n`` samples from ``t0_s`` to
         ``t1_s`` (s; period = their mean interval), the first and last x (mm) or None;
         ``final=False`` reports only what can be known before the scan ends."""
-        out = []
+        out, short = [], False
         if n >= 2:
             span = t1_s - t0_s
             out.append(self.period(span / (n - 1)))
             out.append(self.duration(span, final=final))
+            short = final and span < self.duration_s / self.slack
             if x_ends_mm is not None and all(np.isfinite(x_ends_mm)):
                 out.append(self.speed(abs(x_ends_mm[1] - x_ends_mm[0]) / span, labelled=speed_mm_s))
             elif speed_mm_s is not None:
                 out.append(self.speed(float(speed_mm_s)))
-        out.append(self.response(p_at_tau, final=final))
+        elif final:                                 # one sample: no change to sum, whatever its scale
+            return [f"{n} sample: a scan needs samples over the fit's {self.duration_s:.3g} s to be decoded"]
+        out.append(self.response(p_at_tau, final=final, short=short))
         return [p for p in out if p]

@@ -31,12 +31,20 @@ def unit_mistake(path, scan_ids, flags) -> None:
 
 
 def labelled_summary(table, plates_mm) -> str | None:
-    """Accuracy and 90 % coverage over the labelled scans of ``table``, or None."""
+    """Accuracy and 90 % coverage over the labelled scans of ``table`` that are not
+    flagged (outside the fit's training envelope, where its numbers mean nothing), with
+    how many flagged ones were left out; None without labels."""
     if "step_mm" not in table.columns:
         return None
     lab = table[np.isfinite(table["step_mm"].to_numpy(float))]
     if lab.empty:
         return None
+    flagged = lab["flagged"].to_numpy(bool) if "flagged" in lab.columns else np.zeros(len(lab), bool)
+    if flagged.all():
+        return (f"{len(lab)} labelled scans, all flagged (outside the fit's training envelope: see the flags): "
+                f"no accuracy to report")
+    left_out = f"; {int(flagged.sum())} flagged scan(s) left out" if flagged.any() else ""
+    lab = lab[~flagged]
     step = lab["step_mm"].to_numpy(float)
     known = np.isclose(step[:, None], np.asarray(plates_mm)[None, :]).any(axis=1)
     hit = np.isclose(lab["plate_mm"].to_numpy(float), step)
@@ -52,4 +60,5 @@ def labelled_summary(table, plates_mm) -> str | None:
     hits = (f"{hit[known].mean() * 100:.1f} % classified as their labelled plate" if known.all() else
             f"{hit[known].mean() * 100:.1f} % of the {int(known.sum())} labelled with a trained plate classified as it"
             if known.any() else "none labelled with a trained plate")
-    return f"{len(lab)} labelled scans: {hits}; {inside.mean() * 100:.1f} % of labels inside their 90 % interval{extra}"
+    return (f"{len(lab)} labelled scans: {hits}; {inside.mean() * 100:.1f} % of labels inside their 90 % interval"
+            f"{extra}{left_out}")
