@@ -203,10 +203,16 @@ def read_scans(path: str | Path) -> Scans:
     if lengths.nunique() != 1:
         common = int(lengths.mode().iloc[0])
         odd = lengths[lengths != common]
-        raise DataFileError(path, f"column scan_id: scans have unequal lengths {sorted(set(lengths))} (scan "
-                                  f"{odd.index[0]} has {int(odd.iloc[0])} samples, {len(lengths) - len(odd)} of "
-                                  f"{len(lengths)} have {common}); a fit needs scans of one length: trim them to "
-                                  f"{int(lengths.min())} samples (classify and decode take scans of any length)")
+        head = (f"column scan_id: scans have unequal lengths {sorted(set(lengths))} (scan {odd.index[0]} has "
+                f"{int(odd.iloc[0])} samples, {len(lengths) - len(odd)} of {len(lengths)} have {common})")
+        speeds = np.unique(groups["speed_mm_s"].first().to_numpy(float))
+        if speeds.size > 1:           # trimming would cut the slower scans' traverse short
+            raise DataFileError(path, f"{head} at speeds {', '.join(f'{v:g}' for v in speeds)} mm/s; a fit needs "
+                                      f"scans of one length, and trimming would cut the slower ones' traverse "
+                                      f"short: fit each speed on its own (classify and decode take scans of any "
+                                      f"length)")
+        raise DataFileError(path, f"{head}; a fit needs scans of one length: trim them to {int(lengths.min())} "
+                                  f"samples (classify and decode take scans of any length)")
     n_scans, n_time = len(lengths), int(lengths.iloc[0])
     ids = np.asarray(lengths.index)
     frame = frame.set_index("scan_id").loc[ids].reset_index()

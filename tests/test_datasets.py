@@ -51,6 +51,19 @@ def test_malformed_files_name_file_and_column(tmp_path, mutate, words):
     assert words in str(info.value) and str(path) in str(info.value)
 
 
+def test_scans_of_unequal_length_at_two_speeds_are_not_told_to_trim(tmp_path):
+    """The same traverse at 0.5 and 1 mm/s: 'trim them to 2 samples' would cut the slow
+    scans' traverse in half; the line names the speeds and says to fit each on its own."""
+    rows = [[0, 0.0, 0.5, 0.5 * k, 0.25 * k, 0.0, 0.05, 0.0] for k in range(4)]
+    rows += [[1, 0.0, 1.0, 0.5 * k, 0.5 * k, 0.0, 0.05, 0.0] for k in range(2)]
+    path = write_csv(tmp_path / "scans.csv", rows)
+    with pytest.raises(DataFileError) as info:
+        read_scans(path)
+    assert str(info.value).endswith("at speeds 0.5, 1 mm/s; a fit needs scans of one length, and trimming would cut "
+                                    "the slower ones' traverse short: fit each speed on its own (classify and decode "
+                                    "take scans of any length)") and "trim them to" not in str(info.value)
+
+
 def test_missing_file(tmp_path):
     with pytest.raises(DataFileError, match="no such file"):
         read_scans(tmp_path / "nothing.csv")
