@@ -58,6 +58,18 @@ def classify_section(inv, spec) -> Section:
     if not pcols:
         raise DataFileError(path, "no probability columns p_<plate>mm")
     read_table(path, tuple(pcols), tuple(pcols))            # every probability numeric
+    src = (rel,)
+    left_out = ""
+    if "flagged" in frame.columns:      # outside the fit's envelope: left out, as `feeler classify` does
+        flagged = frame["flagged"].astype(str).str.strip().str.lower().isin(("true", "1")).to_numpy()
+        if flagged.all():
+            return Section(spec.key, spec.title, (Note(
+                f"All {len(frame)} classified scans are flagged as unlike the fit's training scans (their reasons "
+                f"are in the flag column): no accuracy, confidence or coverage to report.", sources=src),))
+        if flagged.any():
+            left_out = (f" {int(flagged.sum())} of {len(frame)} scans, flagged as unlike the fit's training scans, "
+                        f"are left out.")
+        frame = frame[~flagged]
     plates = np.array(list(pcols.values()))
     prob = frame[list(pcols)].to_numpy(float)
     step, decided = frame["step_mm"].to_numpy(float), frame["plate_mm"].to_numpy(float)
@@ -67,14 +79,13 @@ def classify_section(inv, spec) -> Section:
     hit = np.isclose(step, decided)
     inside = (step >= frame["lo90_mm"].to_numpy()) & (step <= frame["hi90_mm"].to_numpy())
     ece = expected_calibration_error(prob[labelled], true_index[labelled]) if labelled.any() else float("nan")
-    src = (rel,)
     rows = [("all", str(len(step)), fmt(hit.mean(), 3), fmt(conf.mean(), 3), fmt(inside.mean(), 3))]
     for s in np.unique(step):
         m = step == s
         rows.append((fmt(s), str(int(m.sum())), fmt(hit[m].mean(), 3), fmt(conf[m].mean(), 3), fmt(inside[m].mean(), 3)))
     table = Table("Accuracy, confidence and coverage per labelled step",
                   ("step_mm", "n scans", "accuracy", "mean top probability", "90 % interval coverage"),
-                  tuple(rows), src, caption=f"Expected calibration error (10 bins): {fmt(ece, 3)}.")
+                  tuple(rows), src, caption=f"Expected calibration error (10 bins): {fmt(ece, 3)}.{left_out}")
     blocks = [_confusion(step, decided, conf, plates, src), _heights(frame, step, src)]
     rel_curve = reliability(conf, hit)
     if len(rel_curve) >= MIN_BINS:

@@ -57,6 +57,24 @@ def test_classification_numbers_from_the_csv(copy_run):
     assert all(b.sources == ("classify/classification.csv",) for b in section.blocks)
 
 
+def test_flagged_scans_are_left_out_of_the_numbers_as_classify_does(copy_run):
+    """classify's own summary leaves out scans outside the fit's envelope; so does the
+    report, and says how many; all flagged leaves a note, not numbers."""
+    path = copy_run / "classify" / "classification.csv"
+    head = "scan_id,step_mm,plate_mm,p_0mm,p_0.1mm,height_mm,lo90_mm,hi90_mm,flagged,flag\n"
+    rows = ["0,0.0,0.0,0.9,0.1,0.01,-0.02,0.04,False,", "1,0.0,0.1,0.2,0.8,0.1,0.05,0.15,True,scan of 0.5 s",
+            "2,0.1,0.1,0.05,0.95,0.1,0.07,0.13,False,"]
+    path.write_text(head + "\n".join(rows) + "\n", encoding="utf-8")
+    inv = discover(copy_run)
+    section = classify_section(inv, _spec(inv, "classify:classify"))
+    table = next(b for b in section.blocks if b.kind == "table")
+    assert {r[0]: r for r in table.rows}["all"][1:3] == ("2", "1")
+    assert table.caption.endswith(" 1 of 3 scans, flagged as unlike the fit's training scans, are left out.")
+    path.write_text(head + rows[1] + "\n", encoding="utf-8")
+    (block,) = classify_section(inv, _spec(inv, "classify:classify")).blocks
+    assert block.kind == "note" and block.text.startswith("All 1 classified scans are flagged")
+
+
 def test_a_one_point_calibration_curve_is_replaced_by_words(run_dir):
     inv = discover(run_dir)
     section = classify_section(inv, _spec(inv, "classify:classify"))
