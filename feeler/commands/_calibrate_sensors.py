@@ -74,5 +74,10 @@ def run(args) -> int:
         s = res.summary.set_index("name")["mean"]
         diag = ", ".join(f"{s[f'C[{i},{i}]']:.4f}" for i in range(3))
         print(f"{name:24s} {'ok' if res.verdict.ok else 'FAILED':8s} {s['cond_C']:8.3f}   {diag}")
+    for name, res in zip(names, results):               # why each failed: its first problem, and where the rest are
+        if not res.verdict.ok:
+            problems = res.verdict.problems
+            more = f"and {len(problems) - 1} more: " if len(problems) > 1 else ""
+            print(f"{name}: {problems[0]} ({more}{out / name / 'verdict.json'})")
     print(f"wrote {len(names)} posteriors under {out}")
     return 0 if all(r.verdict.ok for r in results) else 1

@@ -47,3 +47,22 @@ def test_duplicate_names_and_overwrite_are_refused(elements, tmp_path, capsys):
                  "--no-progress"]) == 0
     assert main(["calibrate", "sensors", elements[0], "--out", str(tmp_path / "y"), "--scheduler", "serial"]) == 2
     assert "--force" in capsys.readouterr().err
+
+
+def test_a_failed_element_says_why_below_the_table(elements, tmp_path, capsys):
+    """One element with its fx_n and fy_n columns exchanged: the table said FAILED and no
+    more; now its first problem and where the rest are follow the table (exit 1)."""
+    bad = tmp_path / "swapped"
+    bad.mkdir()
+    for f in Path(elements[1]).iterdir():
+        (bad / f.name).write_bytes(f.read_bytes())
+    table = pd.read_csv(bad / "calibration.csv", comment="#")
+    table[["fx_n", "fy_n"]] = table[["fy_n", "fx_n"]].to_numpy()
+    table.to_csv(bad / "calibration.csv", index=False)
+    assert main(["calibrate", "sensors", elements[0], str(bad), "--out", str(tmp_path / "z"), "--scheduler", "serial",
+                 "--no-progress"]) == 1
+    lines = capsys.readouterr().out.splitlines()
+    why = [ln for ln in lines if ln.startswith("swapped: ")]
+    assert len(why) == 1 and "with axes x and y exchanged" in why[0]
+    assert why[0].endswith(f"{tmp_path / 'z' / 'swapped' / 'verdict.json'})")
+    assert not any(ln.startswith("elem1: ") for ln in lines)
