@@ -120,9 +120,14 @@ def locate_scans(path: Path, length_mm: float | None):
         from feeler.scene import load_scene
         scene = load_scene(scene_path)
         if not hasattr(scene, "neuron"):
-            hint = what_it_is(csv.parent, expected="scans.csv")
-            raise ArgumentError("DATASET", str(scene_path), "scene.toml must be a robot-scan scene"
-                                + (f"; {hint}" if hint else ""))
+            if path.is_dir():
+                hint = what_it_is(csv.parent, expected="scans.csv")
+                raise ArgumentError("DATASET", str(scene_path), "scene.toml must be a robot-scan scene"
+                                    + (f"; {hint}" if hint else ""))
+            kind = getattr(getattr(scene, "scene", None), "kind", "another kind of")
+            raise ArgumentError("DATASET", str(csv), f"the scene.toml beside it is a {kind!r} scene, not the "
+                                "robot-scan scene of these scans; move the CSV to a directory of its own (and give "
+                                "--length-mm) or take that scene.toml away")
         kernel = scene.neuron.kernel
         length_mm = scene.neuron.length_mm if length_mm is None else length_mm
     if length_mm is None:

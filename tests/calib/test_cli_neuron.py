@@ -68,3 +68,22 @@ def test_refusals_and_errors(run_and_fit, tmp_path, capsys):
     assert "--scene" in capsys.readouterr().err
     assert main(["discriminate", str(bare), "--scene", str(FOUR_PLATES), "--pair", "0.1", "0.2", "--n-scans", "10",
                  "--n-draws", "5", "--speeds", "0.5", "0.5"]) == 0
+
+
+def test_a_csv_beside_another_kinds_scene_says_what_to_do(run_and_fit, tmp_path, capsys):
+    """A scans CSV dropped into a sensor-calibration dataset: the scene.toml beside it is
+    not its scene. It said "scene.toml must be a robot-scan scene", naming the scene file
+    the user never gave; now the CSV, the scene's kind and the two ways out."""
+    run, _ = run_and_fit
+    cal = tmp_path / "cal"
+    assert main(["simulate", str(FOUR_PLATES.with_name("sensor-calibration.toml")), "--out", str(cal)]) == 0
+    csv = cal / "my_scans.csv"
+    csv.write_text((run / "scans.csv").read_text())
+    capsys.readouterr()
+    assert main(["calibrate", "neuron", str(csv), "--length-mm", "3", "--out", str(tmp_path / "f")]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
+    assert len(err) == 1 and err[0].startswith("feeler: error: argument DATASET='")         # long paths are cut
+    assert err[0].endswith("my_scans.csv': the scene.toml beside it is a 'sensor-calibration' scene, not the "
+                           "robot-scan scene of these scans; move the CSV to a directory of its own (and give "
+                           "--length-mm) or take that scene.toml away")
+    assert not (tmp_path / "f").exists()
