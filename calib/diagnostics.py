@@ -19,7 +19,7 @@ import pandas as pd
 
 from feeler.calib.posterior import flat_draws
 
-__all__ = ["Verdict", "DiagnosticWarning", "Thresholds", "summarize", "diagnose", "bound_problems",
+__all__ = ["Verdict", "DiagnosticWarning", "Thresholds", "summarize", "diagnose", "bound_problems", "repeated_rows",
            "SUMMARY_COLUMNS"]
 
 SUMMARY_COLUMNS = ("name", "mean", "sd", "eti95_lb", "eti95_ub", "eti89_lb", "eti89_ub",
@@ -218,6 +218,15 @@ def _autocorr_problems(draws: Mapping[str, np.ndarray], times_min: float) -> lis
             out.append(f"{name}: emcee chain of {n_steps} steps is shorter than "
                        f"{times_min:.0f} autocorrelation times (tau = {tau:.1f} steps)")
     return out
+
+
+def repeated_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows equal to an earlier row of ``rows (ndarray[n, m])``, as (their indices,
+    ndarray[k]; the index of every row's first occurrence, ndarray[n]): the copies of a
+    data file appended to itself."""
+    _, first, inverse = np.unique(np.asarray(rows), axis=0, return_index=True, return_inverse=True)
+    earlier = first[np.ravel(inverse)]
+    return np.flatnonzero(earlier != np.arange(len(earlier))), earlier
 
 
 def bound_problems(name: str, x: np.ndarray, lo: float, hi: float, t: Thresholds, scale: str = "linear") -> list[str]:

@@ -188,6 +188,7 @@ def read_scans(path: str | Path) -> Scans:
                                       f"values must be finite numbers")
         frame[col] = values
     groups = frame.groupby("scan_id", sort=False)
+    # starts_again's rule, over every scan at once
     restart = ((groups["t_s"].diff() < 0) & (frame["t_s"] <= groups["t_s"].transform("first"))).to_numpy()
     if restart.any():                           # before lengths: shared ids make "unequal lengths" too
         sid = frame["scan_id"].iloc[int(np.flatnonzero(restart)[0])]

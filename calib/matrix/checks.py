@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from feeler.calib.diagnostics import repeated_rows
 from feeler.calib.matrix.data import AXES, weak_directions
 
 __all__ = ["design_problems", "repeat_problems", "unit_problems", "conflict_problems", "ppc_problems", "ALPHA",
@@ -54,17 +55,14 @@ def design_problems(x: np.ndarray, *, matrix: str, what: str, unit: str) -> list
 def repeat_problems(point_id: np.ndarray, u: np.ndarray, f: np.ndarray, *, matrix: str) -> list[str]:
     """Rows that repeat an earlier row exactly (its point, displacements and forces): a
     file appended to itself, whose copies would count as independent measurements."""
-    table = np.column_stack([np.asarray(point_id).astype(str), np.asarray(u, float).astype(str),
-                             np.asarray(f, float).astype(str)])
-    _, first = np.unique(table, axis=0, return_index=True)
-    repeats = np.setdiff1d(np.arange(len(table)), first)
-    if not repeats.size:
+    _, point = np.unique(np.asarray(point_id).astype(str), return_inverse=True)      # ids may be text
+    copies, earlier = repeated_rows(np.column_stack([np.ravel(point), np.asarray(u, float), np.asarray(f, float)]))
+    if not copies.size:
         return []
-    k = int(repeats[0])
-    src = int(np.flatnonzero((table[:k] == table[k]).all(axis=1))[0])
-    return [f"{matrix}: {repeats.size} of {len(table)} rows repeat an earlier row exactly (point, displacements and "
-            f"forces; e.g. data row {k + 1} = data row {src + 1}): the file was probably appended to itself, and its "
-            f"copies would count as new measurements; keep each measurement once"]
+    k = int(copies[0])
+    return [f"{matrix}: {copies.size} of {len(earlier)} rows repeat an earlier row exactly (point, displacements and "
+            f"forces; e.g. data row {k + 1} = data row {int(earlier[k]) + 1}): the file was probably appended to "
+            f"itself, and its copies would count as new measurements; keep each measurement once"]
 
 
 def _lstsq(x, y):

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import special     # not scipy.stats: 1 s more import on every fit (issue 18)
 
-from feeler.calib.diagnostics import Thresholds, bound_problems
+from feeler.calib.diagnostics import Thresholds, bound_problems, repeated_rows
 from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
 from feeler.calib.neuron.live.envelope import UNIT_FACTOR, stage_units
 from feeler.calib.neuron.model import PeakTable, PlatePrior, Plates, plate_stats
@@ -62,14 +62,11 @@ def data_problems(table: PeakTable, plates: Plates, strain: np.ndarray | None = 
         out.append(f"plate_sd_mm: the scans of plate(s) {', '.join(_mm(v) for v in plates.steps_mm[flat])} are "
                    f"identical at every window (zero spread, noise-free data): the decoder noise cannot be estimated")
     if strain is not None:
-        rows = np.asarray(strain, float)                                # (n_scans, n_time)
-        _, first, inverse = np.unique(rows, axis=0, return_index=True, return_inverse=True)
-        earlier = first[inverse.ravel()]
-        copies = np.flatnonzero(earlier != np.arange(rows.shape[0]))       # equal to an earlier scan
+        copies, earlier = repeated_rows(np.asarray(strain, float))    # (n_scans, n_time): scans equal to an earlier one
         copies = copies[~flat[plates.group[copies]]]                   # noise-free plates are reported above
         if copies.size:
             k = int(copies[0])
-            out.append(f"plate_sd_mm: {copies.size} of {rows.shape[0]} scans repeat an earlier scan sample for "
+            out.append(f"plate_sd_mm: {copies.size} of {len(earlier)} scans repeat an earlier scan sample for "
                        f"sample (e.g. scan {k + 1} = scan {int(earlier[k]) + 1} in file order; no two real touches "
                        f"agree exactly): touches counted twice make the fit surer than its data; remove the copies")
     return out
