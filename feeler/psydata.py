@@ -19,21 +19,31 @@ In nAFC the standard is the height the odd stimulus is told apart from (0 = a fl
 plate: detection). Rows with ``n_trials = 0`` are allowed (they contribute nothing), as
 are cells where every answer was right or every answer wrong; a table without a single
 trial is refused.
+
+A fifth layout is psignifit's data matrix, as a lab that used psignifit has its data: three
+columns per row, the comparison's height (µm), the number of "correct" (nAFC) or "higher"
+answers and the number of trials, with or without a header line, separated by commas,
+semicolons, tabs or spaces (``numpy.savetxt``, MATLAB ``save -ascii``). It holds no design,
+so the subject, standard and speeds come from a :class:`MatrixDesign` (the command line's
+``--subject``, ``--standard-um``, ``--speed-mm-s``); a matrix read without one is refused
+with a line saying what to give. psignifit's "equal asymptote" experiments are feeler's
+comparison design, its "2AFC" (nAFC) experiments ``--nafc 2`` (N).
 """
 from __future__ import annotations
 
 import csv
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from feeler.datasets import csv_dialect, repeated_header_problem
+from feeler.datasets import SEPARATORS, csv_dialect, repeated_header_problem
 from feeler.errors import DataFileError
 
 __all__ = ["TRIAL_COLUMNS", "NAFC_COLUMNS", "KEY_COLUMNS", "RESPONSES", "read_trials", "write_trials",
-           "synthetic_note", "count_column"]
+           "synthetic_note", "count_column", "MatrixDesign"]
 
 KEY_COLUMNS = ("subject", "standard_um", "standard_speed_mm_s", "comparison_um", "comparison_speed_mm_s")
 TRIAL_COLUMNS = KEY_COLUMNS + ("n_trials", "n_comparison_higher")
@@ -41,6 +51,105 @@ NAFC_COLUMNS = KEY_COLUMNS + ("n_trials", "n_correct")
 #: response column of a trial-by-trial file → count column of the aggregated table
 RESPONSES = {"comparison_higher": "n_comparison_higher", "correct": "n_correct"}
 _TRUE, _FALSE = {"1", "true", "yes", "y", "1.0"}, {"0", "false", "no", "n", "0.0"}
+
+
+@dataclass(frozen=True)
+class MatrixDesign:
+    """The design that a psignifit data matrix leaves out, for every row of it.
+
+    Attributes:
+        subject (str | None): the subject's name (None: the file name's stem).
+        standard_um (float | None): the standard's height, µm (0 allowed in nAFC: detection).
+        speed_mm_s (float | None): the scan speed of the standard, mm/s.
+        comparison_speed_mm_s (float | None): the comparison's (None: ``speed_mm_s``).
+        nafc (bool): column 2 counts correct answers (nAFC), not "comparison higher".
+    """
+    subject: str | None = None
+    standard_um: float | None = None
+    speed_mm_s: float | None = None
+    comparison_speed_mm_s: float | None = None
+    nafc: bool = False
+
+    #: the command-line option of each field, for messages
+    OPTIONS = {"standard_um": "--standard-um", "speed_mm_s": "--speed-mm-s"}
+
+    def missing(self) -> list[str]:
+        """The options a matrix still needs."""
+        return [opt for name, opt in self.OPTIONS.items() if getattr(self, name) is None]
+
+    def check(self) -> "MatrixDesign":
+        """Itself, or ArgumentError naming the option whose value is not allowed: heights
+        finite and ≥ 0 (> 0 for a comparison design's standard), speeds finite and > 0."""
+        from feeler.errors import ArgumentError
+
+        for opt, value, zero in (("--standard-um", self.standard_um, self.nafc), ("--speed-mm-s", self.speed_mm_s, False),
+                                 ("--comparison-speed-mm-s", self.comparison_speed_mm_s, False)):
+            if value is not None and not (math.isfinite(value) and (value >= 0 if zero else value > 0)):
+                raise ArgumentError(opt, value, f"a finite number {'>= 0' if zero else '> 0'}"
+                                    + (" (0 only in nAFC: detection)" if opt == "--standard-um" and not zero else ""))
+        if self.subject is not None and not self.subject.strip():
+            raise ArgumentError("--subject", self.subject, "a non-empty name")
+        return self
+
+
+def _matrix_rows(lines: list[tuple[int, str]], sep: str, decimal: str) -> tuple[list[list[str]], bool] | None:
+    """(fields of every line, whether the first line is a header) when the lines are a
+    psignifit data matrix: three fields per line, every line after the first numeric
+    (the first too, or a header of three names); else None. Fields are split at ``sep``,
+    or at runs of spaces when the first line holds no separator."""
+    def fields(line: str) -> list[str]:
+        return [f.strip() for f in (line.split(sep) if any(c in lines[0][1] for c in SEPARATORS) else line.split())]
+
+    def numeric(row: list[str]) -> bool:
+        try:
+            return all(math.isfinite(float(f.replace(decimal, "."))) for f in row)
+        except ValueError:
+            return False
+
+    rows = [fields(line) for _, line in lines]
+    if any(len(r) != 3 for r in rows) or not all(numeric(r) for r in rows[1:]):
+        return None
+    head = not numeric(rows[0])
+    if head and any(c in rows[0] for c in KEY_COLUMNS):      # a table's header, cut short: not a matrix
+        return None
+    return rows, head
+
+
+def _matrix_problem(path, design: MatrixDesign | None) -> str:
+    need = MatrixDesign().missing() if design is None else design.missing()
+    return (f"a psignifit data matrix (height µm, n correct or higher, n trials per row) holds no design: give "
+            f"{' and '.join(need)} (and --subject, --comparison-speed-mm-s, --nafc N as they apply), or write "
+            f"the columns {', '.join(KEY_COLUMNS)}, n_trials and n_correct or n_comparison_higher")
+
+
+def _read_matrix(path: Path, lines, rows: list[list[str]], head: bool, decimal: str,
+                 design: MatrixDesign) -> pd.DataFrame:
+    """The aggregated table of a psignifit data matrix under ``design`` (rows of the same
+    height summed, as binomial counts may be)."""
+    body = list(zip(lines[1:], rows[1:])) if head else list(zip(lines, rows))
+    if not body:
+        raise DataFileError(path, "no data rows")
+    _refuse_a_doubled_table(path, [line for line, _ in body], [row for _, row in body])
+    count = "n_correct" if design.nafc else "n_comparison_higher"
+    names = ("1 (height)", f"2 ({'n correct' if design.nafc else 'n higher'})", "3 (n trials)")
+    data: dict[str, list] = {c: [] for c in KEY_COLUMNS + ("n_trials", "k")}
+    subject = design.subject or path.stem
+    speed_c = design.speed_mm_s if design.comparison_speed_mm_s is None else design.comparison_speed_mm_s
+    for (lineno, _), row in body:
+        row = [f.replace(decimal, ".") for f in row]
+        height = _number(path, lineno, names[0], row[0])
+        k, n = _count(path, lineno, names[1], row[1]), _count(path, lineno, names[2], row[2])
+        if k > n:
+            raise DataFileError(path, f"line {lineno}, column {names[1]}: {k} > column {names[2]} {n} (psignifit's "
+                                      f"order is height, n correct, n trials)")
+        for col, value in zip(KEY_COLUMNS, (subject, design.standard_um, design.speed_mm_s, height, speed_c)):
+            data[col].append(value)
+        data["n_trials"].append(n)
+        data["k"].append(k)
+    frame = _aggregate(_frame(data, count))
+    if frame["n_trials"].sum() == 0:
+        raise DataFileError(path, "no trials: every row has n trials = 0")
+    return frame
 
 
 def count_column(trials: pd.DataFrame) -> str:
@@ -93,8 +202,12 @@ def _refuse_a_doubled_table(path, lines, rows) -> None:
                                   f"itself, and the copies would count as more trials; keep each row once")
 
 
-def read_trials(path: str | Path) -> pd.DataFrame:
+def read_trials(path: str | Path, *, design: MatrixDesign | None = None) -> pd.DataFrame:
     """Read, validate and (for trial-by-trial files) aggregate a trial table.
+
+    Args:
+        design: the subject, standard and speeds of a psignifit data matrix (and whether
+            it counts nAFC answers); refused (ArgumentError) for a file with its own design.
 
     Returns:
         DataFrame with ``TRIAL_COLUMNS`` (comparison design) or ``NAFC_COLUMNS``:
@@ -105,8 +218,9 @@ def read_trials(path: str | Path) -> pd.DataFrame:
         DataFileError: missing file or columns, empty table, non-numeric value, negative
             or non-integer count, a count above n_trials, a response that is not 1/0, a
             non-positive height or speed (a standard may be 0 in nAFC), no trial at all,
-            a table of counts appended to itself (one line naming the file, the line and
-            the column).
+            a table of counts appended to itself, a psignifit data matrix without a
+            design (one line naming the file, the line and the column).
+        ArgumentError: a ``design`` for a file that has the design columns.
     """
     path = Path(path)
     try:
@@ -120,6 +234,22 @@ def read_trials(path: str | Path) -> pd.DataFrame:
     if not lines:
         raise DataFileError(path, "no header line; expected columns " + ", ".join(TRIAL_COLUMNS))
     sep, decimal = csv_dialect(lines[0][1])
+    matrix = _matrix_rows(lines, sep, decimal)
+    if matrix is not None:
+        if design is None or design.missing():
+            raise DataFileError(path, _matrix_problem(path, design))
+        frame = _read_matrix(path, lines, *matrix, decimal, design.check())
+        frame.attrs["comments"] = _comments(text)
+        frame.attrs["trial_rows"] = 0
+        return frame
+    if design is not None:
+        from feeler.errors import ArgumentError
+
+        given = [(opt, getattr(design, name)) for name, opt in MatrixDesign.OPTIONS.items()
+                 if getattr(design, name) is not None] or [("--subject", design.subject)]
+        raise ArgumentError(given[0][0], given[0][1], f"only for a psignifit data matrix (height, n correct, "
+                            f"n trials); {path.name} has its own design columns (subject, standard_um, ...): "
+                            f"drop the option")
     rows = list(csv.reader([line for _, line in lines], delimiter=sep))
     header = [h.strip() for h in rows[0]]
     count, layout = _layout(path, header, lines[0][0])
@@ -156,10 +286,13 @@ def read_trials(path: str | Path) -> pd.DataFrame:
         frame = _aggregate(frame)
     if frame["n_trials"].sum() == 0:
         raise DataFileError(path, "no trials: every row has n_trials = 0")
-    frame.attrs["comments"] = [line.lstrip()[1:].strip() for line in text.splitlines()
-                               if line.lstrip().startswith("#")]
+    frame.attrs["comments"] = _comments(text)
     frame.attrs["trial_rows"] = len(rows) - 1 if layout == "trials" else 0
     return frame
+
+
+def _comments(text: str) -> list[str]:
+    return [line.lstrip()[1:].strip() for line in text.splitlines() if line.lstrip().startswith("#")]
 
 
 def _frame(data: dict, count: str) -> pd.DataFrame:

@@ -10,7 +10,10 @@
 DATA.csv: subject, standard_um, standard_speed_mm_s, comparison_um, comparison_speed_mm_s
 and either counts (n_trials with n_comparison_higher, or n_correct for nAFC) or one row
 per trial (comparison_higher, or correct for nAFC, as 1/0), aggregated on reading; '#'
-lines are comments. Comparison design: P(comparison judged higher) = λ/2 + (1 −
+lines are comments. A psignifit data matrix (height in µm, n correct or higher, n trials
+per row; header optional; commas, semicolons, tabs or spaces) is read with the design it
+lacks: --standard-um, --speed-mm-s (and --subject, --comparison-speed-mm-s); psignifit's
+"equal asymptote" is the comparison design, its "2AFC" --nafc 2. Comparison design: P(comparison judged higher) = λ/2 + (1 −
 λ)·Φ((x − PSE)/σ); the difference threshold DT is the distance from the PSE to the 75 %
 point. nAFC (--nafc N, n_correct data): P(correct) = 1/N + (1 − 1/N)(1 − λ)·Φ((x − m)/σ).
 A lapse is a guess. Priors are scaled to each condition's range of tested levels unless
@@ -82,6 +85,15 @@ def _add_psychophysics(sub) -> None:
     psy.add_argument("--target-accept", type=float, default=0.99,
                      help="NUTS target acceptance rate (default 0.99)")
     psy.add_argument("--no-plots", action="store_true", help="with --out, skip the curves/*.png")
+    matrix = psy.add_argument_group("a psignifit data matrix (height µm, n correct or higher, n trials per row)",
+                                    "the design such a file does not hold, the same for every row")
+    matrix.add_argument("--standard-um", type=float, default=None, metavar="UM",
+                        help="the standard's height, µm (0 in nAFC detection)")
+    matrix.add_argument("--speed-mm-s", type=float, default=None, metavar="V",
+                        help="scan speed of the standard (and of the comparison), mm/s")
+    matrix.add_argument("--comparison-speed-mm-s", type=float, default=None, metavar="V",
+                        help="scan speed of the comparison, mm/s (default --speed-mm-s)")
+    matrix.add_argument("--subject", default=None, metavar="NAME", help="the subject (default: the file name)")
     add_fit_arguments(psy)
     psy.set_defaults(run=run_psychophysics)
 
@@ -167,14 +179,18 @@ def run_psychophysics(args) -> int:
     import pandas as pd
 
     from feeler.calib.psychometric.fit import fit_psychometric, save_psychometric, threshold_table
-    from feeler.psydata import read_trials, synthetic_note
+    from feeler.psydata import MatrixDesign, read_trials, synthetic_note
     from feeler.rundir import prepare_out_dir
 
     priors = _priors(args)
+    design = None
+    if any(v is not None for v in (args.standard_um, args.speed_mm_s, args.comparison_speed_mm_s, args.subject)):
+        design = MatrixDesign(subject=args.subject, standard_um=args.standard_um, speed_mm_s=args.speed_mm_s,
+                              comparison_speed_mm_s=args.comparison_speed_mm_s, nafc=args.nafc is not None).check()
     if args.out:
         prepare_out_dir(args.out, ("thresholds.csv", "posterior.nc", "summary.csv", "verdict.json")
                         + (() if args.no_plots else ("curves/index.csv",)), force=args.force)
-    trials = read_trials(args.data)
+    trials = read_trials(args.data, design=design)
     note = synthetic_note(trials)
     _banner(note)
     rows = trials.attrs.get("trial_rows", 0)

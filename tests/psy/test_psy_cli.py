@@ -133,3 +133,22 @@ def test_bad_grid_size_missing_target_and_nafc_route(data, tmp_path, capsys):
     write_trials(tmp_path / "nafc.csv", nafc)
     assert main(["fit", "finger-route", str(tmp_path / "nafc.csv")]) == 2
     assert "not nAFC" in capsys.readouterr().err
+
+
+def test_a_psignifit_data_matrix_with_its_design_on_the_command_line(tmp_path, capsys):
+    levels = np.array([0.5, 1.0, 1.5, 2.0, 3.0, 4.0])
+    k = np.array([21, 23, 29, 34, 39, 40])
+    np.savetxt(tmp_path / "observer3.txt", np.column_stack([levels, k, np.full(6, 40)]))
+    path = str(tmp_path / "observer3.txt")
+    assert main(["fit", "psychophysics", path, "--nafc", "2"]) == 2            # no design: nothing is fitted
+    err = capsys.readouterr().err
+    assert [ln for ln in err.splitlines() if ln.startswith("feeler:")] == err.strip().splitlines()[-1:]
+    assert "psignifit data matrix" in err and "--standard-um and --speed-mm-s" in err
+    code = main(["fit", "psychophysics", path, "--standard-um", "0", "--speed-mm-s", "20", "--nafc", "2",
+                 "--out", str(tmp_path / "o"), "--no-plots"])
+    assert code == 0 and "fitting 1 subject(s), 240 trials" in capsys.readouterr().out
+    table = pd.read_csv(tmp_path / "o" / "thresholds.csv", comment="#")
+    assert set(table.subject) == {"observer3", "all"} and set(table.design) == {"2AFC"}
+    assert (table.standard_um == 0).all() and (table.standard_speed_mm_s == 20).all()
+    assert main(["fit", "psychophysics", path, "--standard-um", "0", "--speed-mm-s", "20"]) == 2   # not nAFC
+    assert "--standard-um=0.0: a finite number > 0 (0 only in nAFC" in capsys.readouterr().err

@@ -212,3 +212,106 @@ def test_a_table_of_counts_appended_to_itself_is_refused(tmp_path):
     per_trial.write_text("\n".join([",".join(KEY_COLUMNS) + ",comparison_higher"] + ["S1,10,20,9,20,1"] * 6
                                    + ["S1,10,20,9,20,0"] * 4) + "\n")
     assert read_trials(per_trial)["n_comparison_higher"].tolist() == [6]
+
+
+# --- psignifit's data matrix (height, n correct, n trials), read with the design it lacks ---------------------
+
+MATRIX = np.array([[0.5, 9, 30], [1.0, 11, 30], [1.5, 17, 30], [2.0, 22, 30], [3.0, 28, 30]])
+
+
+def _matrix_files(tmp_path) -> dict:
+    """The one matrix as a lab that used psignifit may have it on disk."""
+    files = {"savetxt": tmp_path / "savetxt.txt", "comma": tmp_path / "comma.csv",
+             "header": tmp_path / "header.csv", "semicolon": tmp_path / "semicolon.csv"}
+    np.savetxt(files["savetxt"], MATRIX)                                  # spaces, 1.000000000000000000e+00
+    files["comma"].write_text("\n".join(f"{x:g},{k:g},{n:g}" for x, k, n in MATRIX) + "\n")
+    files["header"].write_text("level,nCorrect,nTotal\n" + files["comma"].read_text())
+    files["semicolon"].write_text("\n".join(f"{x:g};{k:g};{n:g}".replace(".", ",") for x, k, n in MATRIX) + "\n")
+    return files
+
+
+@pytest.mark.parametrize("nafc, count", [(True, "n_correct"), (False, "n_comparison_higher")])
+def test_a_psignifit_matrix_reads_as_the_table_with_its_design(tmp_path, nafc, count):
+    from feeler.psydata import MatrixDesign
+
+    design = MatrixDesign(subject="P1", standard_um=0.0 if nafc else 1.5, speed_mm_s=20.0,
+                          comparison_speed_mm_s=40.0, nafc=nafc)
+    table = tmp_path / "table.csv"
+    table.write_text(",".join(KEY_COLUMNS + ("n_trials", count)) + "\n" + "\n".join(
+        f"P1,{design.standard_um:g},20,{x:g},40,{n:g},{k:g}" for x, k, n in MATRIX) + "\n")
+    expected = read_trials(table)
+    for name, path in _matrix_files(tmp_path).items():
+        got = read_trials(path, design=design)
+        assert got.equals(expected), name
+        assert got.attrs["trial_rows"] == 0
+
+
+def test_a_matrix_sums_repeated_heights_and_names_its_subject_after_the_file(tmp_path):
+    from feeler.psydata import MatrixDesign
+
+    path = tmp_path / "observer7.csv"
+    path.write_text("# session 1 and 2\n1.0,4,10\n2.0,8,10\n1.0,6,10\n")
+    df = read_trials(path, design=MatrixDesign(standard_um=1.5, speed_mm_s=20))
+    assert df["subject"].tolist() == ["observer7", "observer7"] and df["comparison_um"].tolist() == [1.0, 2.0]
+    assert df["n_trials"].tolist() == [20, 10] and df["n_comparison_higher"].tolist() == [10, 8]
+    assert df.attrs["comments"] == ["session 1 and 2"]
+
+
+def test_a_matrix_without_its_design_says_what_to_give(tmp_path):
+    from feeler.psydata import MatrixDesign
+
+    path = _matrix_files(tmp_path)["savetxt"]
+    with pytest.raises(DataFileError) as err:
+        read_trials(path)
+    text = str(err.value)
+    assert text.startswith(f"{path}: a psignifit data matrix") and "\n" not in text
+    assert "--standard-um and --speed-mm-s" in text and "n_correct or n_comparison_higher" in text
+    with pytest.raises(DataFileError, match=r"give --speed-mm-s \(and"):
+        read_trials(path, design=MatrixDesign(standard_um=0.0, nafc=True))
+
+
+def test_a_design_for_a_table_with_its_own_columns_is_refused(tmp_path):
+    from feeler.errors import ArgumentError
+    from feeler.psydata import MatrixDesign
+
+    path = _csv(tmp_path, "A,10,20,7.6,20,10,3")
+    with pytest.raises(ArgumentError, match=r"--standard-um=10.0: only for a psignifit data matrix .* drop the option"):
+        read_trials(path, design=MatrixDesign(standard_um=10.0, speed_mm_s=20.0))
+
+
+@pytest.mark.parametrize("text, match", [
+    ("1.0,0.3,10\n", r"line 1, column 2 \(n higher\): '0.3' must be a whole number"),        # a proportion
+    ("1.0,10,4\n", r"line 1, column 2 \(n higher\): 10 > column 3 \(n trials\) 4 \(psignifit's order"),
+    ("1.0,4,10\n-2,3,10\n", r"line 2, column 1 \(height\): -2.0 must be finite and > 0"),
+    ("level,k,n\n", "no data rows"),
+    ("1.0,0,0\n2.0,0,0\n", "no trials"),
+    ("1.0,4,10\n2.0,5,10\n" * 3, "appended to itself"),
+])
+def test_bad_matrices_are_named_line_and_column(tmp_path, text, match):
+    from feeler.psydata import MatrixDesign
+
+    path = tmp_path / "m.csv"
+    path.write_text(text)
+    with pytest.raises(DataFileError, match=match):
+        read_trials(path, design=MatrixDesign(standard_um=1.5, speed_mm_s=20.0))
+
+
+@pytest.mark.parametrize("design, match", [
+    (dict(standard_um=0.0, speed_mm_s=20.0), r"--standard-um=0.0: a finite number > 0 \(0 only in nAFC"),
+    (dict(standard_um=-1.0, speed_mm_s=20.0, nafc=True), r"--standard-um=-1.0: a finite number >= 0"),
+    (dict(standard_um=1.0, speed_mm_s=float("nan")), "--speed-mm-s=nan"),
+    (dict(standard_um=1.0, speed_mm_s=20.0, comparison_speed_mm_s=0.0), "--comparison-speed-mm-s=0.0"),
+    (dict(standard_um=1.0, speed_mm_s=20.0, subject=" "), "--subject"),
+])
+def test_a_design_out_of_range_names_its_option(design, match):
+    from feeler.errors import ArgumentError
+    from feeler.psydata import MatrixDesign
+
+    with pytest.raises(ArgumentError, match=match):
+        MatrixDesign(**design).check()
+
+
+def test_a_three_column_table_cut_short_is_not_taken_for_a_matrix(tmp_path):
+    path = _csv(tmp_path, "A,10,3", header="subject,standard_um,n_correct")
+    with pytest.raises(DataFileError, match="missing column"):
+        read_trials(path)

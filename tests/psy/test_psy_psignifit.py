@@ -74,3 +74,27 @@ def test_a_psignifit_model_with_another_prior_disagrees():
     res = psignifit_fit(cells.x_um, cells.n, cells.k, Priors(sigma_range=0.5).resolve(cells))
     errors = _compare(row, grid_summary(res), ("dt",))
     assert max(abs(v) for v in errors.values()) > TOL
+
+
+def test_a_psignifit_data_matrix_on_disk_fits_as_psignifit_fits_it(tmp_path):
+    """A lab's psignifit data, as psignifit takes it (an array of height, n correct, n trials,
+    saved by numpy.savetxt), read with the design it lacks: feeler's fit of the file and
+    psignifit's of the array agree as the tables' fits do."""
+    from feeler.psydata import MatrixDesign, read_trials
+
+    task = Task(2)
+    rng = np.random.default_rng(11)
+    levels = np.array([0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0])
+    n = np.full(levels.size, 40)
+    k = rng.binomial(n, task.p(levels, 1.8, 0.6, 0.03))
+    matrix = np.column_stack([levels, k, n])
+    np.savetxt(tmp_path / "observer.txt", matrix)
+    trials = read_trials(tmp_path / "observer.txt", design=MatrixDesign(standard_um=0.0, speed_mm_s=20.0, nafc=True))
+    row = threshold_table(fit_psychometric(trials, rng=np.random.default_rng(0), nafc=2,
+                                           lapse_per="condition", pc=0.75)).iloc[0]
+    assert row.subject == "observer" and row.design == "2AFC"
+    cells = make_cells(trials, task).canonical()
+    res = psignifit_fit(matrix[:, 0], matrix[:, 2], matrix[:, 1], Priors().resolve(cells), nafc=2)
+    errors = _compare(row, grid_summary(res, nafc=2, pc=0.75), ("pse", "threshold"))
+    bad = {k: f"{100 * v:.2f} %" for k, v in errors.items() if abs(v) > TOL}
+    assert not bad, f"differences beyond {100 * TOL:g} % of the interval width: {bad}"
