@@ -3,12 +3,14 @@
 A run directory written by ``feeler simulate`` (or by an acquisition run) holds
 ``scans.csv`` in long format, one row per sample, with at least the columns
 :data:`COLUMNS`. :func:`read_scans` validates it and returns a :class:`Scans` of
-arrays ``(n_scans, n_time)``. :func:`scan_features` turns scans into the features later
+arrays ``(n_scans, n_time)``; a directory of one CSV file per scan, as lab software often
+writes them, reads as the scans of its files in name order (:func:`scan_files`). :func:`scan_features` turns scans into the features later
 issues use: the neuron's peak pulse density (strain = U_y / representative length, paper
 §5.2), the ΔU_y jump (Fig. 7) and the raw U̇_y peak (Fig. 8).
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,7 +20,7 @@ from feeler.errors import DataFileError
 
 __all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_csv_file", "missing_columns_problem",
            "shared_scan_id_problem", "starts_again", "varying_label_problem", "repeated_header_problem",
-           "read_scans", "strain", "jump_uy_mm", "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
+           "read_scans", "scan_files", "one_scan_frame", "strain", "jump_uy_mm", "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
 
 COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
 
@@ -156,8 +158,49 @@ def missing_columns_problem(frame, columns) -> str | None:
     return out
 
 
+#: columns that make a CSV in a directory a file of one scan (:func:`scan_files`)
+SCAN_FILE_COLUMNS = ("t_s", "uy_mm")
+
+
+def scan_files(directory: str | Path) -> list[Path]:
+    """The CSV files of single scans in ``directory``: every ``*.csv`` whose header holds
+    :data:`SCAN_FILE_COLUMNS`, in natural name order (``scan_2`` before ``scan_10``); the
+    scans get ids 0, 1, … in that order. Empty when there are none (or a ``scans.csv``
+    or ``samples.csv``, the files of a run directory, is there)."""
+    directory = Path(directory)
+    if not directory.is_dir() or any((directory / n).exists() for n in ("scans.csv", "samples.csv")):
+        return []
+    out = []
+    for f in directory.glob("*.csv"):
+        try:
+            with f.open(encoding="utf-8-sig") as fh:
+                first = next((ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")), "")
+        except (OSError, UnicodeDecodeError):
+            continue
+        cols = [c.strip() for c in first.strip().split(csv_dialect(first)[0])]
+        if all(c in cols for c in SCAN_FILE_COLUMNS):
+            out.append(f)
+    return sorted(out, key=lambda f: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", f.name)])
+
+
+def one_scan_frame(path: Path, scan_id: int):
+    """The rows of a file of one scan, with ``scan_id`` (its place among the directory's
+    files); DataFileError when the file holds several scan ids."""
+    import pandas as pd
+
+    frame = read_csv_file(path)
+    if "scan_id" in frame.columns:
+        ids = pd.to_numeric(frame["scan_id"], errors="coerce").dropna().unique()
+        if ids.size > 1:
+            raise DataFileError(path, f"holds {ids.size} scan ids: a directory of scan files takes one scan per "
+                                      f"file (move this file out, or join every scan into one scans.csv)")
+    frame["scan_id"] = scan_id
+    return frame
+
+
 def read_scans(path: str | Path) -> Scans:
-    """Read a run directory's ``scans.csv`` (or the CSV itself).
+    """Read a run directory's ``scans.csv`` (or the CSV itself, or a directory of one file
+    per scan: :func:`scan_files`, each file checked on its own first).
 
     Raises:
         DataFileError: missing file or column, non-numeric, NaN or infinite values, an id
@@ -168,9 +211,22 @@ def read_scans(path: str | Path) -> Scans:
     import pandas as pd
 
     path = Path(path)
+    files = scan_files(path)
+    if files:
+        frames = [one_scan_frame(f, i) for i, f in enumerate(files)]
+        for f, frame in zip(files, frames):
+            _scans_of(frame.copy(), f)
+        return _scans_of(pd.concat(frames, ignore_index=True), path, names=[f.name for f in files])
     if path.is_dir():
         path = path / "scans.csv"
-    frame = read_csv_file(path)
+    return _scans_of(read_csv_file(path), path)
+
+
+def _scans_of(frame, path: Path, names: list[str] | None = None) -> Scans:
+    """:func:`read_scans` of a frame (``path`` names it in errors; ``names``: the file of
+    each scan id, for a directory of scan files)."""
+    import pandas as pd
+
     problem = missing_columns_problem(frame, COLUMNS)
     if problem:
         raise DataFileError(path, problem)
@@ -204,8 +260,10 @@ def read_scans(path: str | Path) -> Scans:
     if lengths.nunique() != 1:
         common = int(lengths.mode().iloc[0])
         odd = lengths[lengths != common]
-        head = (f"column scan_id: scans have unequal lengths {sorted(set(lengths))} (scan {odd.index[0]} has "
-                f"{int(odd.iloc[0])} samples, {len(lengths) - len(odd)} of {len(lengths)} have {common})")
+        which = f"scan {odd.index[0]}" if names is None else names[int(odd.index[0])]
+        head = (f"{'column scan_id: scans' if names is None else 'scan files'} have unequal lengths "
+                f"{sorted(set(lengths))} ({which} has {int(odd.iloc[0])} samples, {len(lengths) - len(odd)} of "
+                f"{len(lengths)} have {common})")
         speeds = np.unique(groups["speed_mm_s"].first().to_numpy(float))
         if speeds.size > 1:           # trimming would cut the slower scans' traverse short
             raise DataFileError(path, f"{head} at speeds {', '.join(f'{v:g}' for v in speeds)} mm/s; a fit needs "

@@ -198,3 +198,53 @@ def test_files_joined_with_their_headers_name_the_repeated_header_line(tmp_path)
             read(path)
         assert str(info.value) == f"{path}: {words}"
     assert read_scans(write_csv(tmp_path / "ok.csv", good_rows())).t_s.shape == (2, 4)
+
+
+# --- a directory of one CSV file per scan, as lab software writes them ---------------------------------------
+
+def _one_file_per_scan(directory, rows, *, names=None, drop_id=True):
+    """Each scan of ``rows`` in its own file (``names`` per scan; scan_id column dropped)."""
+    import pandas as pd
+
+    frame = pd.DataFrame(rows, columns=COLUMNS)
+    directory.mkdir(exist_ok=True)
+    for k, (_, g) in enumerate(frame.groupby("scan_id", sort=True)):
+        (g.drop(columns="scan_id") if drop_id else g).to_csv(directory / (names[k] if names else f"scan_{k}.csv"),
+                                                             index=False)
+    return directory
+
+
+def _rows(n_scans):
+    return [[s, 0.05 * (s % 2), 0.5, 0.5 * k, 0.25 * k, -0.01, 0.05 + 0.01 * k * s, 0.0]
+            for s in range(n_scans) for k in range(4)]
+
+
+def test_a_directory_of_scan_files_reads_as_one_file_of_its_scans_in_name_order(tmp_path):
+    """Natural order: scan_2 before scan_10 (as a lab numbers them, without zero padding)."""
+    rows = _rows(12)
+    whole = read_scans(write_csv(tmp_path / "scans.csv", rows))
+    per = _one_file_per_scan(tmp_path / "lab", rows)
+    (per / "notes.csv").write_text("what,value\noperator,A\n")           # a CSV that is not a scan: ignored
+    got = read_scans(per)
+    for name in ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(whole, name), err_msg=name)
+    from feeler.datasets import scan_files
+    assert [f.name for f in scan_files(per)][:3] == ["scan_0.csv", "scan_1.csv", "scan_2.csv"]
+    assert scan_files(tmp_path) == []                              # a run directory (scans.csv) is not one
+
+
+def test_scan_files_are_checked_each_by_its_name(tmp_path):
+    rows = _rows(3)
+    rows[5][3] = 0.0                                               # scan 1's second time repeats its first
+    per = _one_file_per_scan(tmp_path / "lab", rows)
+    with pytest.raises(DataFileError, match=r"lab/scan_1.csv: column t_s: not strictly increasing"):
+        read_scans(per)
+    short = _one_file_per_scan(tmp_path / "short", _rows(3)[:-1])
+    with pytest.raises(DataFileError, match=r"short: scan files have unequal lengths \[3, 4\] \(scan_2.csv has 3 "
+                                            r"samples, 2 of 3 have 4\); a fit needs scans of one length"):
+        read_scans(short)
+    several = _one_file_per_scan(tmp_path / "several", _rows(2), drop_id=False)
+    write_csv(several / "scan_9.csv", _rows(2))                    # two scans in one file of the directory
+    with pytest.raises(DataFileError, match=r"scan_9.csv: holds 2 scan ids: a directory of scan files takes one "
+                                            r"scan per file"):
+        read_scans(several)

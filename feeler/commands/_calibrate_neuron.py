@@ -55,7 +55,7 @@ def run(args) -> int:
     if args.emcee_steps is not None and args.emcee_steps < 100:
         raise ArgumentError("--emcee-steps", args.emcee_steps, ">= 100")
     csv, length_mm, kernel = locate_scans(Path(args.dataset), args.length_mm)
-    scene_path = csv.with_name("scene.toml")
+    scene_path = _scene_beside(csv)
     scene_toml = scene_path.read_text(encoding="utf-8") if scene_path.is_file() else None
     stage(f"reading {csv}", args.progress)
     scans = read_scans(csv)
@@ -100,28 +100,38 @@ def _undecodable_note(result) -> str | None:
         return None
 
 
+def _scene_beside(source: Path) -> Path:
+    """The scene.toml of a scans CSV (beside it) or of a directory of scan files (in it)."""
+    return source / "scene.toml" if source.is_dir() else source.with_name("scene.toml")
+
+
 def locate_scans(path: Path, length_mm: float | None):
-    """(scans.csv, length_mm, kernel) from a run directory or CSV (+ optional scene.toml)."""
+    """(scans.csv, or the directory of one file per scan; length_mm, kernel) from a run
+    directory, a CSV or a directory of scan files (+ optional scene.toml)."""
     from feeler.errors import ArgumentError, DataFileError
     from feeler.rundir import what_it_is
 
     if path.is_dir():
+        from feeler.calib.neuron.live.scan_csv import no_scans_problem
+        from feeler.datasets import scan_files
+
         csv = path / "scans.csv"
-        hint = "" if csv.is_file() else what_it_is(path, expected="scans.csv")
-        if hint:
-            raise DataFileError(csv, f"no such file; {hint}")
+        if scan_files(path):                 # one file per scan: read_scans joins them
+            csv = path
+        elif not csv.is_file():
+            raise DataFileError(path, no_scans_problem(path))
     elif path.suffix == ".csv":
         csv = path
     else:
         raise DataFileError(path, "not a run directory or a scans CSV")
-    scene_path = csv.with_name("scene.toml")
+    scene_path = _scene_beside(csv)
     kernel = "boxcar"
     if scene_path.is_file():
         from feeler.scene import load_scene
         scene = load_scene(scene_path)
         if not hasattr(scene, "neuron"):
             if path.is_dir():
-                hint = what_it_is(csv.parent, expected="scans.csv")
+                hint = what_it_is(path, expected="scans.csv")
                 raise ArgumentError("DATASET", str(scene_path), "scene.toml must be a robot-scan scene"
                                     + (f"; {hint}" if hint else ""))
             kind = getattr(getattr(scene, "scene", None), "kind", "another kind of")
@@ -131,8 +141,10 @@ def locate_scans(path: Path, length_mm: float | None):
         kernel = scene.neuron.kernel
         length_mm = scene.neuron.length_mm if length_mm is None else length_mm
     if length_mm is None:
-        raise ArgumentError("--length-mm", None, f"needed: {csv.name} has no scene.toml beside it to give the "
-                            "element's representative length; give --length-mm (mm; strain = U_y / length)")
+        where = (f"the scan files of {csv.name}/ have no scene.toml with them" if csv.is_dir()
+                 else f"{csv.name} has no scene.toml beside it")
+        raise ArgumentError("--length-mm", None, f"needed: {where} to give the element's representative length; "
+                            "give --length-mm (mm; strain = U_y / length)")
     if not length_mm > 0:
         raise ArgumentError("--length-mm", length_mm, "> 0 (mm; strain = U_y / length)")
     return csv, float(length_mm), kernel

@@ -59,6 +59,7 @@ def run(args) -> int:
     unit_mistake(path, [r.scan_id for r in records], flags)
     labels = {"step_mm": [np.nan if r.step_mm is None else r.step_mm for r in records]}
     table = pd.DataFrame({"scan_id": [r.scan_id for r in records],
+                          **({"file": [r.file for r in records]} if any(r.file for r in records) else {}),
                           **(labels if any(r.step_mm is not None for r in records) else {}),
                           "plate_mm": c.plate_mm, **{plate_column(v): c.prob[:, i] for i, v in enumerate(c.plates_mm)},
                           "height_mm": c.height_mm, "lo90_mm": c.lo90_mm, "hi90_mm": c.hi90_mm,

@@ -26,6 +26,32 @@ def test_calibrate_prints_the_checks_and_records_the_scene(run_and_fit, capsys):
     assert "decoder noise:" in out and "labels inside their 90 % interval per plate" in out and "verdict: ok" in out
 
 
+def test_a_directory_of_one_file_per_scan_fits_as_its_scans_csv(run_and_fit, tmp_path, capsys):
+    """A lab's one file per scan with the scene beside them: the same posterior as scans.csv,
+    the scene recorded; without a scene, --length-mm is asked for, naming the directory."""
+    import shutil
+
+    import pandas as pd
+    from feeler.calib.fit import load
+
+    run, fit = run_and_fit
+    lab = tmp_path / "lab"
+    lab.mkdir()
+    frame = pd.read_csv(run / "scans.csv")
+    for sid, g in frame.groupby("scan_id"):
+        g.drop(columns="scan_id").to_csv(lab / f"scan_{sid:03d}.csv", index=False)
+    assert main(["calibrate", "neuron", str(lab), "--draws", "300", "--no-progress"]) == 2
+    assert "the scan files of lab/ have no scene.toml with them" in capsys.readouterr().err
+    shutil.copy(run / "scene.toml", lab / "scene.toml")
+    assert main(["calibrate", "neuron", str(lab), "--out", str(tmp_path / "f"), "--draws", "300",
+                 "--no-progress"]) == 0
+    assert f"96 scans from {lab}, strain = U_y / 3 mm" in capsys.readouterr().out
+    ours, theirs = load(tmp_path / "f").posterior, load(fit).posterior
+    assert ours["posterior"].attrs["scene_toml"] == (run / "scene.toml").read_text()
+    for name in ("a", "tau_s", "plate_sd_mm"):
+        assert (ours["posterior"][name].values == theirs["posterior"][name].values).all(), name
+
+
 def test_classify_and_discriminate_use_the_fit(run_and_fit, tmp_path, capsys):
     import pandas as pd
     run, fit = run_and_fit

@@ -75,7 +75,7 @@ CASES = {
                                             ["posterior.nc: missing", "holds a sensor-calibration dataset "
                                              "(calibration.csv): `feeler calibrate sensor` fits it"]),
     "calibrate neuron given a sensor dataset": (lambda d: ("calibrate", "neuron", d / "sc"),
-                                                ["scans.csv: no such file", "`feeler calibrate sensor` fits it"]),
+                                                ["sc: holds no scans.csv", "`feeler calibrate sensor` fits it"]),
     "calibrate sensor given a fit": (lambda d: (*FIT, d / "m1"), ["no such calibration file", "holds a fit (posterior.nc)"]),
     "fit psychophysics given calibration.csv": (lambda d: ("fit", "psychophysics", d / "sc" / "calibration.csv"),
                                                 ["line 1: not a trial table: calibration.csv is a sensor-calibration"]),

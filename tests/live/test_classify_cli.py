@@ -112,8 +112,27 @@ def test_a_directory_without_scans_says_so_and_what_it_holds(fit_dir, tmp_path, 
     assert _run(fit_dir, tmp_path / "empty") == 2
     assert _run(fit_dir, fit_dir) == 2
     said = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler: ")]
-    assert said == [f"feeler: error: {tmp_path / 'empty'}: holds no scans.csv (nor the samples.csv of a run in "
-                    "progress)",
-                    f"feeler: error: {fit_dir}: holds no scans.csv (nor the samples.csv of a run in progress); "
+    nothing = ("holds no scans.csv (nor the samples.csv of a run in progress, nor CSV files of one scan each with "
+               "columns t_s, uy_mm)")
+    assert said == [f"feeler: error: {tmp_path / 'empty'}: {nothing}",
+                    f"feeler: error: {fit_dir}: {nothing}; "
                     f"{fit_dir} holds a fit (posterior.nc): fits are read by `feeler classify`, `discriminate`, "
                     "`decode` and `report`"]
+
+
+def test_a_directory_of_one_file_per_scan_classifies_naming_each_file(fit_dir, scans_frame, tmp_path, capsys):
+    import pandas as pd
+
+    lab = tmp_path / "lab"
+    lab.mkdir()
+    ids = sorted(scans_frame.scan_id.unique())
+    for k, sid in enumerate(ids):
+        scans_frame[scans_frame.scan_id == sid].drop(columns="scan_id").to_csv(lab / f"touch{k + 1}.csv", index=False)
+    scans_frame.to_csv(tmp_path / "all.csv", index=False)
+    assert _run(fit_dir, tmp_path / "all.csv", "--out", str(tmp_path / "a")) == 0
+    assert _run(fit_dir, lab, "--out", str(tmp_path / "b")) == 0
+    capsys.readouterr()
+    a, b = (pd.read_csv(tmp_path / d / "classification.csv") for d in ("a", "b"))
+    assert b.file.tolist() == [f"touch{k + 1}.csv" for k in range(len(ids))]       # touch2 before touch10
+    p_cols = [c for c in a.columns if c.startswith("p_")] + ["height_mm", "lo90_mm", "hi90_mm", "step_mm"]
+    np.testing.assert_allclose(b[p_cols].to_numpy(), a[p_cols].to_numpy(), rtol=1e-12)

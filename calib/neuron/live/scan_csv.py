@@ -6,7 +6,9 @@ places a decision along the scan; ``step_mm`` (the plate's step, mm) and ``speed
 (commanded speed, mm/s) are labels: when present they add the accuracy and coverage
 summary. Scans may differ in length; rows of a scan need not be contiguous but its times
 must increase. A run directory written by ``feeler acquire`` holds ``samples.csv`` with
-every attempt of a scan: only each scan's last attempt is kept.
+every attempt of a scan: only each scan's last attempt is kept. A directory of one CSV file
+per scan (:func:`feeler.datasets.scan_files`) reads as its files in name order, each
+record naming its file.
 """
 from __future__ import annotations
 
@@ -15,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
+from feeler.datasets import SCAN_FILE_COLUMNS
 from feeler.errors import DataFileError
 
-__all__ = ["REQUIRED", "OPTIONAL", "ScanRecord", "read_scan_records", "records_from_frame"]
+__all__ = ["REQUIRED", "OPTIONAL", "ScanRecord", "read_scan_records", "records_from_frame", "no_scans_problem"]
 
 REQUIRED = ("scan_id", "t_s", "uy_mm")
 OPTIONAL = ("x_mm", "step_mm", "speed_mm_s")
@@ -32,6 +35,7 @@ class ScanRecord:
         t_s, uy_mm (ndarray[n]): sample times (s, increasing) and U_y (mm).
         x_mm (ndarray[n] | None): stage position, mm.
         step_mm, speed_mm_s (float | None): labels (plate step, mm; commanded speed, mm/s).
+        file (str | None): the file it came from, in a directory of one file per scan.
     """
     scan_id: int
     t_s: np.ndarray
@@ -39,6 +43,7 @@ class ScanRecord:
     x_mm: np.ndarray | None = None
     step_mm: float | None = None
     speed_mm_s: float | None = None
+    file: str | None = None
 
 
 def read_scan_records(path: str | Path) -> list[ScanRecord]:
@@ -51,15 +56,29 @@ def read_scan_records(path: str | Path) -> list[ScanRecord]:
     from feeler.datasets import read_csv_file
     from feeler.errors import DataFileError
 
+    import dataclasses
+
+    from feeler.datasets import one_scan_frame, scan_files
+
     path = Path(path)
+    files = scan_files(path)
+    if files:
+        return [dataclasses.replace(records_from_frame(one_scan_frame(f, i), f)[0], file=f.name)
+                for i, f in enumerate(files)]
     if path.is_dir():
         if not (path / "scans.csv").exists() and not (path / "samples.csv").exists():
-            from feeler.rundir import what_it_is
-            hint = what_it_is(path, expected="scans.csv")
-            raise DataFileError(path, "holds no scans.csv (nor the samples.csv of a run in progress)"
-                                + (f"; {hint}" if hint else ""))
+            raise DataFileError(path, no_scans_problem(path))
         path = path / "scans.csv" if (path / "scans.csv").exists() else path / "samples.csv"
     return records_from_frame(read_csv_file(path), path)
+
+
+def no_scans_problem(directory: Path) -> str:
+    """The line for a directory that holds no scans in any form feeler reads."""
+    from feeler.rundir import what_it_is
+
+    hint = what_it_is(directory, expected="scans.csv")
+    return ("holds no scans.csv (nor the samples.csv of a run in progress, nor CSV files of one scan each with "
+            f"columns {', '.join(SCAN_FILE_COLUMNS)})" + (f"; {hint}" if hint else ""))
 
 
 def records_from_frame(frame, path) -> list[ScanRecord]:
