@@ -18,7 +18,7 @@ import numpy as np
 
 from feeler.errors import DataFileError
 
-__all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_csv_file", "missing_columns_problem",
+__all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_text", "read_csv_file", "missing_columns_problem",
            "shared_scan_id_problem", "starts_again", "varying_label_problem", "repeated_header_problem",
            "read_scans", "scan_files", "one_scan_frame", "strain", "jump_uy_mm", "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
 
@@ -71,6 +71,20 @@ def csv_dialect(header: str) -> tuple[str, str]:
     return sep, ("." if sep == "," else ",")
 
 
+def read_text(path: Path) -> str:
+    """A text file as lab software saves it: UTF-8 (a byte order mark dropped), UTF-16 with
+    its byte order mark (Excel's "Unicode Text"), else Windows-1252 (Excel's "CSV" on
+    Windows in a western locale: a comment with "ü" or "µ" is not UTF-8), whose bytes all
+    decode. OSError (FileNotFoundError) and, for broken UTF-16, UnicodeDecodeError pass."""
+    raw = Path(path).read_bytes()
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        return raw.decode("utf-16")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("cp1252", errors="replace")
+
+
 def header_line(text: str) -> str:
     """The first line that is neither blank nor a ``#`` comment ("" if none)."""
     return next((ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")), "")
@@ -114,7 +128,7 @@ def read_csv_file(path: Path, *, comment: str | None = None):
 
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        text = read_text(path)
     except FileNotFoundError:
         raise DataFileError(path, "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -173,8 +187,7 @@ def scan_files(directory: str | Path) -> list[Path]:
     out = []
     for f in directory.glob("*.csv"):
         try:
-            with f.open(encoding="utf-8-sig") as fh:
-                first = next((ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")), "")
+            first = header_line(read_text(f))
         except (OSError, UnicodeDecodeError):
             continue
         cols = [c.strip() for c in first.strip().split(csv_dialect(first)[0])]

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from feeler.datasets import SEPARATORS, csv_dialect, repeated_header_problem
+from feeler.datasets import SEPARATORS, csv_dialect, read_text, repeated_header_problem
 from feeler.errors import DataFileError
 
 __all__ = ["TRIAL_COLUMNS", "NAFC_COLUMNS", "KEY_COLUMNS", "RESPONSES", "read_trials", "write_trials",
@@ -224,7 +224,7 @@ def read_trials(path: str | Path, *, design: MatrixDesign | None = None) -> pd.D
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")          # a spreadsheet's byte order mark dropped
+        text = read_text(path)             # a byte order mark dropped; UTF-16 and Windows-1252 read too
     except FileNotFoundError:
         raise DataFileError(path, "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:

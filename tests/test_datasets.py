@@ -248,3 +248,20 @@ def test_scan_files_are_checked_each_by_its_name(tmp_path):
     with pytest.raises(DataFileError, match=r"scan_9.csv: holds 2 scan ids: a directory of scan files takes one "
                                             r"scan per file"):
         read_scans(several)
+
+
+def test_excel_unicode_text_and_windows_1252_files_read_as_the_utf8_file(tmp_path):
+    """Excel's "Unicode Text" (UTF-16 with a byte order mark, tabs, CRLF) and its "CSV" on
+    Windows (Windows-1252: a "µ" or "ü" is not UTF-8; it read "cannot read: 'utf-8' codec ...")."""
+    plain = read_scans(write_csv(tmp_path / "scans.csv", good_rows()))
+    header = "\t".join(COLUMNS) + "\tBemerkung"
+    body = ["\t".join(str(v) for v in row) + "\tPlatte für 20 µm" for row in good_rows()]
+    (tmp_path / "unicode.txt.csv").write_bytes("\r\n".join([header, *body]).encode("utf-16"))
+    (tmp_path / "cp1252.csv").write_bytes("\n".join(ln.replace("\t", ",") for ln in [header, *body]).encode("cp1252"))
+    for name in ("unicode.txt.csv", "cp1252.csv"):
+        got = read_scans(tmp_path / name)
+        for col in ("scan_id", "step_mm", "t_s", "uy_mm"):
+            np.testing.assert_array_equal(getattr(got, col), getattr(plain, col), err_msg=f"{name} {col}")
+    (tmp_path / "broken.csv").write_bytes(b"\xff\xfe" + "\t".join(COLUMNS).encode("utf-16-le") + b"\x00")
+    with pytest.raises(DataFileError, match="broken.csv: not a readable CSV"):
+        read_scans(tmp_path / "broken.csv")

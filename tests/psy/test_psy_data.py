@@ -95,7 +95,7 @@ def test_missing_empty_and_undecodable_files(tmp_path):
     (tmp_path / "e.csv").write_text("# only a comment\n")
     with pytest.raises(DataFileError, match="no header"):
         read_trials(tmp_path / "e.csv")
-    (tmp_path / "b.csv").write_bytes(b"\xff\xfe\x00bad")
+    (tmp_path / "b.csv").write_bytes(b"\xff\xfe\x00ba")           # UTF-16 by its mark, cut mid-character
     with pytest.raises(DataFileError, match="cannot read"):
         read_trials(tmp_path / "b.csv")
 
@@ -315,3 +315,10 @@ def test_a_three_column_table_cut_short_is_not_taken_for_a_matrix(tmp_path):
     path = _csv(tmp_path, "A,10,3", header="subject,standard_um,n_correct")
     with pytest.raises(DataFileError, match="missing column"):
         read_trials(path)
+
+
+def test_a_windows_1252_trial_table_reads_with_its_comment(tmp_path):
+    path = tmp_path / "t.csv"
+    path.write_bytes(("# Versuchsperson Jürgen, Stufen in µm\n" + HEADER + "\nJ,10,20,7.6,20,20,4\n").encode("cp1252"))
+    df = read_trials(path)
+    assert df.attrs["comments"] == ["Versuchsperson Jürgen, Stufen in µm"] and df["n_trials"].tolist() == [20]
