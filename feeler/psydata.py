@@ -138,7 +138,16 @@ def _read_matrix(path: Path, lines, rows: list[list[str]], head: bool, decimal: 
     for (lineno, _), row in body:
         row = [f.replace(decimal, ".") for f in row]
         height = _number(path, lineno, names[0], row[0])
-        k, n = _count(path, lineno, names[1], row[1]), _count(path, lineno, names[2], row[2])
+        n = _count(path, lineno, names[2], row[2])
+        try:
+            k = _count(path, lineno, names[1], row[1])
+        except DataFileError as exc:
+            share = float(row[1]) if _is_number(row[1]) else math.nan
+            if 0 < share < 1:                  # a proportion: psignifit's matrix holds counts
+                raise DataFileError(path, f"line {lineno}, column {names[1]}: {row[1].strip()!r} looks like a "
+                                          f"proportion; the matrix holds counts (n correct = proportion × n trials, "
+                                          f"here {share * n:g})") from None
+            raise
         if k > n:
             raise DataFileError(path, f"line {lineno}, column {names[1]}: {k} > column {names[2]} {n} (psignifit's "
                                       f"order is height, n correct, n trials)")
@@ -150,6 +159,14 @@ def _read_matrix(path: Path, lines, rows: list[list[str]], head: bool, decimal: 
     if frame["n_trials"].sum() == 0:
         raise DataFileError(path, "no trials: every row has n trials = 0")
     return frame
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def count_column(trials: pd.DataFrame) -> str:

@@ -280,7 +280,9 @@ def test_a_design_for_a_table_with_its_own_columns_is_refused(tmp_path):
 
 
 @pytest.mark.parametrize("text, match", [
-    ("1.0,0.3,10\n", r"line 1, column 2 \(n higher\): '0.3' must be a whole number"),        # a proportion
+    ("1.0,0.3,10\n", r"line 1, column 2 \(n higher\): '0.3' looks like a proportion; the matrix holds counts "
+                     r"\(n correct = proportion × n trials, here 3\)"),
+    ("1.0,2.5,10\n", r"line 1, column 2 \(n higher\): '2.5' must be a whole number"),
     ("1.0,10,4\n", r"line 1, column 2 \(n higher\): 10 > column 3 \(n trials\) 4 \(psignifit's order"),
     ("1.0,4,10\n-2,3,10\n", r"line 2, column 1 \(height\): -2.0 must be finite and > 0"),
     ("level,k,n\n", "no data rows"),
