@@ -137,6 +137,10 @@ def _read_matrix(path: Path, lines, rows: list[list[str]], head: bool, decimal: 
     speed_c = design.speed_mm_s if design.comparison_speed_mm_s is None else design.comparison_speed_mm_s
     for (lineno, _), row in body:
         row = [f.replace(decimal, ".") for f in row]
+        if _is_number(row[0]) and float(row[0]) < 0:      # psignifit levels are often signed differences
+            raise DataFileError(path, f"line {lineno}, column {names[0]}: {row[0].strip()!r} is negative: column 1 "
+                                      f"is the comparison's height, not its difference from the standard (height = "
+                                      f"{design.standard_um:g} µm + difference)")
         height = _number(path, lineno, names[0], row[0])
         n = _count(path, lineno, names[2], row[2])
         try:

@@ -284,7 +284,9 @@ def test_a_design_for_a_table_with_its_own_columns_is_refused(tmp_path):
                      r"\(n correct = proportion × n trials, here 3\)"),
     ("1.0,2.5,10\n", r"line 1, column 2 \(n higher\): '2.5' must be a whole number"),
     ("1.0,10,4\n", r"line 1, column 2 \(n higher\): 10 > column 3 \(n trials\) 4 \(psignifit's order"),
-    ("1.0,4,10\n-2,3,10\n", r"line 2, column 1 \(height\): -2.0 must be finite and > 0"),
+    ("1.0,4,10\n-2,3,10\n", r"line 2, column 1 \(height\): '-2' is negative: column 1 is the comparison's height, "
+                            r"not its difference from the standard \(height = 1.5 µm \+ difference\)"),
+    ("1.0,4,10\n0,3,10\n", r"line 2, column 1 \(height\): 0.0 must be finite and > 0"),
     ("level,k,n\n", "no data rows"),
     ("1.0,0,0\n2.0,0,0\n", "no trials"),
     ("1.0,4,10\n2.0,5,10\n" * 3, "appended to itself"),
