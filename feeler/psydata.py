@@ -223,12 +223,14 @@ def _refuse_a_doubled_table(path, lines, rows) -> None:
                                   f"itself, and the copies would count as more trials; keep each row once")
 
 
-def read_trials(path: str | Path, *, design: MatrixDesign | None = None) -> pd.DataFrame:
+def read_trials(path: str | Path, *, design: MatrixDesign | None = None, matrix_use: str = "") -> pd.DataFrame:
     """Read, validate and (for trial-by-trial files) aggregate a trial table.
 
     Args:
         design: the subject, standard and speeds of a psignifit data matrix (and whether
             it counts nAFC answers); refused (ArgumentError) for a file with its own design.
+        matrix_use: why a caller that takes no matrix cannot use one (its message names
+            it); "" for a caller that reads matrices with their design.
 
     Returns:
         DataFrame with ``TRIAL_COLUMNS`` (comparison design) or ``NAFC_COLUMNS``:
@@ -257,6 +259,9 @@ def read_trials(path: str | Path, *, design: MatrixDesign | None = None) -> pd.D
     sep, decimal = csv_dialect(lines[0][1])
     matrix = _matrix_rows(lines, sep, decimal)
     if matrix is not None:
+        if matrix_use:
+            raise DataFileError(path, f"a psignifit data matrix (height, n correct or higher, n trials per row): "
+                                      f"{matrix_use}")
         if design is None or design.missing():
             raise DataFileError(path, _matrix_problem(path, design))
         frame = _read_matrix(path, lines, *matrix, decimal, design.check())

@@ -10,14 +10,13 @@
 DATA.csv: subject, standard_um, standard_speed_mm_s, comparison_um, comparison_speed_mm_s
 and either counts (n_trials with n_comparison_higher, or n_correct for nAFC) or one row
 per trial (comparison_higher, or correct for nAFC, as 1/0), aggregated on reading; '#'
-lines are comments. A psignifit data matrix (height in µm, n correct or higher, n trials
-per row; header optional; commas, semicolons, tabs or spaces) is read with the design it
-lacks: --standard-um, --speed-mm-s (and --subject, --comparison-speed-mm-s); psignifit's
-"equal asymptote" is the comparison design, its "2AFC" --nafc 2. Comparison design: P(comparison judged higher) = λ/2 + (1 −
-λ)·Φ((x − PSE)/σ); the difference threshold DT is the distance from the PSE to the 75 %
-point. nAFC (--nafc N, n_correct data): P(correct) = 1/N + (1 − 1/N)(1 − λ)·Φ((x − m)/σ).
-A lapse is a guess. Priors are scaled to each condition's range of tested levels unless
-set with --prior-*; the output states them in words.
+lines are comments.
+
+Comparison design: P(comparison judged higher) = λ/2 + (1 − λ)·Φ((x − PSE)/σ); the
+difference threshold DT is the distance from the PSE to the 75 % point. nAFC (--nafc N,
+n_correct data): P(correct) = 1/N + (1 − 1/N)(1 − λ)·Φ((x − m)/σ). A lapse is a guess.
+Priors are scaled to each condition's range of tested levels unless set with --prior-*;
+the output states them in words.
 
 Backends: exact (default; the posterior integrated on an adaptive grid, deterministic),
 laplace (a Gaussian approximation: approximate, warns when its bounds disagree with the
@@ -53,7 +52,11 @@ def _add_psychophysics(sub) -> None:
                              "Psychometric functions (M4: cumulative normal with lapse, optional beta-binomial\n"
                              "overdispersion; subjects alone, or pooled hierarchically with NUTS): PSE, difference\n"
                              "threshold, the threshold and slope at any proportion (--pc), goodness of fit, per\n"
-                             "subject and condition.",
+                             "subject and condition.\n\n"
+                             "A psignifit data matrix (height in µm, n correct or higher, n trials per row; header\n"
+                             "optional; commas, semicolons, tabs or spaces) is read with the design it lacks:\n"
+                             "--standard-um, --speed-mm-s (and --subject, --comparison-speed-mm-s). psignifit's\n"
+                             "\"equal asymptote\" is the comparison design, its \"2AFC\" --nafc 2.",
                              "feeler simulate datasets-synthetic/psychophysics-2afc.toml --out runs/humans\n"
                              "    feeler fit psychophysics runs/humans/trials.csv --out runs/m4"), formatter_class=argparse.RawDescriptionHelpFormatter)
     psy.add_argument("data", metavar="DATA.csv", help="trial table (counts or one row per trial)")
@@ -234,7 +237,8 @@ def run_finger_route(args) -> int:
 
     if args.n_tau < 2:
         raise ArgumentError("--n-tau", args.n_tau, "needs at least 2 grid nodes")
-    trials = read_trials(args.data)
+    trials = read_trials(args.data, matrix_use="one condition at one speed pair, and the finger route needs trials at "
+                                               "more than one; write the trial table's columns (README)")
     if "n_correct" in trials.columns:
         raise ArgumentError("DATA.csv", args.data, "the finger route needs comparison data "
                                                    "(n_comparison_higher), not nAFC (n_correct)")

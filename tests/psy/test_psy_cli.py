@@ -152,3 +152,6 @@ def test_a_psignifit_data_matrix_with_its_design_on_the_command_line(tmp_path, c
     assert (table.standard_um == 0).all() and (table.standard_speed_mm_s == 20).all()
     assert main(["fit", "psychophysics", path, "--standard-um", "0", "--speed-mm-s", "20"]) == 2   # not nAFC
     assert "--standard-um=0.0: a finite number > 0 (0 only in nAFC" in capsys.readouterr().err
+    assert main(["fit", "finger-route", path]) == 2                  # which takes no matrix: it says why
+    assert "a psignifit data matrix (height, n correct or higher, n trials per row): one condition at one speed " \
+           "pair, and the finger route needs trials at more than one" in capsys.readouterr().err
