@@ -4,9 +4,10 @@ A run directory written by ``feeler simulate`` (or by an acquisition run) holds
 ``scans.csv`` in long format, one row per sample, with at least the columns
 :data:`COLUMNS`. :func:`read_scans` validates it and returns a :class:`Scans` of
 arrays ``(n_scans, n_time)``; a directory of one CSV file per scan, as lab software often
-writes them, reads as the scans of its files in name order (:func:`scan_files`). :func:`scan_features` turns scans into the features later
-issues use: the neuron's peak pulse density (strain = U_y / representative length, paper
-§5.2), the ΔU_y jump (Fig. 7) and the raw U̇_y peak (Fig. 8).
+writes them, reads as the scans of its files in name order (:func:`scan_files`).
+:func:`scan_features` turns scans into the features later issues use: the neuron's peak
+pulse density (strain = U_y / representative length, paper §5.2), the ΔU_y jump (Fig. 7)
+and the raw U̇_y peak (Fig. 8).
 """
 from __future__ import annotations
 
@@ -18,9 +19,10 @@ import numpy as np
 
 from feeler.errors import DataFileError
 
-__all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_text", "read_csv_file", "missing_columns_problem",
-           "shared_scan_id_problem", "starts_again", "varying_label_problem", "repeated_header_problem",
-           "read_scans", "scan_files", "one_scan_frame", "strain", "jump_uy_mm", "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
+__all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_text", "read_csv_file",
+           "missing_columns_problem", "shared_scan_id_problem", "starts_again", "varying_label_problem",
+           "repeated_header_problem", "read_scans", "scan_files", "one_scan_frame", "strain", "jump_uy_mm",
+           "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
 
 COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
 

@@ -82,7 +82,8 @@ class MatrixDesign:
         finite and ≥ 0 (> 0 for a comparison design's standard), speeds finite and > 0."""
         from feeler.errors import ArgumentError
 
-        for opt, value, zero in (("--standard-um", self.standard_um, self.nafc), ("--speed-mm-s", self.speed_mm_s, False),
+        for opt, value, zero in (("--standard-um", self.standard_um, self.nafc),
+                                 ("--speed-mm-s", self.speed_mm_s, False),
                                  ("--comparison-speed-mm-s", self.comparison_speed_mm_s, False)):
             if value is not None and not (math.isfinite(value) and (value >= 0 if zero else value > 0)):
                 raise ArgumentError(opt, value, f"a finite number {'>= 0' if zero else '> 0'}"
@@ -115,7 +116,7 @@ def _matrix_rows(lines: list[tuple[int, str]], sep: str, decimal: str) -> tuple[
     return rows, head
 
 
-def _matrix_problem(path, design: MatrixDesign | None) -> str:
+def _matrix_problem(design: MatrixDesign | None) -> str:
     need = MatrixDesign().missing() if design is None else design.missing()
     return (f"a psignifit data matrix (height µm, n correct or higher, n trials per row) holds no design: give "
             f"{' and '.join(need)} (and --subject, --comparison-speed-mm-s, --nafc N as they apply), or write "
@@ -263,7 +264,7 @@ def read_trials(path: str | Path, *, design: MatrixDesign | None = None, matrix_
             raise DataFileError(path, f"a psignifit data matrix (height, n correct or higher, n trials per row): "
                                       f"{matrix_use}")
         if design is None or design.missing():
-            raise DataFileError(path, _matrix_problem(path, design))
+            raise DataFileError(path, _matrix_problem(design))
         frame = _read_matrix(path, lines, *matrix, decimal, design.check())
         frame.attrs["comments"] = _comments(text)
         frame.attrs["trial_rows"] = 0
@@ -271,11 +272,13 @@ def read_trials(path: str | Path, *, design: MatrixDesign | None = None, matrix_
     if design is not None:
         from feeler.errors import ArgumentError
 
-        given = [(opt, getattr(design, name)) for name, opt in MatrixDesign.OPTIONS.items()
-                 if getattr(design, name) is not None] or [("--subject", design.subject)]
-        raise ArgumentError(given[0][0], given[0][1], f"only for a psignifit data matrix (height, n correct, "
-                            f"n trials); {path.name} has its own design columns (subject, standard_um, ...): "
-                            f"drop the option")
+        given = [(opt, getattr(design, name)) for name, opt in (*MatrixDesign.OPTIONS.items(),
+                                                                ("comparison_speed_mm_s", "--comparison-speed-mm-s"),
+                                                                ("subject", "--subject"))
+                 if getattr(design, name) is not None]
+        raise ArgumentError(*(given[0] if given else ("--standard-um", None)), f"only for a psignifit data matrix "
+                            f"(height, n correct, n trials); {path.name} has its own design columns (subject, "
+                            f"standard_um, ...): drop the option")
     rows = list(csv.reader([line for _, line in lines], delimiter=sep))
     header = [h.strip() for h in rows[0]]
     count, layout = _layout(path, header, lines[0][0])

@@ -53,12 +53,9 @@ def read_scan_records(path: str | Path) -> list[ScanRecord]:
         DataFileError: missing file or column (naming the required ones), non-numeric or
             NaN values, times not increasing within a scan, a label not constant in a scan.
     """
-    from feeler.datasets import read_csv_file
-    from feeler.errors import DataFileError
-
     import dataclasses
 
-    from feeler.datasets import one_scan_frame, scan_files
+    from feeler.datasets import one_scan_frame, read_csv_file, scan_files
 
     path = Path(path)
     files = scan_files(path)
