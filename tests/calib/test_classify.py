@@ -202,3 +202,19 @@ def test_a_few_undecodable_draws_are_left_out_and_said(fitted):
     many = _fixed_posterior(*args, a=a, tau_s=2.0, h=0.0, n=40)
     with pytest.raises(ArgumentError, match="6 of 40 draws"):
         classify(many, data.strain[:6], data.t_s, rng=np.random.default_rng(0))
+
+
+def test_scans_decoded_in_blocks_are_decoded_as_all_at_once(fitted, monkeypatch):
+    """classify bounds its memory by decoding BLOCK scans at a time: the blocks join to the
+    one-pass result exactly (and no scans give empty results, not an error)."""
+    import feeler.calib.neuron.classify as cl
+
+    data, res = fitted
+    strain, t = data.strain, data.t_s
+    whole = cl.classify(res, strain, t, rng=np.random.default_rng(3), n_draws=60)
+    monkeypatch.setattr(cl, "BLOCK", 7)
+    blocks = cl.classify(res, strain, t, rng=np.random.default_rng(3), n_draws=60)
+    for name in ("log_prob", "height_mm", "lo90_mm", "hi90_mm", "plate_sds", "nearest_mm"):
+        np.testing.assert_array_equal(getattr(blocks, name), getattr(whole, name), err_msg=name)
+    none = cl.classify(res, strain[:0], t, rng=np.random.default_rng(3), n_draws=60)
+    assert none.log_prob.shape == (0, whole.plates_mm.size) and none.height_mm.shape == (0,)
