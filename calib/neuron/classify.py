@@ -101,7 +101,8 @@ def peaks_of(strain, t_s, log_tau_grid, tau_s, *, kernel: str = "boxcar") -> np.
 BLOCK = 2048
 
 
-def classify(result, strain, t_s, *, rng: np.random.Generator, n_draws: int = 400) -> Classification:
+def classify(result, strain, t_s, *, rng: np.random.Generator, n_draws: int = 400,
+             progress: bool | None = False) -> Classification:
     """Plate probabilities and decoded heights of scans ``strain (ndarray[n_scans, n_time])``.
 
     Args:
@@ -110,13 +111,19 @@ def classify(result, strain, t_s, *, rng: np.random.Generator, n_draws: int = 40
             each scan's own). Scans of different lengths come as two lists of
             ndarray[n_time_i] (``strain`` and ``t_s``).
         n_draws (int): posterior draws used (a seeded subsample).
+        progress: over more than one block of scans, a bar (terminal) or a line per block
+            (None: a bar on a terminal, lines otherwise; False: silent).
     """
     dec = DecoderDraws.from_result(result, rng=rng, n_draws=n_draws)
     grid = np.asarray(result.posterior["observed_data"]["log_tau_grid"].values, float)
     kernel = str(result.posterior["posterior"].attrs.get("kernel", "boxcar"))
     p = peaks_of(strain, t_s, grid, dec.tau_s, kernel=kernel)
+    from feeler.calib.progress import progress as shown
+
     parts = []
-    for i in range(0, max(p.shape[1], 1), BLOCK):  # the (draws × scans × plates) temporaries, a block at a time
+    starts = range(0, max(p.shape[1], 1), BLOCK)
+    for i in shown(starts, desc=f"decoding {p.shape[1]} scans", enabled=progress if len(starts) > 1 else False,
+                   lines=True):                    # the (draws × scans × plates) temporaries, a block at a time
         block = p[:, i:i + BLOCK]
         parts.append((*dec.height(block), *dec.plate_distance(block), dec.class_log_prob(block)))
     height, lo, hi, distance, nearest, log_prob = (np.concatenate(v) for v in zip(*parts))

@@ -48,10 +48,14 @@ def run(args) -> int:
     if args.out:                                   # every argument checked before any work
         check_out_dir(args.out, ("classification.csv",), force=args.force)
     result = load_checked(args)                    # POSTERIOR first, as on the command line
+    from feeler.calib.progress import stage
+
+    stage(f"reading {path}", args.progress)
     records = read_scan_records(path)
     length = float(result.posterior["posterior"].attrs["length_mm"])
+    stage(f"decoding {len(records)} scans with {args.n_draws} posterior draws", args.progress)
     c = classify(result, [r.uy_mm / length for r in records], [r.t_s for r in records],
-                 rng=np.random.default_rng(args.seed), n_draws=args.n_draws)
+                 rng=np.random.default_rng(args.seed), n_draws=args.n_draws, progress=args.progress)
     env = Envelope.of_fit(result, c.tau_s)
     flags = [env.problems(r.t_s, c.p_at_tau[:, k], x_mm=r.x_mm, speed_mm_s=r.speed_mm_s)
              + [f for f in [env.plates(c.plate_sds[k], c.nearest_mm[k], c.height_mm[k])] if f]

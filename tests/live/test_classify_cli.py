@@ -136,3 +136,23 @@ def test_a_directory_of_one_file_per_scan_classifies_naming_each_file(fit_dir, s
     assert b.file.tolist() == [f"touch{k + 1}.csv" for k in range(len(ids))]       # touch2 before touch10
     p_cols = [c for c in a.columns if c.startswith("p_")] + ["height_mm", "lo90_mm", "hi90_mm", "step_mm"]
     np.testing.assert_allclose(b[p_cols].to_numpy(), a[p_cols].to_numpy(), rtol=1e-12)
+
+
+def test_long_work_says_how_far_it_is_and_no_progress_silences_it(fit_dir, scans_frame, tmp_path, capsys,
+                                                                    monkeypatch):
+    """Off a terminal: a line per stage and, over several blocks of scans, a line per block
+    with the time left (20 000 scans decode for about a minute, which said nothing)."""
+    import feeler.calib.neuron.classify as cl
+
+    monkeypatch.setattr(cl, "BLOCK", 10)
+    scans_frame.to_csv(tmp_path / "lab.csv", index=False)
+    n = scans_frame.scan_id.nunique()
+    blocks = -(-n // 10)
+    assert _run(fit_dir, tmp_path / "lab.csv") == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith("feeler classify: classifying the scans")         # within a second, while loading
+    assert err[1:3] == [f"reading {tmp_path / 'lab.csv'} ...", f"decoding {n} scans with 40 posterior draws ..."]
+    done = [ln for ln in err if ln.startswith(f"decoding {n} scans: ")]
+    assert len(done) == blocks and done[0].startswith(f"decoding {n} scans: 1/{blocks} done")
+    assert _run(fit_dir, tmp_path / "lab.csv", "--no-progress") == 0
+    assert len(capsys.readouterr().err.splitlines()) <= 1             # at most the line said while loading
