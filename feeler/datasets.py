@@ -77,10 +77,14 @@ def read_text(path: Path) -> str:
     """A text file as lab software saves it: UTF-8 (a byte order mark dropped), UTF-16 with
     its byte order mark (Excel's "Unicode Text"), else Windows-1252 (Excel's "CSV" on
     Windows in a western locale: a comment with "ü" or "µ" is not UTF-8), whose bytes all
-    decode. OSError (FileNotFoundError) and, for broken UTF-16, UnicodeDecodeError pass."""
+    decode. OSError (FileNotFoundError) passes, and UnicodeDecodeError for broken UTF-16
+    or a NUL byte outside UTF-16 (a binary file)."""
     raw = Path(path).read_bytes()
     if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
         return raw.decode("utf-16")
+    nul = raw.find(b"\x00")
+    if nul >= 0:                                  # no 8-bit text holds one: a binary or broken file
+        raise UnicodeDecodeError("utf-8", raw, nul, nul + 1, "a NUL byte: not a text file")
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError:

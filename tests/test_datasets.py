@@ -265,3 +265,9 @@ def test_excel_unicode_text_and_windows_1252_files_read_as_the_utf8_file(tmp_pat
     (tmp_path / "broken.csv").write_bytes(b"\xff\xfe" + "\t".join(COLUMNS).encode("utf-16-le") + b"\x00")
     with pytest.raises(DataFileError, match="broken.csv: not a readable CSV"):
         read_scans(tmp_path / "broken.csv")
+
+
+def test_a_binary_file_is_not_read_as_windows_1252_text(tmp_path):
+    (tmp_path / "scans.csv").write_bytes(b"\x00\xff\xfe" + ",".join(COLUMNS).encode())
+    with pytest.raises(DataFileError, match="not a readable CSV: .*a NUL byte: not a text file"):
+        read_scans(tmp_path / "scans.csv")
