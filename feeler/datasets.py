@@ -20,7 +20,7 @@ import numpy as np
 from feeler.errors import DataFileError
 
 __all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_text", "read_csv_file",
-           "missing_columns_problem", "shared_scan_id_problem", "starts_again", "varying_label_problem",
+           "missing_columns_problem", "renamed_hint", "shared_scan_id_problem", "starts_again", "varying_label_problem",
            "repeated_header_problem", "read_scans", "scan_files", "one_scan_frame", "strain", "jump_uy_mm",
            "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
 
@@ -165,13 +165,52 @@ def read_csv_file(path: Path, *, comment: str | None = None):
     return frame
 
 
+_UNIT = re.compile(r"^(?P<base>.*?)\s*[\[(]\s*(?P<unit>[^\])]*?)\s*[\])]\s*$")     # "t [s]", "Uy (mm)"
+_SPELLINGS = {"um": "µm", "μm": "µm", "micron": "µm", "microns": "µm", "sec": "s", "mm/sec": "mm/s"}
+_SUFFIXES = (("_mm_s", "mm/s"), ("_mm", "mm"), ("_um", "µm"), ("_n", "n"), ("_s", "s"))
+
+
+def _squeezed(name: str) -> str:
+    return name.lower().replace("_", "").replace(" ", "").replace("-", "")
+
+
+def renamed_hint(header, missing) -> str:
+    """"; the header has 't [s]', 'Uy (mm)': rename them t_s, uy_mm" for header names that
+    are a missing column with its unit in brackets or in another case; "; 't [ms]' is in
+    ms: t_s is in s (convert it)" for one in another unit; "" when there is none."""
+    found, other = [], []
+    for col in missing:
+        base, unit = next(((col[:-len(sfx)], u) for sfx, u in _SUFFIXES if col.endswith(sfx)), (col, ""))
+        for name in header:
+            text = str(name).strip()
+            m = _UNIT.match(text)
+            if m and _squeezed(m["base"]) == _squeezed(base):
+                given = _SPELLINGS.get(m["unit"].lower(), m["unit"])
+                if not unit or given.lower() == unit:
+                    found.append((text, col))
+                else:
+                    other.append((text, col, given, unit))
+                break
+            if not m and text != col and _squeezed(text) == _squeezed(col):
+                found.append((text, col))
+                break
+    out = ""
+    if found:
+        out += (f"; the header has {', '.join(repr(t) for t, _ in found)}: rename "
+                f"{'it' if len(found) == 1 else 'them'} {', '.join(c for _, c in found)}")
+    for text, col, given, unit in other:
+        out += f"; {text!r} is in {given}: {col} is in {'N' if unit == 'n' else unit} (convert it)"
+    return out
+
+
 def missing_columns_problem(frame, columns) -> str | None:
     """"missing column(s) …; required: …" when ``frame`` lacks any of ``columns``, else None;
     a header read as one column is shown, with the separators that are read."""
     missing = [c for c in columns if c not in frame.columns]
     if not missing:
         return None
-    out = f"missing column(s) {', '.join(missing)}; required: {', '.join(columns)}"
+    out = f"missing column(s) {', '.join(missing)}; required: {', '.join(columns)}" + renamed_hint(frame.columns,
+                                                                                                  missing)
     if len(frame.columns) == 1:
         out += (f" (the header is one column, {str(frame.columns[0])[:60]!r}: separate columns by "
                 "commas, semicolons or tabs)")

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from feeler.datasets import SEPARATORS, csv_dialect, read_text, repeated_header_problem
+from feeler.datasets import SEPARATORS, csv_dialect, read_text, renamed_hint, repeated_header_problem
 from feeler.errors import DataFileError
 
 __all__ = ["TRIAL_COLUMNS", "NAFC_COLUMNS", "KEY_COLUMNS", "RESPONSES", "read_trials", "write_trials",
@@ -202,7 +202,8 @@ def _layout(path, header: list[str], lineno: int) -> tuple[str, str]:
     if hint:
         raise DataFileError(path, f"line {lineno}: not a trial table: {hint}")
     raise DataFileError(path, f"line {lineno}: missing column(s) {', '.join(missing)}; required: "
-                              f"{', '.join(KEY_COLUMNS)} and counts or responses")
+                              f"{', '.join(KEY_COLUMNS)} and counts or responses"
+                              + renamed_hint(header, [c for c in missing if " " not in c]))
 
 
 def _refuse_a_doubled_table(path, lines, rows) -> None:

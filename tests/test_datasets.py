@@ -271,3 +271,26 @@ def test_a_binary_file_is_not_read_as_windows_1252_text(tmp_path):
     (tmp_path / "scans.csv").write_bytes(b"\x00\xff\xfe" + ",".join(COLUMNS).encode())
     with pytest.raises(DataFileError, match="not a readable CSV: .*a NUL byte: not a text file"):
         read_scans(tmp_path / "scans.csv")
+
+
+@pytest.mark.parametrize("header, missing, hint", [
+    (["scan", "t [s]", "Uy (mm)"], ["t_s", "uy_mm"], "; the header has 't [s]', 'Uy (mm)': rename them t_s, uy_mm"),
+    (["Scan_ID", "T_S"], ["scan_id", "t_s"], "; the header has 'Scan_ID', 'T_S': rename them scan_id, t_s"),
+    (["speed (mm/sec)"], ["speed_mm_s"], "; the header has 'speed (mm/sec)': rename it speed_mm_s"),
+    (["t [ms]", "uy [um]"], ["t_s", "uy_mm"],
+     "; 't [ms]' is in ms: t_s is in s (convert it); 'uy [um]' is in µm: uy_mm is in mm (convert it)"),
+    (["Fy (mN)"], ["fy_n"], "; 'Fy (mN)' is in mN: fy_n is in N (convert it)"),
+    (["time", "displacement"], ["t_s", "uy_mm"], ""),                  # nothing to guess from
+    (["ty [s]"], ["t_s"], ""),                                         # another name, not a spelling of t
+])
+def test_a_missing_column_written_with_its_unit_is_named(header, missing, hint):
+    from feeler.datasets import renamed_hint
+    assert renamed_hint(header, missing) == hint
+
+
+def test_scans_with_units_in_the_header_say_which_columns_to_rename(tmp_path):
+    header = ["scan_id", "step (mm)", "speed_mm_s", "t [s]", "x_mm", "ux_mm", "Uy (mm)", "uz_mm"]
+    path = write_csv(tmp_path / "scans.csv", good_rows(), header)
+    with pytest.raises(DataFileError, match=r"missing column\(s\) step_mm, t_s, uy_mm; required: .*; the header has "
+                                            r"'step \(mm\)', 't \[s\]', 'Uy \(mm\)': rename them step_mm, t_s, uy_mm"):
+        read_scans(path)

@@ -79,6 +79,10 @@ def test_missing_columns_and_bad_values(fit_dir, scans_frame, tmp_path, capsys):
     assert _run(fit_dir, tmp_path / "no_uy.csv") == 2
     err = capsys.readouterr().err
     assert "missing column(s) uy_mm" in err and "required: scan_id, t_s, uy_mm" in err
+    scans_frame.rename(columns={"t_s": "t [ms]", "uy_mm": "Uy [mm]"}).to_csv(tmp_path / "units.csv", index=False)
+    assert _run(fit_dir, tmp_path / "units.csv") == 2
+    assert ("the header has 'Uy [mm]': rename it uy_mm; 't [ms]' is in ms: t_s is in s (convert it)"
+            in capsys.readouterr().err)
     back = scans_frame.copy()
     back.loc[3, "t_s"] = back.loc[1, "t_s"]
     back.to_csv(tmp_path / "back.csv", index=False)
