@@ -166,6 +166,7 @@ def read_csv_file(path: Path, *, comment: str | None = None):
 
 
 _UNIT = re.compile(r"^(?P<base>.*?)\s*[\[(]\s*(?P<unit>[^\])]*?)\s*[\])]\s*$")     # "t [s]", "Uy (mm)"
+_UNIT_SUFFIX = re.compile(r"^(?P<base>.+?)_(?P<unit>ms|us|um|µm|μm|m|cm|mn|kn|n|s|mm)$", re.IGNORECASE)    # "t_ms"
 _SPELLINGS = {"um": "µm", "μm": "µm", "micron": "µm", "microns": "µm", "sec": "s", "mm/sec": "mm/s"}
 _SUFFIXES = (("_mm_s", "mm/s"), ("_mm", "mm"), ("_um", "µm"), ("_n", "n"), ("_s", "s"))
 
@@ -183,7 +184,7 @@ def renamed_hint(header, missing) -> str:
         base, unit = next(((col[:-len(sfx)], u) for sfx, u in _SUFFIXES if col.endswith(sfx)), (col, ""))
         for name in header:
             text = str(name).strip()
-            m = _UNIT.match(text)
+            m = _UNIT.match(text) or _UNIT_SUFFIX.match(text)
             if m and _squeezed(m["base"]) == _squeezed(base):
                 given = _SPELLINGS.get(m["unit"].lower(), m["unit"])
                 if not unit or given.lower() == unit:
