@@ -46,7 +46,7 @@ _KINDS = (
     ("posterior.nc", None, "a fit", "fits are read by `feeler classify`, `discriminate`, `decode` and `report`"),
     ("scans.csv", ("scan_id", "uy_mm"), "robot scans", "`feeler calibrate neuron` fits them and "
                                                         "`feeler classify FIT` classifies them"),
-    ("calibration.csv", ("point_id", "fx_n"), "a sensor-calibration dataset", "`feeler calibrate sensor` fits it"),
+    ("calibration.csv", ("fx_n", "ux_mm"), "a sensor-calibration dataset", "`feeler calibrate sensor` fits it"),
     ("trials.csv", ("subject", "comparison_um"), "a psychophysics trial table",
      "`feeler fit psychophysics` and `feeler fit finger-route` fit it"),
 )

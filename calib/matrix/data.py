@@ -20,7 +20,7 @@ __all__ = ["CalibrationData", "read_calibration_csv", "DesignWarning", "weak_dir
 AXES = ("x", "y", "z")
 U_COLUMNS = ("ux_mm", "uy_mm", "uz_mm")
 F_COLUMNS = ("fx_n", "fy_n", "fz_n")
-CSV_COLUMNS = ("point_id",) + U_COLUMNS + F_COLUMNS
+CSV_COLUMNS = ("point_id",) + U_COLUMNS + F_COLUMNS     # as feeler writes it; point_id may be left out
 
 
 class DesignWarning(UserWarning):
@@ -34,7 +34,7 @@ class CalibrationData:
     Attributes:
         u_mm (ndarray[n, 3]): commanded tip displacement, mm.
         f_n (ndarray[n, 3]): measured force, N.
-        point_id (ndarray[n]): identifiers of the points.
+        point_id (ndarray[n]): identifiers of the points ("" for a file without them).
     """
     u_mm: np.ndarray
     f_n: np.ndarray
@@ -61,7 +61,7 @@ def read_calibration_csv(path: str | Path) -> CalibrationData:
         from feeler.rundir import what_it_is
         hint = what_it_is(path.parent if path.name == "calibration.csv" else path, expected="calibration.csv")
         raise DataFileError(path, "no such calibration file" + (f"; {hint}" if hint else ""))
-    table = read_csv_columns(path, CSV_COLUMNS)
+    table = read_csv_columns(path, U_COLUMNS + F_COLUMNS)
     values = {}
     for col in U_COLUMNS + F_COLUMNS:
         v = pd.to_numeric(table[col], errors="coerce").to_numpy(dtype=float)
@@ -74,7 +74,8 @@ def read_calibration_csv(path: str | Path) -> CalibrationData:
         raise DataFileError(path, f"{len(table)} points; a 3x3 matrix needs at least 4")
     return CalibrationData(u_mm=np.column_stack([values[c] for c in U_COLUMNS]),
                            f_n=np.column_stack([values[c] for c in F_COLUMNS]),
-                           point_id=table["point_id"].to_numpy())
+                           point_id=(table["point_id"].to_numpy() if "point_id" in table.columns
+                                     else np.full(len(table), "", dtype=object)))
 
 
 def weak_directions(x: np.ndarray, *, what: str, unit: str, rel_tol: float = 1e-6,

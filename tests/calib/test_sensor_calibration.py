@@ -89,3 +89,21 @@ def test_a_decimal_comma_export_reads_as_the_comma_file(tmp_path):
 def test_missing_csv(tmp_path):
     with pytest.raises(DataFileError, match="no such calibration file"):
         read_calibration_csv(tmp_path / "nope.csv")
+
+
+def test_a_file_without_point_ids_reads_and_its_copies_are_still_found(tmp_path):
+    """A lab's force log has no point ids: each row is a measurement; rows copied whole
+    (a file appended to itself) are still named, by their displacements and forces."""
+    from feeler.calib.matrix.checks import repeat_problems
+
+    head = "ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n"
+    rows = [f"0.{k},0.05{k},0,1.{k},2.5,3" for k in range(5)]
+    (tmp_path / "with.csv").write_text("point_id," + head + "\n" + "\n".join(f"{k},{r}" for k, r in enumerate(rows)))
+    (tmp_path / "without.csv").write_text(head + "\n" + "\n".join(rows + rows) + "\n")
+    a, b = read_calibration_csv(tmp_path / "with.csv"), read_calibration_csv(tmp_path / "without.csv")
+    np.testing.assert_array_equal(b.u_mm[:5], a.u_mm)
+    np.testing.assert_array_equal(b.f_n[:5], a.f_n)
+    assert set(b.point_id) == {""}
+    said = repeat_problems(b.point_id, b.u_mm, b.f_n, matrix="K")
+    assert len(said) == 1 and said[0].startswith("K: 5 of 10 rows repeat an earlier row exactly")
+    assert repeat_problems(b.point_id[:5], b.u_mm[:5], b.f_n[:5], matrix="K") == []
