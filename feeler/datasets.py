@@ -171,6 +171,11 @@ _SPELLINGS = {"um": "µm", "μm": "µm", "micron": "µm", "microns": "µm", "sec
 _SUFFIXES = (("_mm_s", "mm/s"), ("_mm", "mm"), ("_um", "µm"), ("_n", "n"), ("_s", "s"))
 
 
+#: other names experiment software gives a column (PsychoPy's "participant")
+_SYNONYMS = {"participant": "subject", "observer": "subject", "subj": "subject", "subjectid": "subject",
+             "participantid": "subject"}
+
+
 def _squeezed(name: str) -> str:
     return name.lower().replace("_", "").replace(" ", "").replace("-", "")
 
@@ -192,7 +197,8 @@ def renamed_hint(header, missing) -> str:
                 else:
                     other.append((text, col, given, unit))
                 break
-            if not m and text != col and _squeezed(text) == _squeezed(col):
+            if not m and text != col and (_squeezed(text) == _squeezed(col)
+                                          or _SYNONYMS.get(_squeezed(text)) == col):
                 found.append((text, col))
                 break
     out = ""

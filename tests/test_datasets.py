@@ -282,6 +282,7 @@ def test_a_binary_file_is_not_read_as_windows_1252_text(tmp_path):
     (["Fy (mN)"], ["fy_n"], "; 'Fy (mN)' is in mN: fy_n is in N (convert it)"),
     (["t_ms", "uy_um", "x_mm"], ["t_s", "uy_mm"],
      "; 't_ms' is in ms: t_s is in s (convert it); 'uy_um' is in µm: uy_mm is in mm (convert it)"),
+    (["participant", "comparison_um"], ["subject"], "; the header has 'participant': rename it subject"),
     (["time", "displacement"], ["t_s", "uy_mm"], ""),                  # nothing to guess from
     (["ty [s]"], ["t_s"], ""),                                         # another name, not a spelling of t
 ])
