@@ -21,7 +21,7 @@ from feeler.errors import DataFileError
 
 __all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_text", "read_csv_file",
            "missing_columns_problem", "renamed_hint", "shared_scan_id_problem", "starts_again", "varying_label_problem",
-           "repeated_header_problem", "read_scans", "scan_files", "one_scan_frame", "strain", "jump_uy_mm",
+           "repeated_header_problem", "read_scans", "scan_files", "scan_file_frames", "strain", "jump_uy_mm",
            "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
 
 COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
@@ -230,8 +230,8 @@ SCAN_FILE_COLUMNS = ("t_s", "uy_mm")
 
 def scan_files(directory: str | Path) -> list[Path]:
     """The CSV files of single scans in ``directory``: every ``*.csv`` whose header holds
-    :data:`SCAN_FILE_COLUMNS`, in natural name order (``scan_2`` before ``scan_10``); the
-    scans get ids 0, 1, … in that order. Empty when there are none (or a ``scans.csv``
+    :data:`SCAN_FILE_COLUMNS`, in natural name order (``scan_2`` before ``scan_10``; ids:
+    :func:`scan_file_frames`). Empty when there are none (or a ``scans.csv``
     or ``samples.csv``, the files of a run directory, is there)."""
     directory = Path(directory)
     if not directory.is_dir() or any((directory / n).exists() for n in ("scans.csv", "samples.csv")):
@@ -248,19 +248,26 @@ def scan_files(directory: str | Path) -> list[Path]:
     return sorted(out, key=lambda f: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", f.name)])
 
 
-def one_scan_frame(path: Path, scan_id: int):
-    """The rows of a file of one scan, with ``scan_id`` (its place among the directory's
-    files); DataFileError when the file holds several scan ids."""
+def scan_file_frames(files: list[Path]) -> list:
+    """The rows of each file of one scan (:func:`scan_files`), each with its ``scan_id``:
+    the file's own when every file holds one and no two share it, else the file's place
+    in name order (0, 1, …). DataFileError naming a file that holds several scan ids."""
     import pandas as pd
 
-    frame = read_csv_file(path)
-    if "scan_id" in frame.columns:
-        ids = pd.to_numeric(frame["scan_id"], errors="coerce").dropna().unique()
+    frames, own = [], []
+    for path in files:
+        frame = read_csv_file(path)
+        ids = (pd.to_numeric(frame["scan_id"], errors="coerce").dropna().unique() if "scan_id" in frame.columns
+               else np.empty(0))
         if ids.size > 1:
             raise DataFileError(path, f"holds {ids.size} scan ids: a directory of scan files takes one scan per "
                                       f"file (move this file out, or join every scan into one scans.csv)")
-    frame["scan_id"] = scan_id
-    return frame
+        frames.append(frame)
+        own.append(ids[0] if ids.size == 1 and float(ids[0]).is_integer() else None)
+    keep = None not in own and len(set(own)) == len(own)
+    for k, frame in enumerate(frames):
+        frame["scan_id"] = int(own[k]) if keep else k
+    return frames
 
 
 def read_scans(path: str | Path) -> Scans:
@@ -278,16 +285,17 @@ def read_scans(path: str | Path) -> Scans:
     path = Path(path)
     files = scan_files(path)
     if files:
-        frames = [one_scan_frame(f, i) for i, f in enumerate(files)]
+        frames = scan_file_frames(files)
         for f, frame in zip(files, frames):
             _scans_of(frame.copy(), f)
-        return _scans_of(pd.concat(frames, ignore_index=True), path, names=[f.name for f in files])
+        return _scans_of(pd.concat(frames, ignore_index=True), path,
+                         names={int(fr["scan_id"].iloc[0]): f.name for f, fr in zip(files, frames) if len(fr)})
     if path.is_dir():
         path = path / "scans.csv"
     return _scans_of(read_csv_file(path), path)
 
 
-def _scans_of(frame, path: Path, names: list[str] | None = None) -> Scans:
+def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
     """:func:`read_scans` of a frame (``path`` names it in errors; ``names``: the file of
     each scan id, for a directory of scan files)."""
     import pandas as pd
@@ -325,7 +333,7 @@ def _scans_of(frame, path: Path, names: list[str] | None = None) -> Scans:
     if lengths.nunique() != 1:
         common = int(lengths.mode().iloc[0])
         odd = lengths[lengths != common]
-        which = f"scan {odd.index[0]}" if names is None else names[int(odd.index[0])]
+        which = f"scan {odd.index[0]}" if names is None else names.get(int(odd.index[0]), f"scan {odd.index[0]}")
         head = (f"{'column scan_id: scans' if names is None else 'scan files'} have unequal lengths "
                 f"{sorted(set(lengths))} ({which} has {int(odd.iloc[0])} samples, {len(lengths) - len(odd)} of "
                 f"{len(lengths)} have {common})")

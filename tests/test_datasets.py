@@ -233,6 +233,17 @@ def test_a_directory_of_scan_files_reads_as_one_file_of_its_scans_in_name_order(
     assert scan_files(tmp_path) == []                              # a run directory (scans.csv) is not one
 
 
+def test_scan_files_keep_their_own_ids_when_they_are_distinct(tmp_path):
+    rows = _rows(3)
+    own = _one_file_per_scan(tmp_path / "own", [[r[0] + 100] + r[1:] for r in rows], drop_id=False)
+    assert read_scans(own).scan_id.tolist() == [100, 101, 102]
+    same = tmp_path / "same"
+    same.mkdir()
+    for name, sid, k in (("a.csv", 0, 0), ("b.csv", 5, 1), ("c.csv", 0, 2)):      # two files say 0
+        write_csv(same / name, [[sid] + r[1:] for r in rows[4 * k:4 * k + 4]])
+    assert read_scans(same).scan_id.tolist() == [0, 1, 2]         # numbered in name order
+
+
 def test_scan_files_are_checked_each_by_its_name(tmp_path):
     rows = _rows(3)
     rows[5][3] = 0.0                                               # scan 1's second time repeats its first

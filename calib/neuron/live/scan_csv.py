@@ -55,13 +55,13 @@ def read_scan_records(path: str | Path) -> list[ScanRecord]:
     """
     import dataclasses
 
-    from feeler.datasets import one_scan_frame, read_csv_file, scan_files
+    from feeler.datasets import read_csv_file, scan_file_frames, scan_files
 
     path = Path(path)
     files = scan_files(path)
     if files:
-        return [dataclasses.replace(records_from_frame(one_scan_frame(f, i), f)[0], file=f.name)
-                for i, f in enumerate(files)]
+        return [dataclasses.replace(records_from_frame(frame, f)[0], file=f.name)
+                for f, frame in zip(files, scan_file_frames(files))]
     if path.is_dir():
         if not (path / "scans.csv").exists() and not (path / "samples.csv").exists():
             raise DataFileError(path, no_scans_problem(path))
