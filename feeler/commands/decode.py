@@ -73,8 +73,9 @@ def run(args) -> int:
         from feeler.calib.neuron.live.scan_csv import read_scan_records
         records = read_scan_records(path)                 # a bad file fails before the fit loads
         if records and records[0].file:
-            print(f"{path}: {len(records)} scan files read as scans 0-{len(records) - 1} in name order "
-                  f"({records[0].file} ... {records[-1].file}); decisions.csv names them by scan_id")
+            print(f"{path}: {len(records)} scan files in name order ({records[0].file} ... {records[-1].file}) "
+                  f"read as scan_id {records[0].scan_id} ... {records[-1].scan_id}; decisions.csv names them by "
+                  f"scan_id")
     decoder = _decoder(args)
     if args.follow:
         _follow(decoder, path, out, args)

@@ -59,6 +59,22 @@ def _writer(run, frame, release, chunks=7):
         release_run_dir(fd)
 
 
+def test_a_directory_of_one_file_per_scan_decodes_as_its_scans_csv(fit_dir, scans_frame, tmp_path, capsys):
+    whole, lab = tmp_path / "whole", tmp_path / "lab"
+    whole.mkdir(), lab.mkdir()
+    scans_frame.to_csv(whole / "scans.csv", index=False)
+    ids = sorted(scans_frame.scan_id.unique())
+    for k, sid in enumerate(ids):
+        scans_frame[scans_frame.scan_id == sid].to_csv(lab / f"touch{k}.csv", index=False)   # each with its own id
+    for run in (whole, lab):
+        assert main(["decode", str(fit_dir), str(run), "--n-draws", "40", "--no-live"]) == 0
+    said = capsys.readouterr().out
+    assert (f"{lab}: {len(ids)} scan files in name order (touch0.csv ... touch{len(ids) - 1}.csv) read as scan_id "
+            f"{ids[0]} ... {ids[-1]}") in said
+    a, b = (pd.read_csv(run / "decisions.csv") for run in (whole, lab))
+    pd.testing.assert_frame_equal(a, b)
+
+
 def test_follow_decodes_a_run_in_progress_like_offline(fit_dir, scans_frame, tmp_path, capsys):
     run = tmp_path / "live"
     run.mkdir()
