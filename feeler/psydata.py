@@ -40,7 +40,7 @@ import numpy as np
 import pandas as pd
 
 from feeler.datasets import SEPARATORS, csv_dialect, read_text, renamed_hint, repeated_header_problem
-from feeler.errors import DataFileError
+from feeler.errors import DataFileError, InputError
 
 __all__ = ["TRIAL_COLUMNS", "NAFC_COLUMNS", "KEY_COLUMNS", "RESPONSES", "read_trials", "write_trials",
            "synthetic_note", "count_column", "MatrixDesign"]
@@ -248,6 +248,8 @@ def read_trials(path: str | Path, *, design: MatrixDesign | None = None, matrix_
         ArgumentError: a ``design`` for a file that has the design columns.
     """
     path = Path(path)
+    if path.is_dir() and not matrix_use:
+        return _read_matrix_directory(path, design)
     try:
         text = read_text(path)             # a byte order mark dropped; UTF-16 and Windows-1252 read too
     except FileNotFoundError:
@@ -319,6 +321,49 @@ def read_trials(path: str | Path, *, design: MatrixDesign | None = None, matrix_
     frame.attrs["comments"] = _comments(text)
     frame.attrs["trial_rows"] = len(rows) - 1 if layout == "trials" else 0
     return frame
+
+
+#: file name endings read as psignifit data matrices in a directory of them
+MATRIX_SUFFIXES = (".csv", ".txt", ".dat", ".tsv")
+
+
+def _read_matrix_directory(directory: Path, design: MatrixDesign | None) -> pd.DataFrame:
+    """A directory of psignifit data matrices, one per subject named after its file (in
+    natural name order), under one ``design``."""
+    import dataclasses
+    import re
+
+    if design is None or design.missing():
+        raise DataFileError(directory, "a directory: fit psychophysics reads a trial table, or a directory of psignifit "
+                                       "data matrices (one per subject, named after its file) with "
+                                       f"{' and '.join(MatrixDesign().missing() if design is None else design.missing())}")
+    if design.subject is not None:
+        from feeler.errors import ArgumentError
+
+        raise ArgumentError("--subject", design.subject, f"one file's subject; in {directory.name}/ each file's "
+                                                         "subject is its name: drop the option")
+    files = sorted((f for f in directory.iterdir() if f.is_file() and f.suffix.lower() in MATRIX_SUFFIXES),
+                   key=lambda f: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", f.name)])
+    if not files:
+        raise DataFileError(directory, f"holds no data matrices (files ending {', '.join(MATRIX_SUFFIXES)})")
+    frames = []
+    for f in files:
+        try:
+            frames.append(read_trials(f, design=dataclasses.replace(design, subject=f.stem)))
+        except InputError as exc:
+            if isinstance(exc, DataFileError):
+                raise
+            raise DataFileError(f, "not a psignifit data matrix (height, n correct or higher, n trials per row), as "
+                                   f"the other files of {directory.name}/ are; move it out") from None
+    subjects = [f.stem for f in files]
+    twice = sorted({s for s in subjects if subjects.count(s) > 1})
+    if twice:
+        raise DataFileError(directory, f"two files name subject {twice[0]!r} (e.g. {twice[0]}.csv and {twice[0]}.txt); "
+                                       "keep one file per subject")
+    out = pd.concat(frames, ignore_index=True)
+    out.attrs["comments"] = [c for fr in frames for c in fr.attrs.get("comments", [])]
+    out.attrs["trial_rows"] = 0
+    return out
 
 
 def _comments(text: str) -> list[str]:

@@ -55,11 +55,13 @@ def _add_psychophysics(sub) -> None:
                              "subject and condition.\n\n"
                              "A psignifit data matrix (height in µm, n correct or higher, n trials per row; header\n"
                              "optional; commas, semicolons, tabs or spaces) is read with the design it lacks:\n"
-                             "--standard-um, --speed-mm-s (and --subject, --comparison-speed-mm-s). psignifit's\n"
-                             "\"equal asymptote\" is the comparison design, its \"2AFC\" --nafc 2.",
+                             "--standard-um, --speed-mm-s (and --subject, --comparison-speed-mm-s); a directory of\n"
+                             "them reads as one subject per file, named after it. psignifit's \"equal asymptote\" is\n"
+                             "the comparison design, its \"2AFC\" --nafc 2.",
                              "feeler simulate datasets-synthetic/psychophysics-2afc.toml --out runs/humans\n"
                              "    feeler fit psychophysics runs/humans/trials.csv --out runs/m4"), formatter_class=argparse.RawDescriptionHelpFormatter)
-    psy.add_argument("data", metavar="DATA.csv", help="trial table (counts or one row per trial)")
+    psy.add_argument("data", metavar="DATA.csv", help="trial table (counts or one row per trial), a psignifit "
+                                                     "data matrix, or a directory of them (one per subject)")
     psy.add_argument("--backend", choices=("exact", "laplace", "nuts"), default="exact",
                      help="exact: the posterior integrated on an adaptive grid (default); laplace: a "
                           "Gaussian approximation (approximate; warns where its bounds disagree with the "

@@ -329,3 +329,33 @@ def test_a_windows_1252_trial_table_reads_with_its_comment(tmp_path):
     path.write_bytes(("# Versuchsperson Jürgen, Stufen in µm\n" + HEADER + "\nJ,10,20,7.6,20,20,4\n").encode("cp1252"))
     df = read_trials(path)
     assert df.attrs["comments"] == ["Versuchsperson Jürgen, Stufen in µm"] and df["n_trials"].tolist() == [20]
+
+
+def test_a_directory_of_matrices_reads_one_subject_per_file(tmp_path):
+    """psignifit users keep a file per subject: each is a subject named after its file, in
+    natural order (s2 before s10), under the one design given."""
+    from feeler.errors import ArgumentError
+    from feeler.psydata import MatrixDesign
+
+    lab = tmp_path / "lab"
+    lab.mkdir()
+    np.savetxt(lab / "s10.txt", MATRIX)
+    (lab / "s2.csv").write_text("# session 2\n" + "\n".join(f"{x:g},{k:g},{n:g}" for x, k, n in MATRIX[:3]) + "\n")
+    (lab / "notes.md").write_text("not data\n")
+    design = MatrixDesign(standard_um=0.0, speed_mm_s=20.0, nafc=True)
+    df = read_trials(lab, design=design)
+    assert df["subject"].drop_duplicates().tolist() == ["s2", "s10"] and len(df) == 3 + len(MATRIX)
+    assert df.attrs["comments"] == ["session 2"]
+    alone = read_trials(lab / "s10.txt", design=design)
+    pd_equal = df[df.subject == "s10"].reset_index(drop=True)
+    assert pd_equal.equals(alone)
+    with pytest.raises(DataFileError, match=r"lab: a directory: .* with --standard-um and --speed-mm-s"):
+        read_trials(lab)
+    with pytest.raises(ArgumentError, match=r"--subject='A': one file's subject; in lab/ each file's subject"):
+        read_trials(lab, design=MatrixDesign(subject="A", standard_um=0.0, speed_mm_s=20.0, nafc=True))
+    _csv(lab, "A,10,20,7.6,20,10,3")                                        # a full table among them: t.csv
+    with pytest.raises(DataFileError, match=r"t.csv: not a psignifit data matrix .* as the other files of lab/ are"):
+        read_trials(lab, design=design)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DataFileError, match="holds no data matrices"):
+        read_trials(tmp_path / "empty", design=design)
