@@ -20,9 +20,9 @@ import numpy as np
 from feeler.errors import DataFileError
 
 __all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_text", "read_csv_file",
-           "missing_columns_problem", "renamed_hint", "shared_scan_id_problem", "starts_again", "varying_label_problem",
-           "repeated_header_problem", "read_scans", "scan_files", "scan_file_frames", "strain", "jump_uy_mm",
-           "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
+           "missing_columns_problem", "renamed_hint", "shared_scan_id_problem", "starts_again",
+           "varying_label_problem", "repeated_header_problem", "read_scans", "scan_files", "scan_file_frames",
+           "natural_key", "strain", "jump_uy_mm", "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
 
 COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
 
@@ -245,7 +245,12 @@ def scan_files(directory: str | Path) -> list[Path]:
         cols = [c.strip() for c in first.strip().split(csv_dialect(first)[0])]
         if all(c in cols for c in SCAN_FILE_COLUMNS):
             out.append(f)
-    return sorted(out, key=lambda f: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", f.name)])
+    return sorted(out, key=lambda f: natural_key(f.name))
+
+
+def natural_key(name: str) -> list:
+    """Sort key of a file name with its numbers as numbers: ``scan_2`` before ``scan_10``."""
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]
 
 
 def scan_file_frames(files: list[Path]) -> list:

@@ -39,7 +39,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from feeler.datasets import SEPARATORS, csv_dialect, read_text, renamed_hint, repeated_header_problem
+from feeler.datasets import (SEPARATORS, csv_dialect, natural_key, read_text, renamed_hint,
+                             repeated_header_problem)
 from feeler.errors import DataFileError, InputError
 
 __all__ = ["TRIAL_COLUMNS", "NAFC_COLUMNS", "KEY_COLUMNS", "RESPONSES", "read_trials", "write_trials",
@@ -331,19 +332,18 @@ def _read_matrix_directory(directory: Path, design: MatrixDesign | None) -> pd.D
     """A directory of psignifit data matrices, one per subject named after its file (in
     natural name order), under one ``design``."""
     import dataclasses
-    import re
 
     if design is None or design.missing():
+        need = " and ".join((design or MatrixDesign()).missing())
         raise DataFileError(directory, "a directory: fit psychophysics reads a trial table, or a directory of psignifit "
-                                       "data matrices (one per subject, named after its file) with "
-                                       f"{' and '.join(MatrixDesign().missing() if design is None else design.missing())}")
+                                       f"data matrices (one per subject, named after its file) with {need}")
     if design.subject is not None:
         from feeler.errors import ArgumentError
 
         raise ArgumentError("--subject", design.subject, f"one file's subject; in {directory.name}/ each file's "
                                                          "subject is its name: drop the option")
     files = sorted((f for f in directory.iterdir() if f.is_file() and f.suffix.lower() in MATRIX_SUFFIXES),
-                   key=lambda f: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", f.name)])
+                   key=lambda f: natural_key(f.name))
     if not files:
         raise DataFileError(directory, f"holds no data matrices (files ending {', '.join(MATRIX_SUFFIXES)})")
     frames = []
