@@ -27,6 +27,9 @@ _PORT_ERRORS = (serial.SerialException, OSError, _TermiosError)
 
 #: granularity of blocking reads, seconds (a read returns as soon as bytes arrive)
 POLL_S = 0.01
+#: more time for a line already begun at its deadline: 80 characters take 7 ms at 115200
+#: baud; a busy host or grbl-sim's pty may hold the rest a little longer
+LINE_GRACE_S = 0.05
 
 _OPEN_PROBLEMS = {
     errno.ENOENT: "does not exist (is the device plugged in? list ports with "
@@ -91,12 +94,15 @@ class Transport:
     def read_line(self, timeout_s: float, what: str = "reply") -> bytes:
         """Return the next line without its ``\\r\\n``, waiting at most ``timeout_s``.
 
+        A line begun before the deadline gets :data:`LINE_GRACE_S` more to end.
+
         Raises:
             StageTimeout: nothing complete before the deadline (``partial`` holds the
                 bytes of an incomplete line, which are discarded).
             StageDisconnected: the port vanished.
         """
         deadline = time.monotonic() + timeout_s
+        graced = False
         while True:
             end = self._buf.find(b"\n")
             if end >= 0:
@@ -104,6 +110,11 @@ class Transport:
                 del self._buf[: end + 1]
                 log.debug("%s -> %r", self.name, line)
                 return line
+            if time.monotonic() >= deadline and self._buf and not graced:
+                # a line already begun ("o" of an "ok" at the deadline) ends within a few byte
+                # times: discarding its start would turn the rest into a damaged line and lose
+                # the reply
+                deadline, graced = time.monotonic() + LINE_GRACE_S, True
             if time.monotonic() >= deadline:
                 partial = bytes(self._buf)
                 self._buf.clear()

@@ -162,3 +162,42 @@ def test_flow_control_never_overfills_the_receive_buffer(lengths, seed):
     assert replies == [Ok()] * len(lengths) and port.acked == len(lengths)
     if len(lengths) >= 2 and sum(n + 1 for n in lengths[:2]) <= RX_BUFFER_BYTES - 1:
         assert port.max_lines >= 2  # it streams, not stop-and-wait
+
+
+class _TimedPort:
+    """A port whose bytes arrive at given times (seconds after it is made), chunk by chunk."""
+
+    def __init__(self, chunks):
+        import time
+        self.clock, self.start, self.chunks = time, time.monotonic(), list(chunks)
+
+    def _arrived(self) -> list:
+        now = self.clock.monotonic() - self.start
+        return [(at, data) for at, data in self.chunks if at <= now]
+
+    @property
+    def in_waiting(self) -> int:
+        return sum(len(data) for _, data in self._arrived())
+
+    def read(self, n: int) -> bytes:
+        self.clock.sleep(0.001)
+        arrived = self._arrived()
+        self.chunks = self.chunks[len(arrived):]
+        return b"".join(data for _, data in arrived)
+
+
+def test_a_reply_begun_at_its_deadline_is_read_whole_and_a_cut_one_still_times_out():
+    """grbl-sim sent "o" before the 0.5 s deadline and "k" just after: the start was dropped,
+    and the streaming test failed on real firmware ("short read b'o'"). A begun line gets
+    LINE_GRACE_S more; a line that never ends still fails, naming its bytes."""
+    from feeler.hardware.stage.transport import LINE_GRACE_S
+
+    port = _TimedPort([(0.05, b"o"), (0.1 + LINE_GRACE_S / 3, b"k\r\n")])
+    assert Transport(port, "timed").read_line(0.1, "reply") == b"ok"
+    port = _TimedPort([(0.05, b"<Idle|MPo")])
+    with pytest.raises(StageTimeout) as info:
+        Transport(port, "timed").read_line(0.1, "reply")
+    assert info.value.partial == b"<Idle|MPo"
+    port = _TimedPort([(0.3, b"ok\r\n")])                             # nothing begun: no grace
+    with pytest.raises(StageTimeout):
+        Transport(port, "timed").read_line(0.1, "reply")
