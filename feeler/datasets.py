@@ -21,8 +21,9 @@ from feeler.errors import DataFileError
 
 __all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_text", "read_csv_file",
            "missing_columns_problem", "renamed_hint", "shared_scan_id_problem", "starts_again",
-           "varying_label_problem", "repeated_header_problem", "read_scans", "scan_files", "scan_file_frames",
-           "natural_key", "strain", "jump_uy_mm", "peak_rate_uy_mm_s", "scan_features", "proportion_correct"]
+           "varying_label_problem", "repeated_header_problem", "read_scans", "scan_files", "header_columns",
+           "scan_file_frames", "natural_key", "strain", "jump_uy_mm", "peak_rate_uy_mm_s", "scan_features",
+           "proportion_correct"]
 
 COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
 
@@ -236,16 +237,17 @@ def scan_files(directory: str | Path) -> list[Path]:
     directory = Path(directory)
     if not directory.is_dir() or any((directory / n).exists() for n in ("scans.csv", "samples.csv")):
         return []
-    out = []
-    for f in directory.glob("*.csv"):
-        try:
-            first = header_line(read_text(f))
-        except (OSError, UnicodeDecodeError):
-            continue
-        cols = [c.strip() for c in first.strip().split(csv_dialect(first)[0])]
-        if all(c in cols for c in SCAN_FILE_COLUMNS):
-            out.append(f)
+    out = [f for f in directory.glob("*.csv") if all(c in header_columns(f) for c in SCAN_FILE_COLUMNS)]
     return sorted(out, key=lambda f: natural_key(f.name))
+
+
+def header_columns(path: Path) -> list[str]:
+    """The column names of a CSV's header line ([] when it cannot be read as text)."""
+    try:
+        first = header_line(read_text(path))
+    except (OSError, UnicodeDecodeError):
+        return []
+    return [c.strip() for c in first.strip().split(csv_dialect(first)[0])] if first.strip() else []
 
 
 def natural_key(name: str) -> list:

@@ -66,11 +66,7 @@ def what_it_is(path: str | Path, *, header: list[str] | None = None, expected: s
         if header is not None and columns and all(c in header for c in columns):
             return f"{path.name} is {what}: {use}"
     if header is None and path.is_file() and path.suffix == ".csv":
-        from feeler.datasets import csv_dialect, header_line, read_text
-        try:
-            first = header_line(read_text(path))
-        except (OSError, UnicodeDecodeError):
-            return ""
-        cols = [c.strip() for c in first.strip().split(csv_dialect(first)[0])]
+        from feeler.datasets import header_columns
+        cols = header_columns(path)
         return what_it_is(path, header=cols, expected=expected) if cols else ""
     return ""
