@@ -46,6 +46,11 @@ def _check_arguments(data: NeuronData, backend: str, noise: str) -> np.ndarray:
     d = np.asarray(data.step_mm, float)
     if d.size < 4 or not np.all(np.isfinite(d)):
         raise ArgumentError("step_mm", f"{d.size} labels", "at least 4 finite labels")
+    if np.unique(d).size == d.size:
+        # no plate has two scans: the decoder noise (a plate's spread) has no degree of freedom at all
+        raise ArgumentError("step_mm", f"one scan on each of {d.size} plates",
+                            "at least 2 scans of a plate (the decoder's noise is the spread of a plate's scans; "
+                            "about 10 per plate pin it down)")
     s = np.asarray(data.strain, float)
     if not np.all(np.isfinite(s)):
         raise ArgumentError("scans", "non-finite displacements", "finite U_y in every sample")
@@ -69,8 +74,8 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
         scene_toml, scene_path: the scene the scans were simulated or acquired from,
             recorded in the posterior for ``discriminate``.
     Raises:
-        ArgumentError: unknown backend or noise model, fewer than 4 labels, labels or
-            scans not finite, scans that never change.
+        ArgumentError: unknown backend or noise model, fewer than 4 labels, one scan on
+            every plate, labels or scans not finite, scans that never change.
     """
     d = _check_arguments(data, backend, noise)
     start = time.perf_counter()

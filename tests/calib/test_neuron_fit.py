@@ -104,6 +104,10 @@ def test_bad_labels_and_scans(plates_data):
     nan = dataclasses.replace(plates_data, step_mm=np.where(plates_data.step_mm > 0.1, np.nan, plates_data.step_mm))
     with pytest.raises(ArgumentError, match="step_mm"):
         fit_neuron(nan)
+    first = np.searchsorted(plates_data.step_mm, np.unique(plates_data.step_mm))       # one scan per plate
+    lone = dataclasses.replace(plates_data, strain=plates_data.strain[first], step_mm=plates_data.step_mm[first])
+    with pytest.raises(ArgumentError, match="one scan on each of 4 plates.*at least 2 scans of a plate"):
+        fit_neuron(lone)
     with pytest.raises(ArgumentError, match="all-zero displacements"):
         fit_neuron(dataclasses.replace(plates_data, strain=np.zeros_like(plates_data.strain)))
     with pytest.raises(ArgumentError, match="non-finite"):
