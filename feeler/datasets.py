@@ -312,6 +312,7 @@ def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
         raise DataFileError(path, problem)
     if len(frame) == 0:
         raise DataFileError(path, "no rows")
+    frame, named = named_scan_ids(frame, path)
     for col in COLUMNS:
         values = pd.to_numeric(frame[col], errors="coerce")
         if values.isna().any():
@@ -329,18 +330,21 @@ def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
     if restart.any():                           # before lengths: shared ids make "unequal lengths" too
         sid = frame["scan_id"].iloc[int(np.flatnonzero(restart)[0])]
         rows = frame["scan_id"] == sid
-        raise DataFileError(path, shared_scan_id_problem(sid, frame.loc[rows, "t_s"].to_numpy(float),
+        raise DataFileError(path, shared_scan_id_problem(scan_id_text(sid, named),
+                                                         frame.loc[rows, "t_s"].to_numpy(float),
                                                          frame.loc[rows, "step_mm"].to_numpy(float)))
     for col in ("step_mm", "speed_mm_s"):               # before lengths too, for the same reason
         varying = groups[col].transform("nunique").to_numpy() > 1
         if varying.any():
             sid = frame["scan_id"].iloc[int(np.flatnonzero(varying)[0])]
-            raise DataFileError(path, varying_label_problem(col, sid, frame.loc[frame["scan_id"] == sid, col]))
+            raise DataFileError(path, varying_label_problem(col, scan_id_text(sid, named),
+                                                            frame.loc[frame["scan_id"] == sid, col]))
     lengths = groups.size()
     if lengths.nunique() != 1:
         common = int(lengths.mode().iloc[0])
         odd = lengths[lengths != common]
-        which = f"scan {odd.index[0]}" if names is None else names.get(int(odd.index[0]), f"scan {odd.index[0]}")
+        which = (f"scan {scan_id_text(odd.index[0], named)}" if names is None
+                 else names.get(int(odd.index[0]), f"scan {odd.index[0]}"))
         head = (f"{'column scan_id: scans' if names is None else 'scan files'} have unequal lengths "
                 f"{sorted(set(lengths))} ({which} has {int(odd.iloc[0])} samples, {len(lengths) - len(odd)} of "
                 f"{len(lengths)} have {common})")
@@ -362,9 +366,39 @@ def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
     t = grid("t_s")
     bad = np.flatnonzero(np.any(np.diff(t, axis=1) <= 0, axis=1))
     if bad.size:
-        raise DataFileError(path, f"column t_s: not strictly increasing within scan_id {ids[bad[0]]}")
+        raise DataFileError(path, f"column t_s: not strictly increasing within scan_id "
+                                  f"{scan_id_text(ids[bad[0]], named)}")
     return Scans(scan_id=ids.astype(int), step_mm=grid("step_mm")[:, 0], speed_mm_s=grid("speed_mm_s")[:, 0],
                  t_s=t, x_mm=grid("x_mm"), ux_mm=grid("ux_mm"), uy_mm=grid("uy_mm"), uz_mm=grid("uz_mm"))
+
+
+def named_scan_ids(frame, path: Path):
+    """Scan ids written as names (``touch-01``, ``S1T3``, or ``2.1`` for touch 1 of plate 2),
+    as lab software often writes them: numbered 0, 1, … in order of first appearance → (the frame with those numbers,
+    ``{number: name}``); numeric ids come back unchanged with None. DataFileError naming
+    the row of a missing id."""
+    import pandas as pd
+
+    col = frame["scan_id"]
+    text = col.astype("string").str.strip()
+    blank = (text.isna() | (text == "")).to_numpy()
+    number = pd.to_numeric(col, errors="coerce").to_numpy(float)[~blank]
+    if np.all(np.isfinite(number) & (number == np.round(number))):
+        return frame, None                          # whole numbers (a blank is reported by the numeric check)
+    if blank.any():
+        raise DataFileError(path, f"column scan_id: missing value at data row {int(np.flatnonzero(blank)[0]) + 1}")
+    codes, names = pd.factorize(text, sort=False)
+    frame = frame.copy()
+    frame["scan_id"] = codes
+    return frame, {k: str(v) for k, v in enumerate(names)}
+
+
+def scan_id_text(scan_id, names: dict | None = None) -> str:
+    """A scan id as the file wrote it: its name (:func:`named_scan_ids`), else the number
+    (text already made is passed through)."""
+    if isinstance(scan_id, str):
+        return scan_id
+    return repr(names[int(scan_id)]) if names and int(scan_id) in names else f"{scan_id:g}"
 
 
 def shared_scan_id_problem(scan_id, t_s, step_mm=None) -> str:
@@ -375,16 +409,16 @@ def shared_scan_id_problem(scan_id, t_s, step_mm=None) -> str:
     steps = np.unique(np.asarray(step_mm, float)) if step_mm is not None else np.empty(0)
     steps = steps[np.isfinite(steps)]
     held = f", with steps {', '.join(f'{v:g}' for v in steps)} mm" if steps.size > 1 else ""
-    return (f"column scan_id: t_s restarts {restarts} time(s) within scan_id {scan_id:g}{held}: about {restarts + 1} "
-            f"scans share this id; give every scan its own scan_id across the file (ids that start again on "
+    return (f"column scan_id: t_s restarts {restarts} time(s) within scan_id {scan_id_text(scan_id)}{held}: "
+            f"about {restarts + 1} scans share this id; give every scan its own scan_id across the file (ids that start again on "
             f"each plate are not unique)")
 
 
 def varying_label_problem(col: str, scan_id, values) -> str:
     """The line for a label column that changes within one scan."""
     seen = ", ".join(f"{v:g}" for v in dict.fromkeys(np.asarray(values, float).tolist()))
-    return (f"column {col}: must be constant within each scan; scan_id {scan_id:g} holds {seen} (if these rows are "
-            f"several scans, give each its own scan_id)")
+    return (f"column {col}: must be constant within each scan; scan_id {scan_id_text(scan_id)} holds {seen} (if "
+            f"these rows are several scans, give each its own scan_id)")
 
 
 def starts_again(t: np.ndarray) -> np.ndarray:

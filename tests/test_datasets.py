@@ -177,6 +177,33 @@ def test_scan_ids_that_start_again_on_each_plate_are_named(tmp_path):
                                    "0, 0.05 (if these rows are several scans, give each its own scan_id)")
 
 
+@pytest.mark.parametrize("names", [["touch-b", "touch-a"], ["1.2", "1.1"]])
+def test_scan_ids_written_as_names_are_numbered_in_order_of_appearance(tmp_path, names):
+    """Lab software names its scans ('touch-01', or '2.1' for plate 2's first touch): both
+    readers number them 0, 1, ... as they first appear (not by sorting), classify's
+    records keep each name, and an error names the scan as the file wrote it."""
+    from feeler.calib.neuron.live.scan_csv import read_scan_records
+
+    rows = [[names[int(r[0])], *r[1:]] for r in good_rows()]
+    path = write_csv(tmp_path / "scans.csv", rows)
+    numbered = read_scans(write_csv(tmp_path / "numbered.csv", good_rows()))
+    scans = read_scans(path)
+    np.testing.assert_array_equal(scans.scan_id, [0, 1])
+    np.testing.assert_array_equal(scans.uy_mm, numbered.uy_mm)
+    np.testing.assert_array_equal(scans.step_mm, numbered.step_mm)
+    records = read_scan_records(path)
+    assert [(r.scan_id, r.name) for r in records] == [(0, names[0]), (1, names[1])]
+    assert [r.name for r in read_scan_records(tmp_path / "numbered.csv")] == [None, None]
+    rows[6][3] = rows[5][3]                                                 # scan 1 repeats a time
+    path = write_csv(tmp_path / "bad.csv", rows)
+    for read in (read_scans, read_scan_records):
+        with pytest.raises(DataFileError, match=f"not strictly increasing within scan_id '{names[1]}'"):
+            read(path)
+    rows = [r if k != 2 else ["", *r[1:]] for k, r in enumerate(rows)]
+    with pytest.raises(DataFileError, match="column scan_id: missing value at data row 3"):
+        read_scans(write_csv(tmp_path / "blank.csv", rows))
+
+
 def test_files_joined_with_their_headers_name_the_repeated_header_line(tmp_path):
     """``cat a.csv b.csv``: every user CSV reader (scans, calibration.csv, trials) names the
     line where the header comes again, instead of a non-numeric value in some column."""

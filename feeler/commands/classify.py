@@ -60,9 +60,9 @@ def run(args) -> int:
     flags = [env.problems(r.t_s, c.p_at_tau[:, k], x_mm=r.x_mm, speed_mm_s=r.speed_mm_s)
              + [f for f in [env.plates(c.plate_sds[k], c.nearest_mm[k], c.height_mm[k])] if f]
              for k, r in enumerate(records)]
-    unit_mistake(path, [r.scan_id for r in records], flags)
+    unit_mistake(path, [r.scan_id if r.name is None else repr(r.name) for r in records], flags)
     labels = {"step_mm": [np.nan if r.step_mm is None else r.step_mm for r in records]}
-    table = pd.DataFrame({"scan_id": [r.scan_id for r in records],
+    table = pd.DataFrame({"scan_id": [r.scan_id if r.name is None else r.name for r in records],
                           **({"file": [r.file for r in records]} if any(r.file for r in records) else {}),
                           **(labels if any(r.step_mm is not None for r in records) else {}),
                           "plate_mm": c.plate_mm, **{plate_column(v): c.prob[:, i] for i, v in enumerate(c.plates_mm)},

@@ -76,6 +76,10 @@ def run(args) -> int:
             print(f"{path}: {len(records)} scan files in name order ({records[0].file} ... {records[-1].file}) "
                   f"read as scan_id {records[0].scan_id} ... {records[-1].scan_id}; decisions.csv names them by "
                   f"scan_id")
+        elif records and records[0].name is not None:
+            print(f"{path}: scan ids are names ({records[0].name} ... {records[-1].name}), read as scan_id "
+                  f"{records[0].scan_id} ... {records[-1].scan_id} in order of appearance; decisions.csv names "
+                  f"them by that number")
     decoder = _decoder(args)
     if args.follow:
         _follow(decoder, path, out, args)

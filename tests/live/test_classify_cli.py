@@ -142,6 +142,23 @@ def test_a_directory_of_one_file_per_scan_classifies_naming_each_file(fit_dir, s
     np.testing.assert_allclose(b[p_cols].to_numpy(), a[p_cols].to_numpy(), rtol=1e-12)
 
 
+def test_scans_named_by_the_lab_keep_their_names(fit_dir, scans_frame, tmp_path, capsys):
+    """scan_id 'S1-T01' ... (names, not numbers): classified as the numbered file, each row
+    under the file's own name (it was 'column scan_id: missing or non-numeric value')."""
+    import pandas as pd
+
+    named = scans_frame.assign(scan_id=[f"S1-T{int(v):02d}" for v in scans_frame.scan_id])
+    named.to_csv(tmp_path / "named.csv", index=False)
+    scans_frame.to_csv(tmp_path / "all.csv", index=False)
+    assert _run(fit_dir, tmp_path / "all.csv", "--out", str(tmp_path / "a")) == 0
+    assert _run(fit_dir, tmp_path / "named.csv", "--out", str(tmp_path / "b")) == 0
+    assert "classified as their labelled plate" in capsys.readouterr().out
+    a, b = (pd.read_csv(tmp_path / d / "classification.csv") for d in ("a", "b"))
+    assert b.scan_id.tolist() == [f"S1-T{int(v):02d}" for v in a.scan_id]
+    cols = [c for c in a.columns if c.startswith("p_")] + ["height_mm", "lo90_mm", "hi90_mm", "step_mm"]
+    np.testing.assert_allclose(b[cols].to_numpy(), a[cols].to_numpy(), rtol=1e-12)
+
+
 def test_long_work_says_how_far_it_is_and_no_progress_silences_it(fit_dir, scans_frame, tmp_path, capsys,
                                                                     monkeypatch):
     """Off a terminal: a line per stage and, over several blocks of scans, a line per block

@@ -36,6 +36,8 @@ class ScanRecord:
         x_mm (ndarray[n] | None): stage position, mm.
         step_mm, speed_mm_s (float | None): labels (plate step, mm; commanded speed, mm/s).
         file (str | None): the file it came from, in a directory of one file per scan.
+        name (str | None): the id as the file wrote it when ids are names (``touch-01``);
+            ``scan_id`` then numbers the scans in order of first appearance.
     """
     scan_id: int
     t_s: np.ndarray
@@ -44,6 +46,7 @@ class ScanRecord:
     step_mm: float | None = None
     speed_mm_s: float | None = None
     file: str | None = None
+    name: str | None = None
 
 
 def read_scan_records(path: str | Path) -> list[ScanRecord]:
@@ -82,7 +85,8 @@ def records_from_frame(frame, path) -> list[ScanRecord]:
     """:class:`ScanRecord` s of a long-format frame (``path`` names it in errors)."""
     import pandas as pd
 
-    from feeler.datasets import shared_scan_id_problem, starts_again, varying_label_problem
+    from feeler.datasets import (named_scan_ids, scan_id_text, shared_scan_id_problem, starts_again,
+                                 varying_label_problem)
 
     missing = [c for c in REQUIRED if c not in frame.columns]
     if missing:
@@ -94,7 +98,7 @@ def records_from_frame(frame, path) -> list[ScanRecord]:
     if len(frame) == 0:
         raise DataFileError(path, "no rows")
     cols = [c for c in REQUIRED + OPTIONAL + ("attempt",) if c in frame.columns]
-    frame = frame[cols].copy()
+    frame, names = named_scan_ids(frame[cols].copy(), path)
     for col in cols:
         values = pd.to_numeric(frame[col], errors="coerce")
         if values.isna().any() and (col in REQUIRED or col == "x_mm"):
@@ -108,9 +112,10 @@ def records_from_frame(frame, path) -> list[ScanRecord]:
     for sid, g in frame.groupby("scan_id", sort=False):
         t = g["t_s"].to_numpy(float)
         if np.any(starts_again(t)):
-            raise DataFileError(path, shared_scan_id_problem(sid, t, g["step_mm"] if "step_mm" in g.columns else None))
+            raise DataFileError(path, shared_scan_id_problem(scan_id_text(sid, names), t,
+                                                             g["step_mm"] if "step_mm" in g.columns else None))
         if np.any(np.diff(t) <= 0):
-            raise DataFileError(path, f"column t_s: not strictly increasing within scan_id {sid:g}")
+            raise DataFileError(path, f"column t_s: not strictly increasing within scan_id {scan_id_text(sid, names)}")
         labels = {}
         for col in ("step_mm", "speed_mm_s"):
             if col in g.columns:
@@ -118,8 +123,9 @@ def records_from_frame(frame, path) -> list[ScanRecord]:
                 if np.isnan(v).all():
                     continue
                 if np.any(v != v[0]):
-                    raise DataFileError(path, varying_label_problem(col, sid, v))
+                    raise DataFileError(path, varying_label_problem(col, scan_id_text(sid, names), v))
                 labels[col] = float(v[0])
         out.append(ScanRecord(scan_id=int(sid), t_s=t, uy_mm=g["uy_mm"].to_numpy(float),
-                              x_mm=g["x_mm"].to_numpy(float) if "x_mm" in g.columns else None, **labels))
+                              x_mm=g["x_mm"].to_numpy(float) if "x_mm" in g.columns else None,
+                              name=names[int(sid)] if names else None, **labels))
     return out
