@@ -67,8 +67,10 @@ def read_calibration_csv(path: str | Path) -> CalibrationData:
         v = pd.to_numeric(table[col], errors="coerce").to_numpy(dtype=float)
         bad = np.flatnonzero(~np.isfinite(v))
         if bad.size:
-            raise DataFileError(path, f"column {col}, row {bad[0] + 1}: {table[col].iloc[bad[0]]!r} "
-                                      f"is not a finite number")
+            cell = table[col].iloc[bad[0]]
+            shown = (repr(cell.strip()) if isinstance(cell, str) else "an empty cell" if pd.isna(cell)
+                     else f"{float(cell):g}")                 # never numpy's repr ('np.float64(nan)')
+            raise DataFileError(path, f"column {col}, row {bad[0] + 1}: {shown} is not a finite number")
         values[col] = v
     if len(table) < 4:
         raise DataFileError(path, f"{len(table)} points; a 3x3 matrix needs at least 4")
