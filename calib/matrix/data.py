@@ -50,7 +50,8 @@ def read_calibration_csv(path: str | Path) -> CalibrationData:
 
     Raises:
         DataFileError: missing file, unreadable CSV, missing columns, non-numeric or
-            non-finite values, or fewer than 4 points (one line naming the file).
+            non-finite values, fewer than 4 points, or forces that are all 0 (one line
+            naming the file).
     """
     import pandas as pd
 
@@ -74,6 +75,11 @@ def read_calibration_csv(path: str | Path) -> CalibrationData:
         values[col] = v
     if len(table) < 4:
         raise DataFileError(path, f"{len(table)} points; a 3x3 matrix needs at least 4")
+    if not any(np.any(values[c]) for c in F_COLUMNS):
+        # no response at all: every matrix would be 0 and the noise's posterior collapses onto 0
+        raise DataFileError(path, f"columns {', '.join(F_COLUMNS)} are 0 in every row: the force gauge read "
+                                  f"nothing (unplugged, or its readings not written into the file); a calibration "
+                                  f"needs the measured forces")
     return CalibrationData(u_mm=np.column_stack([values[c] for c in U_COLUMNS]),
                            f_n=np.column_stack([values[c] for c in F_COLUMNS]),
                            point_id=(table["point_id"].to_numpy() if "point_id" in table.columns
