@@ -38,6 +38,18 @@ def _significant_decimals(row, digits: int = 5) -> int:
     return digits - 1 - math.floor(math.log10(top)) if top > 0 and math.isfinite(top) else digits
 
 
+def _estimate_columns(row) -> tuple[str, str, str]:
+    """Mean and interval of a summary row, 5 significant digits in fixed point; beyond
+    10 decimals or 10 integer digits (a parameter in the wrong units, 1e-9 or 1e12) with
+    one shared exponent instead of a hundred zeros."""
+    d = _significant_decimals(row)
+    vals = (float(row["mean"]), float(row["eti95_lb"]), float(row["eti95_ub"]))
+    if -6 <= d <= 10:
+        return round_inside(*vals, d)
+    e = 4 - d                                       # the largest value's exponent
+    return tuple(f"{v}e{e:+d}" for v in round_inside(*(v / 10.0 ** e for v in vals), 4))
+
+
 def add_fit_arguments(parser, *, draws: int | None = 1000, tune: int | None = 1000) -> None:
     """--out, --force, --seed, --chains, --draws, --tune, --progress/--no-progress.
 
@@ -65,8 +77,7 @@ def print_summary(result, *, skip_prefixes: tuple[str, ...] = ()) -> None:
     cols = ["name", "mean", "sd", "eti95_lb", "eti95_ub", "r_hat", "ess_bulk", "ess_tail"]
     shown = table[cols].astype(object).copy()
     for i, row in table[cols].iterrows():          # mean, interval: same rounding, mean inside
-        shown.loc[i, ["mean", "eti95_lb", "eti95_ub"]] = round_inside(row["mean"], row["eti95_lb"], row["eti95_ub"],
-                                                                      _significant_decimals(row))
+        shown.loc[i, ["mean", "eti95_lb", "eti95_ub"]] = _estimate_columns(row)
         shown.loc[i, "sd"] = f"{row['sd']:.3g}"
         shown.loc[i, ["r_hat", "ess_bulk", "ess_tail"]] = (f"{row['r_hat']:.4f}", f"{row['ess_bulk']:.0f}",
                                                            f"{row['ess_tail']:.0f}")

@@ -89,6 +89,13 @@ def test_printed_means_never_lie_outside_their_printed_intervals(capsys):
     print_summary(FitResult(posterior=None, summary=pd.DataFrame([row]), verdict=Verdict(True)))
     line = [s for s in capsys.readouterr().out.splitlines() if s.strip().startswith("pc")][0].split()
     assert float(line[3]) <= float(line[1]) <= float(line[4])          # name mean sd lb ub ...
+    tiny = row | {"name": "s", "mean": 3.2e-154, "eti95_lb": 1.1e-154, "eti95_ub": 5.01e-154}
+    huge = row | {"name": "k", "mean": -2.5e12, "eti95_lb": -3e12, "eti95_ub": -2e12}
+    print_summary(FitResult(posterior=None, summary=pd.DataFrame([tiny, huge]), verdict=Verdict(True)))
+    out = capsys.readouterr().out
+    assert "s 3.2000e-154 0.001 1.1000e-154 5.0100e-154" in " ".join(out.split())
+    assert "k -2.5000e+12 0.001 -3.0000e+12 -2.0000e+12" in " ".join(out.split())
+    assert max(len(x) for x in out.split()) < 20
 
 
 def test_validate_sbc_neuron(tmp_path, capsys):
