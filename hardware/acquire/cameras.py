@@ -65,6 +65,11 @@ class CaptureCamera:
         self.is_device = str(src).isdigit()
         self._cap = open_source(int(src) if self.is_device else src)
         self._previous, self.n_read = None, 0
+        from feeler.hardware.camera.source import lossy_codec, lossy_warning
+
+        self.codec = lossy_codec(int(src) if self.is_device else src, self._cap)   # e.g. a webcam's MJPG stream
+        if self.codec is not None:
+            lossy_warning(self.name, self.codec)
         if not self.is_device:
             self._check_size()
 
@@ -105,7 +110,7 @@ class CaptureCamera:
         if shape != self.size:
             return Grab(now, None, f"size {shape[0]}×{shape[1]} px instead of {self.size[0]}×{self.size[1]} px")
         frozen, self._previous = _frozen_tile(gray, self._previous), gray
-        if frozen is not None:
+        if frozen is not None and self.codec is None:
             return Grab(now, None, f"tile at column {frozen[0]}, row {frozen[1]} identical to the previous "
                         "frame (decoder concealment or a stuck camera)")
         return Grab(now, gray)

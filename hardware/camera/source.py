@@ -12,6 +12,13 @@ A live sensor's frames always carry shot noise, so a 16×16 tile that is bit-ide
 the previous frame's and not uniform (clipped black tiles are legitimately equal) marks
 the frame as bad. Pass ``reject_frozen=False`` for noise-free synthetic video.
 
+The check needs a source that stores every pixel: lossless video (FFV1, HuffYUV, PNG in
+AVI, raw pixel formats) or PNG/TIFF/BMP images. A lossy encoder (MPEG-4, XviD, H.264,
+Motion JPEG, JPEG files) rounds the shot noise of an unchanged region away and repeats its
+tiles exactly on purpose: 38 of 40 frames of a noisy sensor recording in mp4v, XVID or
+MJPG were rejected as frozen. Such a source is read with the check off, and a
+:class:`LossyVideoWarning` says so once (its areas also carry the compression error).
+
 Image sequences (a printf pattern such as ``frames/%05d.png``) are read file by file with
 ``cv2.imread`` rather than through OpenCV's image-sequence backend, because that backend
 stops silently at the first unreadable file and loses every frame after it.
@@ -23,17 +30,54 @@ import re
 from collections.abc import Iterator
 from pathlib import Path
 
+import warnings
+
 import cv2
 import numpy as np
 
 from feeler.errors import ArgumentError, DataFileError
 
-__all__ = ["open_source", "FrameReader", "write_video"]
+__all__ = ["open_source", "FrameReader", "write_video", "lossy_codec", "LossyVideoWarning"]
 
 log = logging.getLogger(__name__)
 
 _PATTERN = re.compile(r"%0?\d*d")
 _TILE_PX = 16
+
+
+#: video codecs and camera pixel formats that keep every pixel (FourCC, as OpenCV reports it)
+LOSSLESS_FOURCC = frozenset({"FFV1", "FFVH", "HFYU", "MPNG", "PNG ", "png ", "ZLIB", "LAGS", "Y800", "GREY",
+                             "Y8  ", "Y16 ", "YUYV", "YUY2", "UYVY", "I420", "IYUV", "YV12", "NV12", "RGB ",
+                             "BGR ", "RGB3", "BGR3", "RGBA", "BGRA", "RAW ", "DIB "})
+LOSSLESS_IMAGES = frozenset({".png", ".tif", ".tiff", ".bmp", ".pgm", ".ppm", ".pnm"})
+
+
+class LossyVideoWarning(UserWarning):
+    """A source in a lossy codec: the frozen-tile check is off, areas carry its error."""
+
+
+def lossy_codec(src, cap: cv2.VideoCapture | None = None) -> str | None:
+    """The name of the lossy codec of a source (``"mp4v"``, ``"MJPG"``, ``"JPEG images"``),
+    or None when it stores every pixel (or says nothing: a FourCC of 0 is raw video)."""
+    text = str(src)
+    if not _is_device(src) and _PATTERN.search(text):
+        suffix = Path(text).suffix.lower()
+        return None if suffix in LOSSLESS_IMAGES else f"{suffix.lstrip('.').upper() or 'unknown'} images"
+    if cap is None:
+        return None
+    code = int(cap.get(cv2.CAP_PROP_FOURCC)) & 0xFFFFFFFF
+    if code == 0:
+        return None
+    name = "".join(chr((code >> 8 * k) & 0xFF) for k in range(4))
+    return None if name in LOSSLESS_FOURCC or name.upper() in LOSSLESS_FOURCC else name.strip("\x00 ") or None
+
+
+def lossy_warning(name: str, codec: str) -> None:
+    """The one line a user sees for a lossy source (``warnings``: the CLI prints it once)."""
+    warnings.warn(f"{name}: recorded in a lossy codec ({codec}): the check for frozen tiles is off (a lossy "
+                  f"encoder repeats unchanged tiles exactly), and the contact areas carry the compression error; "
+                  f"record in a lossless codec (FFV1, HuffYUV) or PNG images for the sensor's own accuracy",
+                  LossyVideoWarning, stacklevel=3)
 
 
 def _is_device(src) -> bool:
@@ -74,7 +118,11 @@ class FrameReader:
         src: device index, video file or image-sequence pattern.
         size (tuple[int, int] | None): expected (width_px, height_px); a first frame of
             another size raises :class:`DataFileError` naming the source.
-        reject_frozen (bool): reject frames with a tile frozen from the previous frame.
+        reject_frozen (bool): reject frames with a tile frozen from the previous frame
+            (lossless sources only: off, with a :class:`LossyVideoWarning`, for a lossy one).
+
+    Attributes:
+        codec (str | None): the source's lossy codec, None when it keeps every pixel.
 
     Attributes after iteration:
         n_frames (int): frames attempted (good + bad, including missing ones).
@@ -95,6 +143,11 @@ class FrameReader:
         else:
             self._files = None
             self._cap = open_source(src)
+        self.codec = lossy_codec(src, self._cap)
+        if self.codec is not None:
+            self.reject_frozen = False
+            if reject_frozen:
+                lossy_warning(self.name, self.codec)
 
     def mark_bad(self, index: int, reason: str) -> None:
         """Record a bad frame (also used by later stages that reject a frame's content)."""

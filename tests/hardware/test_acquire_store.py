@@ -122,6 +122,16 @@ def test_capture_camera_counts_bad_frames_and_names_a_short_video(tmp_path):
         CaptureCamera(str(path), (32, 48))
     with pytest.raises(DataFileError, match="camera 57: no camera device"):
         CaptureCamera("57", (64, 48))
+    import cv2
+
+    from feeler.hardware.camera.source import LossyVideoWarning
+    mjpg = cv2.VideoWriter(str(tmp_path / "webcam.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (64, 48), isColor=False)
+    for frame in frames:                                      # a webcam's Motion JPEG: repeated tiles are normal
+        mjpg.write(frame)
+    mjpg.release()
+    with pytest.warns(LossyVideoWarning, match=r"webcam\.avi: recorded in a lossy codec \(MJPG\)"):
+        cam = CaptureCamera(str(tmp_path / "webcam.avi"), (64, 48))
+    assert [cam.grab(None).problem for _ in range(3)] == [None, None, None]
     with pytest.raises(DataFileError, match="no such video file"):
         CaptureCamera(str(tmp_path / "none.avi"), (64, 48))
 

@@ -1,6 +1,7 @@
 """The camera reading chain: sources, area extraction accuracy, bad frames, bad input."""
 import logging
 import os
+import warnings
 from pathlib import Path
 
 import cv2
@@ -9,6 +10,7 @@ import pytest
 
 from feeler.errors import ArgumentError, DataFileError
 from feeler.hardware.camera import AreaExtractor, FrameReader, open_source, read_source, write_video
+from feeler.hardware.camera.source import LossyVideoWarning, lossy_codec
 from feeler.models.optics import CameraParams, OpticsParams, load_layout, render_frames
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -115,6 +117,53 @@ def test_frozen_tiles(tmp_path, rendered):
     black = str(tmp_path / "black" / "%05d.png")
     write_video(np.zeros((3, 32, 48), np.uint8), black)  # uniform tiles may repeat
     assert [i for i, _ in FrameReader(black)] == [0, 1, 2]
+
+
+def _encode(frames, path, fourcc):
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*fourcc), 10.0, frames.shape[2:0:-1], isColor=False)
+    assert writer.isOpened(), fourcc
+    for frame in frames:
+        writer.write(frame)
+    writer.release()
+    return path
+
+
+@pytest.fixture(scope="module")
+def still_scan():
+    """A scan as a camera sees it: 4 elements pressed slowly, 12 unchanged, shot noise on all."""
+    rng = np.random.default_rng(5)
+    areas = np.repeat(rng.uniform(200.0, 800.0, (1, 16, 4)), 12, axis=0)
+    areas[:, :4] += np.linspace(0.0, 150.0, 12)[:, None, None]
+    return areas, render_frames(areas, LAYOUT, CAM, rng)
+
+
+@pytest.mark.parametrize("fourcc, suffix", [("mp4v", ".mp4"), ("MJPG", ".avi"), ("XVID", ".avi")])
+def test_a_lossy_video_is_read_whole_with_one_warning(tmp_path, still_scan, fourcc, suffix):
+    """A lossy encoder repeats the unchanged elements' tiles exactly: 10-11 of these 12 frames
+    were rejected as frozen ('decoder concealment or a stuck camera'). A lossy source is
+    read with that check off and says so in one warning; FFV1 keeps the check."""
+    areas, frames = still_scan
+    path = _encode(frames, tmp_path / f"scan{suffix}", fourcc)
+    with pytest.warns(LossyVideoWarning, match=r"scan\.\w+: recorded in a lossy codec \(\w+\)") as seen:
+        reading = read_source(path, LAYOUT, P)
+    assert len(seen) == 1 and reading.bad == () and reading.n_frames == 12
+    assert np.abs(reading.areas_px2 / areas - 1).max() < 0.05       # the frames' content, with its compression error
+    with pytest.warns(LossyVideoWarning):
+        assert [i for i, _ in FrameReader(path)] == list(range(12))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        lossless = FrameReader(write_video(np.stack([frames[0], frames[0], frames[1]]), tmp_path / "ffv1.avi"))
+        assert lossless.codec is None and [i for i, _ in lossless] == [0, 2]
+
+
+def test_jpeg_images_are_lossy_png_images_are_not(tmp_path, still_scan):
+    frames = still_scan[1][:3]
+    jpeg, png = str(tmp_path / "j" / "%03d.jpg"), str(tmp_path / "p" / "%03d.png")
+    write_video(frames, jpeg)
+    write_video(frames, png)
+    with pytest.warns(LossyVideoWarning, match="JPG images"):
+        assert FrameReader(jpeg).codec == "JPG images"
+    assert lossy_codec(png) is None
 
 
 def test_source_errors_name_the_source(tmp_path):
