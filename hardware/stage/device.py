@@ -22,10 +22,11 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 import time
 
 from feeler.errors import ArgumentError
-from feeler.hardware.stage.errors import ProtocolError, StageError, StageLocked, StageTimeout
+from feeler.hardware.stage.errors import PortError, ProtocolError, StageError, StageLocked, StageTimeout
 from feeler.hardware.stage.limits import AXES, StageGeometry, StageLimits
 from feeler.hardware.stage.planner import homing_s, move_duration_s
 from feeler.hardware.stage.protocol import GrblProtocol, damage_of
@@ -83,7 +84,7 @@ class Stage(StageTracking):
         transport = Transport.open(port, baudrate=baudrate, exclusive=exclusive)
         try:
             protocol = GrblProtocol(transport, reply_timeout_s=reply_timeout_s, slack=slack)
-            protocol.soft_reset()
+            _check_version(port, protocol.soft_reset().version)
             settings = protocol.settings()
             try:
                 options = protocol.build_info().get("OPT", "").split(",")
@@ -275,3 +276,14 @@ class Stage(StageTracking):
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _check_version(port: str, version: str) -> None:
+    """PortError for a board older than Grbl 1.1, whose replies this driver cannot read
+    (0.9 answers ``$$`` with ``$0=10 (step pulse, usec)``, errors in words, and status as
+    ``<Idle,MPos:...,WPos:...>``): said before anything is sent, instead of "malformed reply"."""
+    match = re.match(r"(\d+)\.(\d+)", version)
+    if match and (int(match.group(1)), int(match.group(2))) < (1, 1):
+        raise PortError(port, f"the board runs Grbl {version}, and feeler speaks Grbl 1.1 (its status reports, "
+                              f"error codes and settings replies changed in 1.1): flash Grbl 1.1h "
+                              f"(github.com/gnea/grbl) onto the board")

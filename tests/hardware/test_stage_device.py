@@ -237,3 +237,19 @@ def test_vanished_port_is_disconnected():
             stage.position_mm()
         emu.process.join(5.0)
         assert not emu.alive()
+
+
+def test_a_board_older_than_grbl_1_1_is_named_before_anything_is_sent():
+    """Grbl 0.9 answers $$ with '$0=10 (step pulse, usec)' and reports '<Idle,MPos:...,WPos:...>':
+    the driver stopped at 'malformed reply: b'$0=10 (step pulse, usec)''. Its banner now
+    names the version and what to do (the emulator serves 1.1 replies under a 0.9j banner)."""
+    from feeler.hardware.stage import PortError
+    from feeler.hardware.stage.device import _check_version
+
+    with emulator_process(GrblConfig(version="0.9j")) as old:
+        with pytest.raises(PortError, match=r"runs Grbl 0\.9j, and feeler speaks Grbl 1\.1 .* flash Grbl 1\.1h"):
+            open_stage(old.path)
+    for version in ("1.1h", "1.1f", "1.2", "2.0a", "custom"):
+        _check_version("p", version)
+    with pytest.raises(PortError, match="Grbl 0.8c"):
+        _check_version("p", "0.8c")
