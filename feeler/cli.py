@@ -13,6 +13,7 @@ import logging
 import pkgutil
 import sys
 import warnings
+from pathlib import Path
 
 from feeler.errors import ArgumentError, FeelerError, InputError
 
@@ -111,6 +112,13 @@ def _quiet_third_parties(verbose: int) -> None:
             logging.getLogger(name).setLevel(logging.ERROR)
 
 
+def _run_started(args) -> bool:
+    """A command that takes --resume has written its run directory (its journal): a failure
+    that came before (a port that is no Grbl board, a bad plan) has no run to resume."""
+    out = getattr(args, "out", None)
+    return getattr(args, "resume", None) is not None and bool(out) and (Path(out) / "journal.jsonl").is_file()
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -132,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except FeelerError as exc:
         resume = "; the run so far is kept: run the same command with --resume to continue" \
-            if getattr(args, "resume", None) is not None and "--resume" not in str(exc) else ""
+            if _run_started(args) and "--resume" not in str(exc) else ""
         print(f"feeler: failed: {exc}{resume}", file=sys.stderr)
         return 1
     except (FileExistsError, IsADirectoryError, NotADirectoryError, PermissionError, FileNotFoundError) as exc:
@@ -140,8 +148,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"feeler: error: {where}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        resume = " (run the same command with --resume to continue)" if getattr(args, "resume", None) is not None \
-            else ""
+        resume = " (run the same command with --resume to continue)" if _run_started(args) else ""
         print(f"feeler: interrupted{resume}", file=sys.stderr)
         return 130
     finally:

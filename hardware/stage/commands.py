@@ -45,12 +45,14 @@ class GrblCommands:
         self.transport.write(b"\x18")
         self.in_flight.clear()
         deadline = time.monotonic() + timeout_s
+        self.unparsed = None
         while True:
             line = self.transport.read_line(max(deadline - time.monotonic(), 0.001), "banner after reset")
             try:
                 reply = parse_reply(line) if line else None
             except ProtocolError as exc:
                 log.debug("%s: ignoring %s while resetting", self.transport.name, exc)
+                self.unparsed = line                # named if no banner ever comes (not a Grbl board?)
                 continue
             if isinstance(reply, Alarm):
                 self.last_alarm = reply.code

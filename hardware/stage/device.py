@@ -84,7 +84,11 @@ class Stage(StageTracking):
         transport = Transport.open(port, baudrate=baudrate, exclusive=exclusive)
         try:
             protocol = GrblProtocol(transport, reply_timeout_s=reply_timeout_s, slack=slack)
-            _check_version(port, protocol.soft_reset().version)
+            try:
+                banner = protocol.soft_reset()
+            except StageTimeout as exc:
+                raise PortError(port, _no_banner(exc, protocol.unparsed, baudrate)) from None
+            _check_version(port, banner.version)
             settings = protocol.settings()
             try:
                 options = protocol.build_info().get("OPT", "").split(",")
@@ -287,3 +291,19 @@ def _check_version(port: str, version: str) -> None:
         raise PortError(port, f"the board runs Grbl {version}, and feeler speaks Grbl 1.1 (its status reports, "
                               f"error codes and settings replies changed in 1.1): flash Grbl 1.1h "
                               f"(github.com/gnea/grbl) onto the board")
+
+
+def _no_banner(exc: StageTimeout, unparsed: bytes | None, baudrate: int) -> str:
+    """What a port that never sent Grbl's banner after a reset most likely is."""
+    from feeler.hardware.stage.errors import shown_bytes
+
+    heard = exc.partial or unparsed or b""
+    text = heard.decode("ascii", "replace")
+    if not heard:
+        guess = "nothing came back: is this the board's port, and is the board powered?"
+    elif sum(ch.isprintable() or ch in "\r\n" for ch in text) < 0.8 * len(text):
+        guess = (f"bytes that are not text came back ({shown_bytes(heard)}): the board talks at another baud "
+                 f"rate than {baudrate}" + ("" if baudrate == 115200 else " (Grbl 1.1's is 115200)") + "?")
+    else:
+        guess = f"it answered {shown_bytes(heard)}, not Grbl's banner: is this a Grbl 1.1 board?"
+    return f"no Grbl banner within {exc.timeout_s:.3g} s of a reset (Ctrl-X); {guess}"

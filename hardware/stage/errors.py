@@ -96,8 +96,14 @@ class StageTimeout(StageError):
 
     def __init__(self, what: str, timeout_s: float, partial: bytes = b""):
         self.what, self.timeout_s, self.partial = what, float(timeout_s), bytes(partial)
-        tail = f"; short read {self.partial!r} (no line end)" if self.partial else ""
-        super().__init__(f"no {what} within {self.timeout_s:g} s{tail}")
+        tail = f"; short read {shown_bytes(self.partial)} (no line end)" if self.partial else ""
+        super().__init__(f"no {what} within {self.timeout_s:.3g} s{tail}")
+
+
+def shown_bytes(data: bytes, most: int = 40) -> str:
+    """``data`` as Python writes bytes, its first ``most`` only (with the count beyond)."""
+    data = bytes(data)
+    return repr(data) if len(data) <= most else f"{data[:most]!r}... ({len(data)} bytes)"
 
 
 class StageAlarm(StageError):

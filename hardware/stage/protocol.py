@@ -94,6 +94,7 @@ class GrblProtocol(GrblCommands):
         self.in_flight: deque[Sent] = deque()
         self.messages: deque[Message] = deque(maxlen=64)
         self.last_alarm: int | None = None
+        self.unparsed: bytes | None = None     # the last line during a reset that was no Grbl reply
         self.awaiting_reset = False
         self.wco_mm: tuple[float, float, float] | None = None
         self.recovered: Counter[str] = Counter()

@@ -4,6 +4,7 @@ Machine coordinates follow Grbl's convention (soft limits on [-travel, 0]).
 """
 import logging
 import time
+from pathlib import Path
 
 import pytest
 
@@ -253,3 +254,90 @@ def test_a_board_older_than_grbl_1_1_is_named_before_anything_is_sent():
         _check_version("p", version)
     with pytest.raises(PortError, match="Grbl 0.8c"):
         _check_version("p", "0.8c")
+
+
+class _NotGrbl:
+    """A pty that is no Grbl 1.1 board: it says nothing, or answers every write with
+    ``answer`` (line noise of a wrong baud rate, another firmware's text)."""
+
+    def __init__(self, answer: bytes = b""):
+        import os
+        import pty
+        import threading
+        import tty
+
+        self.master, slave = pty.openpty()
+        tty.setraw(slave)
+        self.path, self._slave, self.answer = os.ttyname(slave), slave, answer
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self):
+        import os
+        import select
+
+        while not self._stop.is_set():
+            if select.select([self.master], [], [], 0.05)[0]:
+                try:
+                    os.read(self.master, 1024)
+                except OSError:
+                    return
+                if self.answer:
+                    os.write(self.master, self.answer)
+
+    def close(self):
+        import os
+
+        self._stop.set()
+        self._thread.join(2)
+        os.close(self.master)
+        os.close(self._slave)
+
+
+@pytest.mark.parametrize("answer, words", [
+    (b"", "nothing came back: is this the board's port, and is the board powered?"),
+    (bytes([0xF0, 0x8C, 0x3E, 0xFE, 0x00, 0x7F, 0xE6]) * 20,
+     r"bytes that are not text came back \(b'\\xf0\\x8c>.*\.\.\. \(140 bytes\)\): the board talks at another "
+     r"baud rate than 115200\?$"),
+    (b'echo:Unknown command: "\x18"\nok\n', r"it answered b'echo:Unknown command: .*', not Grbl's banner: is this "
+                                            r"a Grbl 1\.1 board\?$"),
+])
+def test_a_port_that_is_no_grbl_board_says_what_came_back(answer, words):
+    """It said 'no banner after reset within 3.99978 s' (with the whole of a baud-rate
+    mismatch's noise as a 'short read'), and the CLI offered --resume for a run never begun."""
+    from feeler.hardware.stage import PortError
+
+    board = _NotGrbl(answer)
+    try:
+        with pytest.raises(PortError, match=rf"^port {board.path}: no Grbl banner within 1 s of a reset \(Ctrl-X\); "
+                                            + words):
+            Stage.open(board.path, reply_timeout_s=0.5, slack=1.0)
+    finally:
+        board.close()
+
+
+def test_the_cli_offers_resume_only_for_a_run_it_began(tmp_path, capsys):
+    from feeler.cli import main
+
+    import numpy as np
+
+    from feeler.hardware.camera import write_video
+
+    plan = str(Path(__file__).parent / "data" / "tiny-plan.toml")
+    camera = write_video(np.zeros((2, 480, 640), np.uint8), tmp_path / "camera.avi")
+    board = _NotGrbl()
+    try:
+        assert main(["acquire", "--stage", board.path, "--camera", str(camera), "--plan", plan,
+                     "--out", str(tmp_path / "r")]) == 2
+    finally:
+        board.close()
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
+    assert len(err) == 1 and "nothing came back" in err[0] and "resume" not in err[0]
+    assert not (tmp_path / "r").exists()
+    assert main(["acquire", "--emulate", "--plan", plan, "--out", str(tmp_path / "run"), "--no-progress",
+                 "--fault", "vanish:reply=ok,nth=8"]) == 1     # the port vanishes mid-run
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
+    assert len(err) == 1 and "disconnected" in err[0]
+    assert err[0].endswith("the run so far is kept: run the same command with --resume to continue")
+    assert (tmp_path / "run" / "journal.jsonl").is_file()
