@@ -60,6 +60,15 @@ def _check_arguments(data: NeuronData, backend: str, noise: str) -> np.ndarray:
     return d
 
 
+def _readout_noise(data: NeuronData) -> np.ndarray:
+    """Each training scan's read-out noise (mm), the envelope that classify checks new scans
+    against (:func:`~feeler.calib.neuron.live.envelope.readout_noise_mm`)."""
+    from feeler.calib.neuron.live.envelope import readout_noise_mm
+
+    strain = np.atleast_2d(np.asarray(data.strain, float))
+    return np.array([readout_noise_mm(row * data.length_mm) for row in strain])
+
+
 def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", seed: int = 0, chains: int = 4,
                draws: int = 1000, tune: int = 1000, emcee_steps: int | None = None, walkers: int = 32,
                priors: Priors | None = None, progress: bool | None = None, scene_toml: str | None = None,
@@ -128,9 +137,10 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
         attrs.update(scene_toml=scene_toml, scene_path=str(scene_path or ""))
     tree = posterior_from_draws(post, sample_stats=stats,
                                 observed={"step_mm": d, "peak_u1": table.peak, "log_tau_grid": table.log_tau,
+                                          "readout_noise_mm": _readout_noise(data),
                                           "plate_steps_mm": plates.steps_mm, "tau_log_weight": log_w},
                                 dims={"step_mm": ["scan"], "peak_u1": ["scan", "tau_grid"],
-                                      "log_tau_grid": ["tau_grid"], "tau_log_weight": ["tau_grid"],
+                                      "readout_noise_mm": ["scan"], "log_tau_grid": ["tau_grid"], "tau_log_weight": ["tau_grid"],
                                       "plate_steps_mm": ["plate"], "plate_mean_mm": ["plate"],
                                       "plate_sd_mm": ["plate"]},
                                 attrs=attrs)

@@ -4,8 +4,8 @@ POSTERIOR is a directory written by `feeler calibrate neuron --out`; SCANS a run
 or a scan CSV: scan_id, t_s (s), uy_mm (mm) are required; x_mm (mm) checks the stage speed;
 step_mm and speed_mm_s are labels that add the accuracy and coverage summary (README,
 "Scan CSV format"). Strain uses the posterior's representative length. A scan unlike the
-fit's training scans (speed, sampling period, length, response scale) is flagged with the
-reason; one whose times or displacements look like the wrong units is refused. For each scan: the
+fit's training scans (speed, sampling period, length, response scale, read-out noise; a
+whole batch noisier than the training scans) is flagged with the reason; one whose times or displacements look like the wrong units is refused. For each scan: the
 probability of every training plate and the decoded step height with its 90 % interval
 (inverting each plate's predictive band: at any true step the interval covers it 90 % of
 the time), integrating over the posterior. A posterior that failed its diagnostics is refused unless
@@ -37,7 +37,7 @@ def run(args) -> int:
     import pandas as pd
 
     from feeler.calib.neuron.classify import classify
-    from feeler.calib.neuron.live.envelope import Envelope
+    from feeler.calib.neuron.live.envelope import Envelope, readout_noise_mm
     from feeler.calib.neuron.live.scan_csv import read_scan_records
     from feeler.calib.neuron.live.table import labelled_summary, plate_column, unit_mistake
     from feeler.rundir import prepare_out_dir
@@ -57,7 +57,10 @@ def run(args) -> int:
     c = classify(result, [r.uy_mm / length for r in records], [r.t_s for r in records],
                  rng=np.random.default_rng(args.seed), n_draws=args.n_draws, progress=args.progress)
     env = Envelope.of_fit(result, c.tau_s)
-    flags = [env.problems(r.t_s, c.p_at_tau[:, k], x_mm=r.x_mm, speed_mm_s=r.speed_mm_s)
+    batch = env.batch_noise([readout_noise_mm(r.uy_mm) for r in records])    # a noisier set-up: every scan
+    flags = [env.problems(r.t_s, c.p_at_tau[:, k], x_mm=r.x_mm, speed_mm_s=r.speed_mm_s,
+                          uy_mm=None if batch else r.uy_mm)
+             + ([batch] if batch else [])
              + [f for f in [env.plates(c.plate_sds[k], c.nearest_mm[k], c.height_mm[k])] if f]
              for k, r in enumerate(records)]
     unit_mistake(path, [r.scan_id if r.name is None else repr(r.name) for r in records], flags)

@@ -87,6 +87,10 @@ def run(args) -> int:
         from feeler.calib.neuron.live.follow import writer_active
         if path.is_dir() and writer_active(path):
             print(f"{path} is still being acquired: decoding the scans written so far (--follow keeps up)")
+        from feeler.calib.neuron.live.envelope import readout_noise_mm
+        batch = decoder.live.env.batch_noise([readout_noise_mm(r.uy_mm) for r in records])
+        if batch:                    # decisions are made scan by scan, each on its own noise (classify flags all)
+            print(f"note: {batch}; decisions.csv's decisions are made on each scan's own noise and may not hold")
         for r in records:
             for k in range(r.t_s.size):
                 decoder.sample({"scan_id": r.scan_id, "t_s": r.t_s[k], "uy_mm": r.uy_mm[k],

@@ -159,6 +159,29 @@ def test_scans_named_by_the_lab_keep_their_names(fit_dir, scans_frame, tmp_path,
     np.testing.assert_allclose(b[cols].to_numpy(), a[cols].to_numpy(), rtol=1e-12)
 
 
+def test_a_batch_noisier_than_the_training_scans_is_flagged_whole(fit_dir, scans_frame, tmp_path, capsys):
+    """The fit's own scans with 2 um more read-out noise: each scan's noise is within the
+    training range often enough, but the batch's median is about twice the training
+    scans', so every scan is flagged with that reason and no accuracy is claimed. They
+    were decoded as if from the training set-up (1.5x the noise: 50 % of labels inside
+    their 90 % intervals)."""
+    import pandas as pd
+
+    noisy = scans_frame.assign(uy_mm=scans_frame.uy_mm + 0.002 * np.random.default_rng(3).standard_normal(
+        len(scans_frame)))
+    noisy.to_csv(tmp_path / "noisy.csv", index=False)
+    assert _run(fit_dir, tmp_path / "noisy.csv", "--out", str(tmp_path / "n")) == 0
+    out = capsys.readouterr().out
+    assert "all flagged" in out and "no accuracy to report" in out
+    table = pd.read_csv(tmp_path / "n" / "classification.csv")
+    assert table.flagged.all()
+    assert table.flag.str.contains(r"these 12 scans' read-out noise \(median [\d.]+ um\) is [\d.]+× the training "
+                                   r"scans'").all()
+    scans_frame.to_csv(tmp_path / "same.csv", index=False)
+    assert _run(fit_dir, tmp_path / "same.csv", "--out", str(tmp_path / "s")) == 0
+    assert not pd.read_csv(tmp_path / "s" / "classification.csv").flagged.any()
+
+
 def test_long_work_says_how_far_it_is_and_no_progress_silences_it(fit_dir, scans_frame, tmp_path, capsys,
                                                                     monkeypatch):
     """Off a terminal: a line per stage and, over several blocks of scans, a line per block

@@ -144,3 +144,23 @@ def test_follow_without_a_run_fails_in_one_line(fit_dir, tmp_path, capsys):
     err = capsys.readouterr().err
     said = [ln for ln in err.splitlines() if ln.startswith("feeler: ")]       # beside the first status lines
     assert len(said) == 3 and all(ln.startswith("feeler: error: ") for ln in said) and "Traceback" not in err
+
+
+def test_decode_notes_a_batch_noisier_than_training_and_names_scans_by_number(fit_dir, scans_frame, tmp_path,
+                                                                               capsys):
+    """Scans named S1-T.. with 2 um more noise: decode says how the names became numbers and
+    that the batch is noisier than the training scans (decisions are per scan; classify
+    flags them all)."""
+    import numpy as np
+
+    run = tmp_path / "run"
+    run.mkdir()
+    rng = np.random.default_rng(3)
+    scans_frame.assign(scan_id=[f"S1-T{int(v):02d}" for v in scans_frame.scan_id],
+                       uy_mm=scans_frame.uy_mm + 0.002 * rng.standard_normal(len(scans_frame))
+                       ).to_csv(run / "scans.csv", index=False)
+    assert main(["decode", str(fit_dir), str(run), "--n-draws", "40", "--no-live"]) == 0
+    said = capsys.readouterr().out
+    assert "scan ids are names (S1-T00 ... S1-T88), read as scan_id 0 ... 11 in order of appearance" in said
+    assert "note: these 12 scans' read-out noise (median" in said and "may not hold" in said
+    assert len(pd.read_csv(run / "decisions.csv")) == 12

@@ -69,3 +69,41 @@ def test_a_reading_far_from_every_plate_is_a_step_not_trained_on():
     assert "not trained on" in line
     with pytest.raises(ArgumentError, match="plate_sds"):
         Envelope(0.5, 20.0, None, ENV.p_lo, ENV.p_hi, plate_sds=1.0)
+
+
+def test_readout_noise_is_the_white_noise_whatever_the_step_and_drift():
+    """The robust second-difference estimate recovers σ of white noise on a flat scan, and
+    the same σ under a 0.1 mm snap, a 3 s ride and a slow creep (each touches only a few
+    second differences); closed form: MAD of N(0, 6σ²) × 1.4826 / √6 = σ."""
+    from feeler.calib.neuron.live.envelope import readout_noise_mm
+
+    rng = np.random.default_rng(4)
+    t = np.arange(4001) * 0.5
+    noise = 0.002 * rng.standard_normal(t.size)
+    flat = readout_noise_mm(noise)
+    assert abs(flat / 0.002 - 1) < 0.05
+    snap = 0.1 * (t >= 1000.0)
+    ride = 0.1 * np.clip((t - 1000.0) / 3.0, 0, 1)
+    for shape in (snap, ride, snap + 0.0002 * t):
+        assert abs(readout_noise_mm(noise + shape) / flat - 1) < 0.01
+    assert readout_noise_mm(np.zeros(100)) == 0.0 and np.isnan(readout_noise_mm([1.0, 2.0, 3.0, 4.0]))
+
+
+def test_a_scan_or_a_batch_noisier_than_training_is_flagged():
+    train = np.random.default_rng(5).lognormal(np.log(0.001), 0.2, 96)        # 1 um, ±20 % per scan
+    env = Envelope(0.5, 20.0, 0.5, ENV.p_lo, ENV.p_hi, noise_mm=train)
+    top = train.max()
+    assert env.noise(1.49 * top) is None and env.noise(0.1 * top) is None    # less noise: not flagged
+    line = env.noise(1.6 * top)
+    assert line.startswith(f"read-out noise {1.6 * top * 1e3:.3g} um, 1.6× the noisiest training scan's")
+    same = np.random.default_rng(6).lognormal(np.log(0.001), 0.2, 40)
+    assert env.batch_noise(same) is None and env.batch_noise(same / 2) is None
+    line = env.batch_noise(same * 1.5)
+    assert line.startswith("these 40 scans' read-out noise (median 1.") and "the training scans' (" in line
+    assert env.batch_noise(same[:4] * 3) is None                    # too few scans for a median: per scan only
+    assert Envelope(0.5, 20.0, 0.5, ENV.p_lo, ENV.p_hi).batch_noise(same * 3) is None      # an older fit
+    t = np.arange(41) * 0.5
+    uy = 0.05 + 0.1 * (t >= 10) + 0.005 * np.random.default_rng(7).standard_normal(41)
+    assert any(q.startswith("read-out noise") for q in env.problems(t, [0.03, 0.05], x_mm=t * 0.5, uy_mm=uy))
+    with pytest.raises(ArgumentError, match="noise_factor"):
+        Envelope(0.5, 20.0, None, ENV.p_lo, ENV.p_hi, noise_factor=1.0)

@@ -142,3 +142,19 @@ def test_a_step_the_fit_was_not_trained_on_is_flagged_not_decided(small_fit):
     _, last = _stream(dec, other.strain[0], np.asarray(other.t_s))
     assert last.decision is None
     assert any("sds from the nearest trained plate (0.2 mm)" in f for f in last.flags)
+
+
+def test_a_scan_much_noisier_than_training_is_flagged_not_decided(small_fit):
+    """The same touch with 5 um more read-out noise: flagged once the response has peaked
+    and at the end, never decided; the clean scan is decided and carries no flag."""
+    data, res = small_fit
+    dec = LiveDecoder(res, n_draws=40)
+    t = np.asarray(data.t_s)
+    clean = data.strain[90]
+    _, ok = _stream(dec, clean, t)
+    assert ok.flags == () and ok.decision is not None
+    noisy = clean + 0.005 / dec.length_mm * np.random.default_rng(8).standard_normal(clean.size)
+    states, last = _stream(dec, noisy, t)
+    assert last.decision is None and any(f.startswith("read-out noise ") for f in last.flags)
+    assert all(s.decision is None for s in states)
+    assert not any(f.startswith("read-out noise") for f in states[1].flags)       # not known before the peak

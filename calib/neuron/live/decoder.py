@@ -23,7 +23,7 @@ scan is decided at the first sample where
    decided only when the scan ends (:meth:`LiveDecoder.finish`), if its probability is
    then ≥ ``threshold``;
 4. the scan so far lies inside the fit's training envelope (no flags): a scan at another
-   speed, period, length or response scale, or whose reading lies far from every training
+   speed, period, length, response scale or read-out noise, or whose reading lies far from every training
    plate (a step the fit was not trained on), is never decided, only flagged.
 
 A scan that ends below the threshold stays undecided (its final probabilities are still
@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feeler.calib.neuron.live.envelope import median_of
+from feeler.calib.neuron.live.envelope import median_of, readout_noise_mm
 from feeler.errors import ArgumentError
 
 __all__ = ["Decision", "LiveState", "LiveDecoder"]
@@ -174,6 +174,7 @@ class LiveDecoder:
         self.speed_label = speed_mm_s
         self._t0 = self._x0 = None
         self._x1 = np.nan
+        self._uy: list[float] = []                   # the scan's U_y, for its read-out noise
         self._state = None
         self._decision = None
         self._answer = self._answer_of(np.zeros(self.dec.size))
@@ -202,6 +203,7 @@ class LiveDecoder:
                 raise ArgumentError("displacement", uy_mm, "U_y (mm) or a vector (U_x, U_y, U_z) in mm")
             u = u[1]
         grew = self.sums.push(t_s, float(u) / self.length_mm)
+        self._uy.append(float(u))
         t = float(t_s)
         if self._t0 is None:
             self._t0, self._x0 = t, (np.nan if x_mm is None else float(x_mm))
@@ -249,8 +251,9 @@ class LiveDecoder:
     def _flags(self, t: float, *, final: bool, peaked: bool = False) -> list[str]:
         moved = np.isfinite(self._x0) and np.isfinite(self._x1) and self._x1 != self._x0
         ends = (self._x0, self._x1) if (moved or final) and np.isfinite(self._x0) else None
+        noise = readout_noise_mm(self._uy) if (peaked or final) else None      # as classify, once it decides
         out = self.env.problems_of(self.sums.n, self._t0, t, self.p_at_tau, x_ends_mm=ends,
-                                   speed_mm_s=self.speed_label, final=final)
+                                   speed_mm_s=self.speed_label, final=final, noise_mm=noise)
         if peaked or final:                     # the reading is the scan's once its response has peaked
             _, height, _, (distance, k) = self._answer
             if distance > self.env.plate_sds:   # the height (a bisection) only for the message

@@ -16,6 +16,14 @@ training envelope and flagged with the reason:
 - response scale: the scan's peak window sum P at each draw's window against the
   training scans' range at that window (the fit's peak table), as the median ratio
   over draws;
+- read-out noise: the white noise of the scan's U_y (:func:`readout_noise_mm`, robust to
+  the step and to drift) against the noisiest training scan's. The decoder's plates hold
+  the noise of the training set-up: scans of four-plates with 1.5× its read-out noise
+  put 50 % of labels inside their 90 % intervals (one scan of 96 flagged by the other
+  checks), with 4× 28 % and half the plates wrong. One scan's estimate scatters by about
+  ±50 % over 41 samples, so :meth:`Envelope.batch_noise` compares a batch's median with
+  the training scans' (classify flags every scan of a batch that is noisier). Less noise
+  than in training is not flagged: intervals then over-cover (0.5×: 95 % inside);
 - the plates: the decoded reading against every training plate's predictive, in that
   plate's sds (:meth:`~feeler.calib.neuron.decoder.DecoderDraws.plate_distance`); more
   than ``plate_sds`` (default 5) from the nearest is a step the fit was not trained on
@@ -35,7 +43,7 @@ import numpy as np
 
 from feeler.errors import ArgumentError
 
-__all__ = ["Envelope", "UNIT_FACTOR", "stage_units", "training_speed_mm_s", "median_of"]
+__all__ = ["Envelope", "UNIT_FACTOR", "stage_units", "training_speed_mm_s", "median_of", "readout_noise_mm"]
 
 
 def median_of(x: np.ndarray) -> float:
@@ -49,6 +57,22 @@ def median_of(x: np.ndarray) -> float:
         return float("nan")
     return float(part[k] if n % 2 else 0.5 * (part[k - 1] + part[k]))
 
+
+def readout_noise_mm(uy_mm) -> float:
+    """The sd of the white noise on a scan's U_y (mm): the median absolute deviation of its
+    second differences (each ~ N(0, 6σ²) for white noise; the step, a snap and drift touch
+    only a few of them) × 1.4826 / √6. NaN with fewer than 5 samples."""
+    u = np.asarray(uy_mm, float).ravel()
+    if u.size < 5:
+        return float("nan")
+    d2 = u[2:] - 2.0 * u[1:-1] + u[:-2]
+    return float(1.4826 * median_of(np.abs(d2 - median_of(d2))) / np.sqrt(6.0))
+
+
+#: a batch is noisier than training when the ratio of medians is beyond this and beyond 3
+#: standard errors (the training scans' own scatter of log noise, over both counts)
+BATCH_NOISE_FACTOR = 1.2
+BATCH_MIN_SCANS = 5
 
 UNIT_FACTOR = 30.0     # a scale further off than this is a unit mistake, not physics (M2's verdict uses it too)
 
@@ -95,6 +119,11 @@ class Envelope:
         scale_factor (float): allowed factor beyond the training range of P, > 1.
         plate_sds (float): allowed distance of the decoded reading from the nearest
             training plate, in that plate's sds, > 1.
+        noise_mm (ndarray[n_train] | None): each training scan's read-out noise, mm
+            (:func:`readout_noise_mm`; None for a fit written before it was recorded).
+        noise_factor (float): allowed factor on one scan's read-out noise beyond the
+            noisiest training scan's, > 1 (1.25 flagged a held-out demo scan at 1.28×: one
+            scan's estimate scatters by about ±50 %).
     """
     period_s: float
     duration_s: float
@@ -104,9 +133,11 @@ class Envelope:
     slack: float = 1.25
     scale_factor: float = 2.0
     plate_sds: float = 5.0
+    noise_mm: np.ndarray | None = None
+    noise_factor: float = 1.5
 
     def __post_init__(self):
-        for name in ("slack", "scale_factor", "plate_sds"):
+        for name in ("slack", "scale_factor", "plate_sds", "noise_factor"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and 1.0 < v < float("inf")):
                 raise ArgumentError(name, v, "a factor > 1")
@@ -130,9 +161,45 @@ class Envelope:
         grid = np.asarray(obs["log_tau_grid"].values, float)
         table = PeakTable(log_tau=grid, peak=np.atleast_2d(np.asarray(obs["peak_u1"].values, float)))
         p = table.at(np.asarray(tau_s, float))                                  # (S, n_train)
+        noise = (np.asarray(obs["readout_noise_mm"].values, float) if "readout_noise_mm" in obs.data_vars
+                 else None)
         return cls(period_s=float(np.exp(grid[0])), duration_s=float(2.0 * np.exp(grid[-1])),
                    speed_mm_s=training_speed_mm_s(result.posterior["posterior"].attrs),
-                   p_lo=p.min(axis=1), p_hi=p.max(axis=1), slack=slack, scale_factor=scale_factor)
+                   p_lo=p.min(axis=1), p_hi=p.max(axis=1), slack=slack, scale_factor=scale_factor, noise_mm=noise)
+
+    def _training_noise(self) -> np.ndarray:
+        v = np.asarray(self.noise_mm if self.noise_mm is not None else [], float)
+        return v[np.isfinite(v)]
+
+    def noise(self, noise_mm: float) -> str | None:
+        """One scan's read-out noise (mm) beyond :attr:`noise_factor` × the noisiest training
+        scan's."""
+        train = self._training_noise()
+        if not train.size or not np.isfinite(noise_mm):
+            return None
+        top = float(train.max())
+        if noise_mm <= self.noise_factor * top:
+            return None
+        times = f", {_times(noise_mm / top)}" if top > 0 else ""
+        return (f"read-out noise {noise_mm * 1e3:.3g} um{times} the noisiest training scan's {top * 1e3:.3g} um "
+                f"(a noisier set-up: the plates were learned at less noise)")
+
+    def batch_noise(self, noise_mm) -> str | None:
+        """A batch of scans noisier than training (:data:`BATCH_NOISE_FACTOR` on the ratio of
+        medians, and 3 standard errors of it), or None; batches of fewer than
+        :data:`BATCH_MIN_SCANS` scans are left to :meth:`noise`."""
+        train = self._training_noise()
+        new = np.asarray(noise_mm, float)
+        new = new[np.isfinite(new)]
+        if train.size < BATCH_MIN_SCANS or new.size < BATCH_MIN_SCANS or not np.all(train > 0) or not np.all(new > 0):
+            return None
+        ratio = median_of(new) / median_of(train)
+        se = 1.2533 * float(np.std(np.log(train), ddof=1)) * np.sqrt(1.0 / new.size + 1.0 / train.size)
+        if not (ratio > BATCH_NOISE_FACTOR and np.log(ratio) > 3.0 * se):
+            return None
+        return (f"these {new.size} scans' read-out noise (median {median_of(new) * 1e3:.3g} um) is {_times(ratio)} "
+                f"the training scans' ({median_of(train) * 1e3:.3g} um): the plates were learned at less noise, so "
+                f"the probabilities and intervals do not hold (refit on scans of this set-up)")
 
     def period(self, period_s: float) -> str | None:
         r = period_s / self.period_s
@@ -182,24 +249,27 @@ class Envelope:
             return what + hint
         return None
 
-    def problems(self, t_s, p_at_tau, *, x_mm=None, speed_mm_s: float | None = None) -> list[str]:
+    def problems(self, t_s, p_at_tau, *, x_mm=None, speed_mm_s: float | None = None, uy_mm=None) -> list[str]:
         """Every reason a whole scan lies outside the envelope (empty: inside).
 
         Args:
             t_s (ndarray[n]): sample times, s. x_mm (ndarray[n] | None): stage position, mm.
             p_at_tau (ndarray[S]): the scan's P at each draw's window.
             speed_mm_s (float | None): the scan's speed label, mm/s.
+            uy_mm (ndarray[n] | None): its U_y (mm), for the read-out noise.
         """
         t = np.asarray(t_s, float)
         ends = None if x_mm is None else (float(np.asarray(x_mm, float)[0]), float(np.asarray(x_mm, float)[-1]))
         return self.problems_of(t.size, float(t[0]) if t.size else 0.0, float(t[-1]) if t.size else 0.0,
-                                p_at_tau, x_ends_mm=ends, speed_mm_s=speed_mm_s, final=True)
+                                p_at_tau, x_ends_mm=ends, speed_mm_s=speed_mm_s, final=True,
+                                noise_mm=None if uy_mm is None else readout_noise_mm(uy_mm))
 
     def problems_of(self, n: int, t0_s: float, t1_s: float, p_at_tau, *, x_ends_mm=None,
-                    speed_mm_s: float | None = None, final: bool = True) -> list[str]:
+                    speed_mm_s: float | None = None, final: bool = True, noise_mm: float | None = None) -> list[str]:
         """:meth:`problems` from what a stream keeps: ``n`` samples from ``t0_s`` to
-        ``t1_s`` (s; period = their mean interval), the first and last x (mm) or None;
-        ``final=False`` reports only what can be known before the scan ends."""
+        ``t1_s`` (s; period = their mean interval), the first and last x (mm) or None, the
+        read-out noise so far (mm) or None; ``final=False`` reports only what can be known
+        before the scan ends."""
         out, short = [], False
         if n >= 2:
             span = t1_s - t0_s
@@ -213,4 +283,6 @@ class Envelope:
         elif final:                                 # one sample: no change to sum, whatever its scale
             return [f"{n} sample: a scan needs samples over the fit's {self.duration_s:.3g} s to be decoded"]
         out.append(self.response(p_at_tau, final=final, short=short))
+        if noise_mm is not None:
+            out.append(self.noise(noise_mm))
         return [p for p in out if p]
