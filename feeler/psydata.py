@@ -249,8 +249,16 @@ def read_trials(path: str | Path, *, design: MatrixDesign | None = None, matrix_
         ArgumentError: a ``design`` for a file that has the design columns.
     """
     path = Path(path)
-    if path.is_dir() and not matrix_use:
-        return _read_matrix_directory(path, design)
+    if path.is_dir():
+        if (path / "trials.csv").is_file():          # a run directory (`feeler simulate`, or a lab's own)
+            return read_trials(path / "trials.csv", design=design, matrix_use=matrix_use)
+        if not matrix_use:
+            return _read_matrix_directory(path, design)
+        from feeler.rundir import what_it_is
+
+        hint = what_it_is(path, expected="trials.csv")
+        raise DataFileError(path, "a directory without trials.csv: give the trial table (a CSV file, or a run "
+                                  "directory that holds trials.csv)" + (f"; {hint}" if hint else ""))
     try:
         text = read_text(path)             # a byte order mark dropped; UTF-16 and Windows-1252 read too
     except FileNotFoundError:

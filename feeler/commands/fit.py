@@ -60,8 +60,9 @@ def _add_psychophysics(sub) -> None:
                              "the comparison design, its \"2AFC\" --nafc 2.",
                              "feeler simulate datasets-synthetic/psychophysics-2afc.toml --out runs/humans\n"
                              "    feeler fit psychophysics runs/humans/trials.csv --out runs/m4"), formatter_class=argparse.RawDescriptionHelpFormatter)
-    psy.add_argument("data", metavar="DATA.csv", help="trial table (counts or one row per trial), a psignifit "
-                                                     "data matrix, or a directory of them (one per subject)")
+    psy.add_argument("data", metavar="DATA.csv", help="trial table (counts or one row per trial), a run "
+                                                     "directory holding trials.csv, a psignifit data matrix, or "
+                                                     "a directory of them (one per subject)")
     psy.add_argument("--backend", choices=("exact", "laplace", "nuts"), default="exact",
                      help="exact: the posterior integrated on an adaptive grid (default); laplace: a "
                           "Gaussian approximation (approximate; warns where its bounds disagree with the "
@@ -117,7 +118,8 @@ def register(parser) -> None:
                                "shows only in how judgements change with the scan speed: the data need trials at more\n"
                                "than one speed pair. Exit status 1 when the verdict fails: τ not pinned by the data, or a\n"
                                "posterior piling against a grid bound.\n"), formatter_class=argparse.RawDescriptionHelpFormatter)
-    route.add_argument("data", metavar="DATA.csv", help="2AFC trial table (comparison design)")
+    route.add_argument("data", metavar="DATA.csv", help="2AFC trial table (comparison design), or a run "
+                                                       "directory holding trials.csv")
     route.add_argument("--level", choices=("l0", "l1", "l2"), default="l0", help="skin fidelity (default l0)")
     route.add_argument("--check-level", choices=("l0", "l1", "l2"), default=None,
                        help="recompute the choice probabilities at the posterior mean with this level")

@@ -155,3 +155,21 @@ def test_a_psignifit_data_matrix_with_its_design_on_the_command_line(tmp_path, c
     assert main(["fit", "finger-route", path]) == 2                  # which takes no matrix: it says why
     assert "a psignifit data matrix (height, n correct or higher, n trials per row): one condition at one speed " \
            "pair, and the finger route needs trials at more than one" in capsys.readouterr().err
+
+
+def test_a_run_directory_reads_its_trials_csv(data, tmp_path, capsys):
+    """`feeler simulate psychophysics-2afc.toml --out DIR` then `feeler fit ... DIR`: the run
+    directory was refused ('a directory: ... psignifit data matrices'; finger-route: 'cannot
+    read: [Errno 21] Is a directory'). It reads DIR/trials.csv; a directory without one
+    says what it holds."""
+    from feeler.psydata import read_trials
+
+    pd.testing.assert_frame_equal(read_trials(data.parent), read_trials(data))
+    pd.testing.assert_frame_equal(read_trials(data.parent, matrix_use="x"), read_trials(data))
+    assert main(["fit", "psychophysics", str(data.parent), "--no-plots"]) == 0
+    capsys.readouterr()
+    (tmp_path / "scans.csv").write_text("scan_id,plate,step_mm,speed_mm_s,t_s,x_mm,ux_mm,uy_mm,uz_mm\n")
+    assert main(["fit", "finger-route", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert f"{tmp_path}: a directory without trials.csv: give the trial table" in err
+    assert "holds robot scans (scans.csv)" in err
