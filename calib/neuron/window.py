@@ -40,6 +40,7 @@ def usable_noise_models(plates: Plates) -> tuple[str, ...]:
 
 
 _GL_T, _GL_W = np.polynomial.legendre.leggauss(24)
+_QUADRATURE_BLOCK = 4e6         # quadrature nodes held at once by loo_elpd (32 MB per temporary)
 
 
 def _segment_integral(lo, hi, kappa):
@@ -128,8 +129,16 @@ def loo_elpd(table: PeakTable, plates: Plates, noise: str, *, growth_max: float 
     """Leave-one-out elpd of the labels per τ node (ndarray[n_grid]) for one noise model
     (``pointwise``: per node and scan, ndarray[n_grid, n_scans])."""
     mu, s = loo_plates(table, plates, noise, growth_max=growth_max)
-    G, n = mu.shape[:2]
-    dens = continuous_log_density(table.peak.T, np.broadcast_to(plates.group, (G, n)), mu, s, plates.steps_mm)
+    G, n, C = mu.shape
+    p = table.peak.T
+    dens = np.empty((G, n))
+    # scans a block at a time: the quadrature holds G × scans × (C − 1) × 24 nodes in several
+    # temporaries (2000 scans at once peaked at 1.56 GB); per element the same numbers
+    block = max(1, int(_QUADRATURE_BLOCK // (G * max(C - 1, 1) * _GL_T.size)))
+    for a in range(0, n, block):
+        sl = slice(a, min(a + block, n))
+        dens[:, sl] = continuous_log_density(p[:, sl], np.broadcast_to(plates.group[sl], (G, sl.stop - a)),
+                                             mu[:, sl], s[:, sl], plates.steps_mm)
     dens = np.where(alone(plates), 0.0, dens)
     return dens if pointwise else np.sum(dens, axis=1)
 
