@@ -22,6 +22,7 @@ __all__ = ["map_seeds", "shut_down", "SHUTDOWN_TIMEOUT_S"]
 
 R = TypeVar("R")
 
+CONNECT_TIMEOUT_S = 10.0     # s to reach an existing scheduler (--scheduler tcp://HOST:PORT)
 SHUTDOWN_TIMEOUT_S = 30.0    # s a worker (or the client, the scheduler) gets to stop before it is killed
 
 
@@ -36,8 +37,8 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
     unless feeler runs with -v (:mod:`feeler.calib.dask_logging`).
 
     Raises:
-        ArgumentError: ``scheduler`` neither None, "serial" nor ``tcp://HOST:PORT``;
-            ``n_workers`` < 1.
+        ArgumentError: ``scheduler`` neither None, "serial" nor ``tcp://HOST:PORT``, or no
+            scheduler answering there; ``n_workers`` < 1.
         FeelerError: a worker process died (KilledWorker).
     """
     seeds = [int(s) for s in seeds]
@@ -56,7 +57,13 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
                                dashboard_address=None, host="127.0.0.1", **cluster_options())
         client = Client(cluster)
     else:
-        cluster, client = None, Client(scheduler, timeout=10)
+        try:
+            cluster, client = None, Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except OSError as exc:                  # distributed's TimeoutError is an OSError: no scheduler there
+            raise ArgumentError("--scheduler", scheduler, f"the address of a running dask scheduler (none answered "
+                                f"within {CONNECT_TIMEOUT_S:g} s: {exc.__class__.__name__}); start one with "
+                                f"`dask scheduler` and workers with `dask worker {scheduler}`, or leave "
+                                f"--scheduler out for workers on this machine") from None
     try:
         futures = client.map(func, seeds, pure=False)
         for _ in progress(as_completed(futures), desc=desc, total=len(futures), enabled=progress_bar,

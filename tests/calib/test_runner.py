@@ -45,3 +45,19 @@ def test_existing_scheduler_by_address():
 def test_bad_arguments(kw, match):
     with pytest.raises(ArgumentError, match=match):
         map_seeds(abs, [1], **kw)
+
+
+def test_an_address_without_a_scheduler_is_one_line(monkeypatch):
+    """Nothing listens on the port: it was distributed's traceback ending in 'OSError: Timed
+    out trying to connect to tcp://127.0.0.1:1 after 10 s'."""
+    import socket
+
+    import feeler.calib.runner as runner
+
+    with socket.socket() as s:                       # a port that was free a moment ago
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    monkeypatch.setattr(runner, "CONNECT_TIMEOUT_S", 1.0)
+    with pytest.raises(ArgumentError, match=rf"--scheduler='tcp://127.0.0.1:{port}': the address of a running dask "
+                                            r"scheduler \(none answered within 1 s"):
+        map_seeds(partial(_seeded_job, n=10), [1], scheduler=f"tcp://127.0.0.1:{port}")
