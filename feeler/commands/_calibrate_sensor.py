@@ -34,7 +34,7 @@ def register(parser) -> None:
     parser.add_argument("--backend", choices=("exact", "nuts", "emcee"), default="exact",
                         help="exact conjugate (Gaussian noise; default), PyMC NUTS, or emcee")
     parser.add_argument("--noise", choices=("gaussian", "student"), default="gaussian",
-                        help="force noise distribution (student: Student-t, --nu dof)")
+                        help="force noise distribution (default gaussian; student: Student-t, --nu dof)")
     parser.add_argument("--nu", type=float, default=4.0, help="Student-t degrees of freedom (default 4)")
     parser.add_argument("--eiv", action="store_true",
                         help="errors-in-variables: latent stage error on U (needs --backend nuts)")

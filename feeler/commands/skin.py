@@ -27,7 +27,8 @@ def register(parser) -> None:
                                      "seconds per slide against the error of the peak strain rate to converged L2. "
                                      "Writes convergence.csv, trade.csv, ladder.json and ladder.png into --out "
                                      "(default runs/skin-ladder). Example: feeler skin ladder --small --out runs/ladder")
-    lad.add_argument("--out", default="runs/skin-ladder", metavar="DIR", help="output directory")
+    lad.add_argument("--out", default="runs/skin-ladder", metavar="DIR",
+                     help="output directory (default runs/skin-ladder)")
     lad.add_argument("--small", action="store_true", help="coarse meshes and time steps (a quick check)")
     lad.add_argument("--force", action="store_true", help="overwrite existing results in DIR")
     _progress_flag(lad)
