@@ -123,19 +123,28 @@ def _heights(frame, step, src) -> Figure:
 def _confusion(step, decided, conf, plates, src) -> Figure:
     labels = np.unique(step)
     count = np.array([[np.sum((step == s) & np.isclose(decided, p)) for p in plates] for s in labels])
-    fig, ax = subplots(width_in=3.6, height_in=3.0)
+    n = max(len(plates), len(labels))
+    # up to 6 plates: count and confidence per cell; more: the figure grows to the page's
+    # width, and past 8 a cell holds its count only, past 12 nothing (the colour says it)
+    side = min(6.2, max(3.0, 0.3 * n + 1.2))
+    fig, ax = subplots(width_in=side + 0.6, height_in=side)
     ax.imshow(count, cmap="Blues")
+    size = 7 if n <= 6 else 6 if n <= 8 else 5
     for i, s in enumerate(labels):
         for j, p in enumerate(plates):
             m = (step == s) & np.isclose(decided, p)
-            if m.any():
-                ax.text(j, i, f"{count[i, j]}\n{conf[m].mean():.2f}", ha="center", va="center", fontsize=7,
+            if m.any() and n <= 12:
+                text = f"{count[i, j]}\n{conf[m].mean():.2f}" if n <= 8 else f"{count[i, j]}"
+                ax.text(j, i, text, ha="center", va="center", fontsize=size,
                         color="white" if count[i, j] > count.max() / 2 else "black")
-    ax.set_xticks(range(len(plates)), [f"{p:g}" for p in plates])
+    ax.set_xticks(range(len(plates)), [f"{p:g}" for p in plates], rotation=90 if n > 6 else 0)
     ax.set_yticks(range(len(labels)), [f"{s:g}" for s in labels])
     ax.set(xlabel="decided plate (mm)", ylabel="labelled step (mm)", title="Confusion matrix")
-    return make_figure("Confusion matrix with confidence", fig, src,
-                       "Each cell: number of scans and their mean top-class probability.")
+    what = ("number of scans and their mean top-class probability" if n <= 8 else
+            "number of scans (the colour: more scans darker)" if n <= 12 else
+            "coloured by its number of scans, darker for more")
+    return make_figure("Confusion matrix with confidence" if n <= 8 else "Confusion matrix", fig, src,
+                       f"Each cell: {what}.")
 
 
 def _calibration(conf, hit, ece, src) -> Figure:
@@ -143,8 +152,8 @@ def _calibration(conf, hit, ece, src) -> Figure:
     fig, ax = subplots(width_in=3.6, height_in=3.0)
     ax.plot([0, 1], [0, 1], "k--", lw=0.8, label="perfect calibration")
     ax.plot(rel[:, 0], rel[:, 1], "o-", label=f"classifier (ECE {ece:.3f})")
-    for x, y, n in rel:
-        ax.annotate(f"{int(n)}", (x, y), fontsize=6, textcoords="offset points", xytext=(3, -8))
+    for x, y, n in rel:                    # below the point, or above it near the axis (off the tick labels)
+        ax.annotate(f"{int(n)}", (x, y), fontsize=6, textcoords="offset points", xytext=(3, -8 if y > 0.1 else 4))
     ax.set(xlim=(0, 1.02), ylim=(0, 1.02), xlabel="top-class probability",
            ylabel="fraction correct", title="Calibration curve")
     ax.legend(fontsize=7, loc="upper left")

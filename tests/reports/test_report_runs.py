@@ -209,3 +209,29 @@ def test_an_unwritable_out_is_refused_before_any_work(run_dir, tmp_path, capsys,
     assert len([ln for ln in err.splitlines() if ln.startswith("feeler:")]) == 1 and "--out" in err \
         and "report: reading the run" not in err
     assert not (out / "r").exists() if make != "file" else out.read_text() == "x"
+
+
+@pytest.mark.parametrize("n_plates", [3, 9, 18])
+def test_a_classification_of_many_plates_is_drawn_readably(tmp_path, n_plates):
+    """18 plates drew their confusion matrix at 3.6 in with two-line cell labels and upright
+    tick labels: 29 overlapping texts (and a bin count over a tick label in the calibration
+    curve). The figure grows, its ticks turn, its cells say less; no layout problem remains."""
+    import numpy as np
+    import pandas as pd
+
+    rng = np.random.default_rng(n_plates)
+    plates = np.round(np.geomspace(0.01, 1.5, n_plates) - 0.01, 3)
+    step = np.repeat(plates, 6)
+    prob = rng.dirichlet(np.full(n_plates, 0.3), step.size)
+    prob[np.arange(step.size), np.searchsorted(plates, step)] += 2.0          # mostly right, some not
+    prob /= prob.sum(axis=1, keepdims=True)
+    decided = plates[prob.argmax(axis=1)]
+    frame = pd.DataFrame({"scan_id": np.arange(step.size), "step_mm": step, "plate_mm": decided,
+                          **{f"p_{v:g}mm": prob[:, k] for k, v in enumerate(plates)},
+                          "height_mm": decided, "lo90_mm": decided - 0.01, "hi90_mm": decided + 0.01})
+    (tmp_path / "classify").mkdir()
+    frame.to_csv(tmp_path / "classify" / "classification.csv", index=False)
+    report = build_report(tmp_path, tmp_path / "out", pdf=False)
+    titles = [f["title"] for f in report.figures]
+    assert any(t.startswith("Confusion matrix") for t in titles) and len(titles) >= 2
+    assert [(f["title"], f["layout_problems"]) for f in report.figures if f["layout_problems"]] == []
