@@ -16,6 +16,9 @@ from feeler.reports.robotdata import robot_data
 __all__ = ["robot_section", "plate_rows"]
 
 
+MAX_CURVES = 8          # plates drawn as curves in Figs 7-9 (a legend entry each)
+
+
 def plate_rows(rd, where: tuple = ()) -> tuple:
     """Per plate: (``where``,) step, scans, peak z mean ± sd, raw U̇_y peak mean ± sd, ΔU_y jump mean."""
     rows = []
@@ -50,7 +53,11 @@ def _figures(rd, src) -> list[Figure]:
     ref = max(float(rd.z[rd.first[-1]].max()), np.finfo(float).tiny)
     fig, (a7, a8) = subplots(2, height_in=2.4)
     fig2, (a9, ap) = subplots(2, height_in=2.4)
-    for k, (step, i) in enumerate(zip(rd.steps, rd.first)):
+    # at most MAX_CURVES plates' curves, evenly spaced over the steps (18 plates' legends were
+    # cut at the panels' edges, and colours repeat after 10)
+    every = np.unique(np.round(np.linspace(0, len(rd.steps) - 1, min(len(rd.steps), MAX_CURVES))).astype(int))
+    few = "" if every.size == len(rd.steps) else f" ({every.size} of the {len(rd.steps)} plates, evenly spaced)"
+    for k, (step, i) in enumerate((rd.steps[j], rd.first[j]) for j in every):
         label, c = f"δ = {step:g} mm", f"C{k}"
         a7.plot(s.x_mm[i], s.uy_mm[i] - s.uy_mm[i, 0], color=c, lw=1, label=label)
         a8.plot(t[i, 1:], np.diff(s.uy_mm[i]) / np.diff(t[i]), color=c, lw=1, label=label)
@@ -67,9 +74,9 @@ def _figures(rd, src) -> list[Figure]:
     for ax in (a7, a8, a9, ap):
         ax.legend(fontsize=6)
     return [make_figure("Figs 7 and 8: ΔU_y against x, U̇_y against t", fig, src,
-                        "First scan of each plate, each on its own sample times."),
+                        f"First scan of each plate{few}, each on its own sample times."),
             make_figure("Fig. 9 and the peak pulse density against the step", fig2, src,
-                        "Left: z of the first scan of each plate, normalised to the highest plate's peak "
+                        f"Left: z of the first scan of each plate{few}, normalised to the highest plate's peak "
                         "(paper Fig. 9). Right: peak z of every scan (cf. the finger's Fig. 5).")]
 
 
