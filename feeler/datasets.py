@@ -151,6 +151,12 @@ def read_csv_file(path: Path, *, comment: str | None = None):
     except (ValueError, pd.errors.ParserError) as exc:
         raise DataFileError(path, f"not a readable CSV: {' '.join(str(exc).split())}") from None
     frame.columns = [str(c).strip() for c in frame.columns]
+    # what a spreadsheet leaves behind: rows of separators only after the data (rows deleted
+    # in Excel), and empty columns without a header (cells once used): not data
+    empty = frame.isna().all(axis=1).to_numpy()
+    last = len(empty) - int(np.argmin(empty[::-1])) if not empty.all() else 0
+    frame = frame.iloc[:last]
+    frame = frame.drop(columns=[c for c in frame.columns if c.startswith("Unnamed: ") and frame[c].isna().all()])
     if decimal != ".":
         for col in frame.columns:
             given = frame[col].str.strip()

@@ -265,8 +265,8 @@ def read_trials(path: str | Path, *, design: MatrixDesign | None = None, matrix_
         raise DataFileError(path, "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise DataFileError(path, f"cannot read: {exc}") from None
-    lines = [(i, line) for i, line in enumerate(text.splitlines(), start=1)
-             if line.strip() and not line.lstrip().startswith("#")]
+    lines = [(i, line) for i, line in enumerate(text.splitlines(), start=1)     # a line of separators only is
+             if line.strip(" \t,;") and not line.lstrip().startswith("#")]         # a spreadsheet's empty row
     if not lines:
         raise DataFileError(path, "no header line; expected columns " + ", ".join(TRIAL_COLUMNS))
     sep, decimal = csv_dialect(lines[0][1])

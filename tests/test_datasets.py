@@ -204,6 +204,33 @@ def test_scan_ids_written_as_names_are_numbered_in_order_of_appearance(tmp_path,
         read_scans(write_csv(tmp_path / "blank.csv", rows))
 
 
+def test_a_spreadsheets_leftover_rows_and_columns_are_not_data(tmp_path):
+    """Saved from Excel after rows were deleted: CRLF lines, two empty unnamed columns, and
+    rows of separators only after the data. They read as the clean file (it was 'column
+    scan_id: missing or non-numeric value at data row 9'); a separator row inside the data
+    is still named."""
+    from feeler.calib.matrix.data import read_calibration_csv
+    from feeler.calib.neuron.live.scan_csv import read_scan_records
+
+    clean = write_csv(tmp_path / "clean.csv", good_rows())
+    lines = clean.read_text().splitlines()
+    messy = tmp_path / "messy.csv"
+    empty = "," * (len(COLUMNS) + 1)                                        # the row's fields, all empty
+    messy.write_bytes(("\r\n".join([ln + ",," for ln in lines] + [empty] * 3) + "\r\n").encode())
+    a, b = read_scans(clean), read_scans(messy)
+    np.testing.assert_array_equal(a.uy_mm, b.uy_mm)
+    np.testing.assert_array_equal(a.scan_id, b.scan_id)
+    assert [r.scan_id for r in read_scan_records(messy)] == [0, 1]
+    inside = tmp_path / "inside.csv"
+    inside.write_text("\n".join(lines[:3] + ["," * (len(COLUMNS) - 1)] + lines[3:]) + "\n")
+    with pytest.raises(DataFileError, match="column scan_id: missing or non-numeric value at data row 3"):
+        read_scans(inside)
+    cal = tmp_path / "calibration.csv"
+    cal.write_text("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n,\n" + "".join(
+        f"{k},0,{0.05 * (k + 1)},0,0.1,{k + 1},0.2,\n" for k in range(5)) + ",,,,,,,\n" * 2)
+    assert read_calibration_csv(cal).n == 5
+
+
 def test_files_joined_with_their_headers_name_the_repeated_header_line(tmp_path):
     """``cat a.csv b.csv``: every user CSV reader (scans, calibration.csv, trials) names the
     line where the header comes again, instead of a non-numeric value in some column."""

@@ -173,3 +173,15 @@ def test_a_run_directory_reads_its_trials_csv(data, tmp_path, capsys):
     err = capsys.readouterr().err
     assert f"{tmp_path}: a directory without trials.csv: give the trial table" in err
     assert "holds robot scans (scans.csv)" in err
+
+
+def test_a_trial_table_saved_from_a_spreadsheet_reads_as_the_clean_one(data, tmp_path):
+    """CRLF lines, trailing empty columns and rows of separators only (rows deleted in
+    Excel): it stopped at 'line 89, column subject: empty'."""
+    from feeler.psydata import read_trials
+
+    lines = data.read_text().splitlines()
+    messy = tmp_path / "messy.csv"
+    messy.write_bytes(("\r\n".join([ln if ln.startswith("#") else ln + ",," for ln in lines]
+                                    + [",,,,,,,,,"] * 3) + "\r\n").encode())
+    pd.testing.assert_frame_equal(read_trials(messy), read_trials(data))
