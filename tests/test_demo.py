@@ -3,6 +3,7 @@
 The whole campaign (every stage, the report included) runs once per session in
 tests/reports/conftest.py; tests/reports/test_report_demo.py checks what it wrote."""
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -49,6 +50,20 @@ def test_demo_refuses_to_overwrite_without_force(tmp_path, small):
     run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1])
     with pytest.raises(OverwriteError):
         run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1])
+    run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1], force=True)
+
+
+def test_a_second_demo_into_the_same_directory_is_refused_while_the_first_runs(tmp_path, small):
+    """Two `make demo` at once (both --force) overwrote each other's files stage by stage."""
+    from feeler.hardware.acquire.lock import RunLocked, lock_run_dir, release_run_dir
+
+    first = lock_run_dir(tmp_path / "demo", then="")                 # the first demo, mid-run
+    try:
+        with pytest.raises(RunLocked, match=rf"demo: process {os.getpid()} is writing this run directory \(one "
+                                            r"writer at a time\); wait for it to finish or stop it$"):
+            run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1], force=True)
+    finally:
+        release_run_dir(first)
     run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1], force=True)
 
 

@@ -136,7 +136,21 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
 
     Raises:
         OverwriteError: ``out`` holds demo results and ``force`` is false.
+        RunLocked: another demo is writing ``out`` (its PID in the message).
     """
+    from feeler.hardware.acquire.lock import lock_run_dir, release_run_dir
+
+    # two demos into one directory (two `make demo` on a shared machine) would overwrite each
+    # other's files stage by stage: the second is refused, naming the first one's PID
+    lock = lock_run_dir(out, then="")
+    try:
+        return _run_stages(out, force=force, scene_path=scene_path, stages=stages, echo=echo, scenes=scenes,
+                           discriminate_scans=discriminate_scans, progress=progress)
+    finally:
+        release_run_dir(lock)
+
+
+def _run_stages(out, *, force, scene_path, stages, echo, scenes, discriminate_scans, progress) -> dict:
     out = prepare_out_dir(out, ("robot_table.json", *FIGURES, "four-plates/scans.csv"), force=force)
     ctx = {"out": out, "force": force, "scene_path": Path(scene_path or DEFAULT_SCENE), "print": echo,
            "seconds": {}, "cpu_seconds": {}, "scenes": dict(scenes or {}), "discriminate_scans": discriminate_scans,

@@ -1,7 +1,8 @@
 """One writer per run directory: an operating-system lock held for the life of the writer.
 
-``acquire`` and ``acquire --resume`` take an exclusive ``flock`` on ``RUN/.lock`` before
-they change anything in ``RUN`` and write their PID into it. The operating system releases
+``acquire`` and ``acquire --resume`` (and ``demo``, whose ``make demo`` overwrites
+``runs/demo``) take an exclusive ``flock`` on ``RUN/.lock`` before they change anything in
+``RUN`` and write their PID into it. The operating system releases
 the lock when the process ends, however it ends (``kill -9`` included), so there is never a
 stale lock to clean up; a second writer is refused with a one-line error naming the PID
 that holds the directory.
@@ -27,11 +28,11 @@ class RunLocked(InputError):
         path (str): the run directory; ``pid`` (int | None) the process holding it.
     """
 
-    def __init__(self, path: object, pid: int | None):
+    def __init__(self, path: object, pid: int | None, then: str = "then --resume"):
         self.path, self.pid = str(path), pid
         who = f"process {pid}" if pid else "another process"
         super().__init__(f"{self.path}: {who} is writing this run directory (one writer at a time); "
-                         "wait for it to finish or stop it, then --resume")
+                         f"wait for it to finish or stop it{', ' + then if then else ''}")
 
 
 def _holder(fd: int) -> int | None:
@@ -43,11 +44,12 @@ def _holder(fd: int) -> int | None:
     return None
 
 
-def lock_run_dir(out: str | Path) -> int:
+def lock_run_dir(out: str | Path, then: str = "then --resume") -> int:
     """Create ``out`` if needed and lock it for this process; returns the lock's descriptor.
 
     Raises:
-        RunLocked: another process holds the lock (its PID in the message).
+        RunLocked: another process holds the lock (its PID in the message; ``then``: what
+            to do after it finished).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -57,7 +59,7 @@ def lock_run_dir(out: str | Path) -> int:
     except BlockingIOError:
         pid = _holder(fd)
         os.close(fd)
-        raise RunLocked(out, pid) from None
+        raise RunLocked(out, pid, then) from None
     os.ftruncate(fd, 0)
     os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
     return fd
