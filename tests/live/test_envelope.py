@@ -101,6 +101,7 @@ def test_a_scan_or_a_batch_noisier_than_training_is_flagged():
     line = env.batch_noise(same * 1.5)
     assert line.startswith("these 40 scans' read-out noise (median 1.") and "the training scans' (" in line
     assert env.batch_noise(same[:4] * 3) is None                    # too few scans for a median: per scan only
+    assert env.batch_noise(np.r_[same * 1.5, 0.0]) is not None      # a constant scan among them changes nothing
     assert Envelope(0.5, 20.0, 0.5, ENV.p_lo, ENV.p_hi).batch_noise(same * 3) is None      # an older fit
     t = np.arange(41) * 0.5
     uy = 0.05 + 0.1 * (t >= 10) + 0.005 * np.random.default_rng(7).standard_normal(41)

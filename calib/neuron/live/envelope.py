@@ -191,8 +191,8 @@ class Envelope:
         train = self._training_noise()
         new = np.asarray(noise_mm, float)
         new = new[np.isfinite(new)]
-        if train.size < BATCH_MIN_SCANS or new.size < BATCH_MIN_SCANS or not np.all(train > 0) or not np.all(new > 0):
-            return None
+        if train.size < BATCH_MIN_SCANS or new.size < BATCH_MIN_SCANS or not np.all(train > 0):
+            return None                                 # (noise-free training scans: each scan says it)
         ratio = median_of(new) / median_of(train)
         se = 1.2533 * float(np.std(np.log(train), ddof=1)) * np.sqrt(1.0 / new.size + 1.0 / train.size)
         if not (ratio > BATCH_NOISE_FACTOR and np.log(ratio) > 3.0 * se):
