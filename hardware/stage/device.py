@@ -285,7 +285,8 @@ class Stage(StageTracking):
 def _check_version(port: str, version: str) -> None:
     """PortError for a board older than Grbl 1.1, whose replies this driver cannot read
     (0.9 answers ``$$`` with ``$0=10 (step pulse, usec)``, errors in words, and status as
-    ``<Idle,MPos:...,WPos:...>``): said before anything is sent, instead of "malformed reply"."""
+    ``<Idle,MPos:...,WPos:...>``): said after the reset, before any command is sent, instead of
+    "malformed reply"."""
     match = re.match(r"(\d+)\.(\d+)", version)
     if match and (int(match.group(1)), int(match.group(2))) < (1, 1):
         raise PortError(port, f"the board runs Grbl {version}, and feeler speaks Grbl 1.1 (its status reports, "
