@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -204,7 +205,22 @@ def _layout(path, header: list[str], lineno: int) -> tuple[str, str]:
         raise DataFileError(path, f"line {lineno}: not a trial table: {hint}")
     raise DataFileError(path, f"line {lineno}: missing column(s) {', '.join(missing)}; required: "
                               f"{', '.join(KEY_COLUMNS)} and counts or responses"
-                              + renamed_hint(header, [c for c in missing if " " not in c]))
+                              + renamed_hint(header, [c for c in missing if " " not in c])
+                              + (_proportion_hint(header) if not counts and not responses else ""))
+
+
+_PROPORTION = re.compile(r"^(p|prop|proportion|pc|percent|pct|fraction|rate)([_ ].*)?$|.*(proportion|percent)",
+                         re.IGNORECASE)
+
+
+def _proportion_hint(header: list[str]) -> str:
+    """"; 'p_higher' looks like a proportion: ..." for a table of proportions without counts
+    (the fit needs how many trials each proportion came from)."""
+    found = [h for h in header if h and _PROPORTION.match(h.strip())]
+    if not found:
+        return ""
+    return (f"; {found[0]!r} looks like a proportion: the fit needs counts, n_comparison_higher (or n_correct) = "
+            f"proportion × n_trials, with n_trials the trials behind each proportion")
 
 
 def _refuse_a_doubled_table(path, lines, rows) -> None:

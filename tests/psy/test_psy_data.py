@@ -44,6 +44,10 @@ def test_extra_columns_are_ignored_and_order_is_free(tmp_path):
     (("A,10,20,7.6,20,10,3",), "Subject,standard [um],standard_speed_mm_s,comparison (µm),comparison_speed_mm_s,"
      "n_trials,n_comparison_higher", "the header has 'Subject', 'standard \\[um\\]', 'comparison \\(µm\\)': rename them "
      "subject, standard_um, comparison_um"),
+    (("A,10,20,7.6,20,0.3",), ",".join(KEY_COLUMNS) + ",p_higher", "missing column.*'p_higher' looks like a "
+     "proportion: the fit needs counts, n_comparison_higher \\(or n_correct\\) = proportion × n_trials"),
+    (("A,10,20,7.6,20,10,30",), ",".join(KEY_COLUMNS) + ",n_trials,percent correct", "'percent correct' looks "
+     "like a proportion"),
     (("A,10,20,7.6,20,10,3,3",), HEADER + ",n_correct", "both n_comparison_higher and n_correct"),
     (("A,10,20,7.6,20,1,0",), ",".join(KEY_COLUMNS) + ",correct,comparison_higher", "both comparison_higher and correct"),
     (("A,10,20,7.6,20,maybe",), ",".join(KEY_COLUMNS) + ",correct", "line 2, column correct: 'maybe' must be 1 or 0"),
