@@ -202,11 +202,17 @@ def ppc_problems(x: np.ndarray, y: np.ndarray, B: np.ndarray, sigma: np.ndarray,
     checks = [("lack of fit (between / within replicated points)", lack_of_fit)] if replicated else []
     checks.append(("largest standardised residual", extreme))
     level = ALPHA / (len(checks) * y.shape[1])
+    # the observed data's most extreme row per axis, at the posterior's median fit: where to look
+    z_obs = np.median(np.abs(np.broadcast_to(y, y_rep.shape) - mu) / sigma[:, None, :], axis=0)   # (n, p)
     for name, stat in checks:
         p = np.mean(stat(y_rep) >= stat(np.broadcast_to(y, y_rep.shape)), axis=0)
         for i in np.flatnonzero((p < level) & noisy):
-            out.append(f"{matrix}: posterior predictive check of axis {AXES[i]}: {name}, p = {p[i]:.3g}; the "
-                       f"{noise} linear model does not describe these data")
+            where = ""
+            if stat is extreme:
+                k = int(np.argmax(z_obs[:, i]))
+                where = f" (data row {k + 1}, {z_obs[k, i]:.1f} sd from the fit: a typo or a slipped contact?)"
+            out.append(f"{matrix}: posterior predictive check of axis {AXES[i]}: {name}, p = {p[i]:.3g}{where}; "
+                       f"the {noise} linear model does not describe these data")
     return out
 
 
