@@ -43,9 +43,12 @@ def _mm(v) -> str:
     return f"{v + 0.0:g} mm"                   # + 0.0: a step of -0 reads 0
 
 
-def data_problems(table: PeakTable, plates: Plates, strain: np.ndarray | None = None) -> list[str]:
+def data_problems(table: PeakTable, plates: Plates, strain: np.ndarray | None = None,
+                  length_mm: float | None = None) -> list[str]:
     """What the design cannot pin down, before any sampling; with the scans' ``strain
-    (ndarray[n_scans, n_time])``, also scans that repeat another sample for sample."""
+    (ndarray[n_scans, n_time])``, also scans that repeat another sample for sample, and with
+    the representative ``length_mm`` (U_y = strain × length) scans with a single-sample
+    spike (:func:`~feeler.calib.neuron.live.envelope.spike_of`)."""
     out = []
     if plates.steps_mm.size < 2:
         out.append(f"a, h, tau_s: one plate ({_mm(plates.steps_mm[0])}) in the data: the decoder's gain, offset "
@@ -62,6 +65,14 @@ def data_problems(table: PeakTable, plates: Plates, strain: np.ndarray | None = 
         out.append(f"plate_sd_mm: the scans of plate(s) {', '.join(_mm(v) for v in plates.steps_mm[flat])} are "
                    f"identical at every window (zero spread, noise-free data): the decoder noise cannot be estimated")
     if strain is not None:
+        from feeler.calib.neuron.live.envelope import spike_problem
+
+        glitches = ([(k, q) for k, row in enumerate(np.asarray(strain, float)) if (q := spike_problem(row * length_mm))]
+                    if length_mm else [])
+        if glitches:                        # one sample can make a scan's peak, and the fit's plates, meaningless
+            k, q = glitches[0]
+            out.append(f"uy_mm: {len(glitches)} scan(s) with a single-sample spike (e.g. scan {k + 1} in file order: "
+                       f"{q})")
         copies, earlier = repeated_rows(np.asarray(strain, float))    # (n_scans, n_time): scans equal to an earlier one
         copies = copies[~flat[plates.group[copies]]]                   # noise-free plates are reported above
         if copies.size:

@@ -92,7 +92,7 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
     plates = Plates.of(d)
     pri = priors or make_priors(table)
     rng = np.random.default_rng(seed)
-    problems = data_problems(table, plates, data.strain) + unit_problems(
+    problems = data_problems(table, plates, data.strain, data.length_mm) + unit_problems(
         table, plates, length_mm=data.length_mm, t_s=data.t_s, x_mm=data.x_mm, speed_mm_s=data.speed_mm_s)
     usable = usable_noise_models(plates)
     scores: dict[str, float] = {}

@@ -147,6 +147,20 @@ def test_a_plate_with_one_scan_fails_for_that_alone_and_quietly(data):
     assert np.isfinite(res.posterior["posterior"].attrs["ppc_coverage90"])
 
 
+def test_a_scan_with_a_one_sample_glitch_is_named_first(data):
+    """One sample 1 mm off in one scan made the fit fail for 'the scans show no step' and
+    plates it 'cannot order'; the glitch itself is named now, with its scan and sample."""
+    strain = data.strain.copy()
+    strain[7, 12] += 1.0 / data.length_mm
+    res = _quiet_fit(dataclasses.replace(data, strain=strain))
+    assert not res.verdict.ok
+    assert res.verdict.problems[0].startswith("uy_mm: 1 scan(s) with a single-sample spike (e.g. scan 8 in file "
+                                              "order: U_y jumps +")
+    assert "at sample 13 and back" in res.verdict.problems[0]
+    assert not any("spike" in q for q in data_problems(data.table(n_grid=16), Plates.of(data.step_mm), data.strain,
+                                                       data.length_mm))
+
+
 def test_steps_labelled_with_the_wrong_sign(data):
     """Depths for heights (steps negated): the rise falls as the label rises. One line names
     it; the per-entry "no finite draws" of the undefined decoder come as one line too."""
