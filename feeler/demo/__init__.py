@@ -120,6 +120,10 @@ STAGES: list[tuple[str, Callable[[dict], None]]] = [
     *_campaign_stages()]
 
 
+#: files whose presence means an earlier demo's results (overwritten only with force)
+_RESULTS = ("robot_table.json", *FIGURES, "four-plates/scans.csv")
+
+
 def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | None = None,
              stages=None, echo: Callable[[str], None] = print, scenes: dict | None = None,
              discriminate_scans: int | None = None, progress: bool | None = None) -> dict:
@@ -142,6 +146,8 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
 
     # two demos into one directory (two `make demo` on a shared machine) would overwrite each
     # other's files stage by stage: the second is refused, naming the first one's PID
+    if not force:                # refused before anything in ``out`` changes (the lock file included)
+        prepare_out_dir(out, _RESULTS, force=False)
     lock = lock_run_dir(out, then="")
     try:
         return _run_stages(out, force=force, scene_path=scene_path, stages=stages, echo=echo, scenes=scenes,
@@ -151,7 +157,7 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
 
 
 def _run_stages(out, *, force, scene_path, stages, echo, scenes, discriminate_scans, progress) -> dict:
-    out = prepare_out_dir(out, ("robot_table.json", *FIGURES, "four-plates/scans.csv"), force=force)
+    out = prepare_out_dir(out, _RESULTS, force=force)
     ctx = {"out": out, "force": force, "scene_path": Path(scene_path or DEFAULT_SCENE), "print": echo,
            "seconds": {}, "cpu_seconds": {}, "scenes": dict(scenes or {}), "discriminate_scans": discriminate_scans,
            "progress": progress}
