@@ -239,11 +239,11 @@ def test_a_classification_of_many_plates_is_drawn_readably(tmp_path, n_plates):
 
 def test_a_simulation_of_many_plates_draws_eight_curves_and_says_so(tmp_path):
     """18 plates' legends in Figs 7-9 were cut at the panels' edges (and colours repeat after
-    10): eight plates, evenly spaced, are drawn and the caption says which share."""
+    10): eight plates, evenly spaced, are drawn and the caption says which share (here of 10)."""
     from pathlib import Path
 
     scene = (Path(__file__).parents[2] / "datasets-synthetic" / "four-plates.toml").read_text()
-    many = "heights_mm = [" + ", ".join(f"{0.02 * k:g}" for k in range(18)) + "]"
+    many = "heights_mm = [" + ", ".join(f"{0.02 * k:g}" for k in range(10)) + "]"
     text = scene.replace("heights_mm = [0.0, 0.05, 0.1, 0.2]", many).replace("scans_per_plate = 24",
                                                                             "scans_per_plate = 2")
     assert many in text and "scans_per_plate = 2\n" in text
@@ -252,4 +252,4 @@ def test_a_simulation_of_many_plates_draws_eight_curves_and_says_so(tmp_path):
     report = build_report(tmp_path / "run", tmp_path / "out", pdf=False)
     assert [(f["title"], f["layout_problems"]) for f in report.figures if f["layout_problems"]] == []
     html = report.html.read_text(encoding="utf-8")
-    assert html.count("(8 of the 18 plates, evenly spaced)") == 2
+    assert html.count("(8 of the 10 plates, evenly spaced)") == 2
