@@ -5,8 +5,9 @@ or a scan CSV: scan_id, t_s (s), uy_mm (mm) are required; x_mm (mm) checks the s
 step_mm and speed_mm_s are labels that add the accuracy and coverage summary (README,
 "Scan CSV format"). Strain uses the posterior's representative length. A scan unlike the
 fit's training scans (speed, sampling period, length, response scale, read-out noise; a
-whole batch noisier than the training scans) is flagged with the reason; one whose times or displacements look like the wrong units is refused. For each scan: the
-probability of every training plate and the decoded step height with its 90 % interval
+whole batch noisier than the training scans; a one-sample spike) is flagged with the
+reason; one whose times or displacements look like the wrong units is refused. For each
+scan: the probability of every training plate and the decoded step height with its 90 % interval
 (inverting each plate's predictive band: at any true step the interval covers it 90 % of
 the time), integrating over the posterior. A posterior that failed its diagnostics is refused unless
 --accept-failed. --out DIR writes classification.csv.

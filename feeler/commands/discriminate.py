@@ -33,7 +33,8 @@ def register(parser) -> None:
                         help="forward: simulated touches decoded per posterior draw (the only one)")
     parser.add_argument("--pair", type=float, nargs=2, action="append", default=None, metavar=("LOW", "HIGH"),
                         help="step heights to compare, mm (repeatable)")
-    parser.add_argument("--reference", type=float, default=0.1, help="reference step for the threshold, mm (default 0.1)")
+    parser.add_argument("--reference", type=float, default=0.1,
+                        help="reference step for the threshold, mm (default 0.1)")
     parser.add_argument("--speeds", type=float, nargs=2, default=None, metavar=("REF", "TEST"),
                         help="scan speeds for the PSE, mm/s (default: the scene's and twice it)")
     parser.add_argument("--touch-seed", type=int, default=None,

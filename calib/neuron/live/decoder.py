@@ -23,8 +23,9 @@ scan is decided at the first sample where
    decided only when the scan ends (:meth:`LiveDecoder.finish`), if its probability is
    then ≥ ``threshold``;
 4. the scan so far lies inside the fit's training envelope (no flags): a scan at another
-   speed, period, length, response scale or read-out noise, or whose reading lies far from every training
-   plate (a step the fit was not trained on), is never decided, only flagged.
+   speed, period, length, response scale or read-out noise, or whose reading lies far from
+   every training plate (a step the fit was not trained on), is never decided, only
+   flagged.
 
 A scan that ends below the threshold stays undecided (its final probabilities are still
 given).
