@@ -172,7 +172,7 @@ def _rows_and_checks(cells: Cells, r, fitted, task: Task, pc: float, label: str,
                      "backend": label, "pc": pc, "stats": stats, "map": _map_row(task, point, pc, mp),
                      "n_levels": n_levels, "n_trials": int(n.sum()), "deviance": dev, "gof_p": ppp,
                      "gof_ok": bool(ppp >= checks.GOF_ALPHA) if np.isfinite(ppp) else None, "label": name,
-                     "n_cells": int(x.size)})
+                     "n_cells": int(x.size), "worst": checks.worst_cell(task, x, n, k, point)})
         problems += checks.level_problems(name, n_levels, x)
         if n_levels >= 2:
             what = "PSE" if not task.is_nafc else "location"

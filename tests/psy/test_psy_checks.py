@@ -42,6 +42,19 @@ def test_data_forced_into_the_wrong_design_fail_the_fit_check():
     assert right.verdict.ok and threshold_table(right).gof_ok.all()
 
 
+def test_a_typed_count_is_named_where_the_fit_fails():
+    """One count typed wrong (18 for 1 of 20 at the lowest level): the misfit names that
+    cell (it said only 'deviance 40.7 on 7 cells')."""
+    levels = np.array([7.6, 8.4, 9.2, 10.0, 10.8, 11.6, 12.4])
+    k = np.array([1, 3, 6, 10, 14, 17, 19])
+    k[0] = 18
+    rows = [("A", 10.0, 20.0, x, 20.0, 20, int(kk)) for x, kk in zip(levels, k)]
+    result = _fit(pd.DataFrame(rows, columns=list(TRIAL_COLUMNS)))
+    lines = [p for p in result.verdict.problems if "does not fit its data" in p]     # the subject and 'all'
+    assert lines and all("most of it at 7.6 µm: 18 of 20, the curve expects " in q and "that cell's counts" in q
+                         for q in lines)
+
+
 def test_data_from_the_model_pass_the_fit_check(simulate):
     passed = 0
     for seed in range(4):

@@ -27,7 +27,7 @@ from scipy.stats import beta as beta_dist
 
 from feeler.models.psychometric import LAPSE_MAX
 
-__all__ = ["deviance", "gof", "unit_problems", "conflict_problems", "level_problems",
+__all__ = ["deviance", "gof", "worst_cell", "unit_problems", "conflict_problems", "level_problems",
            "bracket_problems", "gof_problems", "spread_problems", "one_answer_problem", "GOF_ALPHA", "CONFLICT_Z",
            "CONFLICT_TAIL", "PLAUSIBLE_UM", "BOUNDARY_LR"]
 
@@ -70,6 +70,18 @@ def gof(task, x, n, k, draws: dict, point: dict, rng: np.random.Generator, max_d
     return d_point, ppp
 
 
+def worst_cell(task, x, n, k, point: dict) -> str:
+    """The cell that contributes most to a row's deviance at ``point``, as a clause: "most
+    of it at 7.6 µm: 18 of 20, the curve expects 2.1" (a typed count shows there)."""
+    x, n, k = (np.asarray(v, float) for v in (x, n, k))
+    if not x.size:
+        return ""
+    p = np.clip(task.p(x, point["pse"], point["sigma"], point["lapse"]), 1e-300, 1 - 1e-16)
+    each = deviance(n[:, None], k[:, None], p[:, None])
+    i = int(np.argmax(each))
+    return f"most of it at {x[i]:g} µm: {k[i]:g} of {n[i]:g}, the curve expects {n[i] * p[i]:.1f}"
+
+
 def gof_problems(rows: list[dict]) -> list[str]:
     """Rows whose posterior predictive p is below GOF_ALPHA / (number of rows tested)."""
     tested = [r for r in rows if np.isfinite(r["gof_p"])]
@@ -77,8 +89,9 @@ def gof_problems(rows: list[dict]) -> list[str]:
         return []
     cut = GOF_ALPHA / len(tested)
     return [f"{r['label']}: the model does not fit its data (deviance {r['deviance']:.1f} on "
-            f"{r['n_cells']} cells, posterior predictive p = {r['gof_p']:.4f} < {cut:.2g} = "
-            f"{GOF_ALPHA}/{len(tested)}); check the design (--nafc?), or try --overdispersion"
+            f"{r['n_cells']} cells, {r['worst'] + ', ' if r.get('worst') else ''}posterior predictive p = "
+            f"{r['gof_p']:.4f} < {cut:.2g} = {GOF_ALPHA}/{len(tested)}); check the design (--nafc?) and that "
+            f"cell's counts, or try --overdispersion"
             for r in tested if r["gof_p"] < cut]
 
 
