@@ -158,3 +158,23 @@ def test_a_scan_much_noisier_than_training_is_flagged_not_decided(small_fit):
     assert last.decision is None and any(f.startswith("read-out noise ") for f in last.flags)
     assert all(s.decision is None for s in states)
     assert not any(f.startswith("read-out noise") for f in states[1].flags)       # not known before the peak
+
+
+def test_a_one_sample_glitch_is_named_in_the_scans_flags(small_fit):
+    """A 50 um spike in one sample of a 0 mm scan: the scan's final flags name it with its
+    time (its row in decisions.csv is flagged). The stream judges spikes from its 20th
+    sample on (before, too few samples to know the noise), so a decision taken earlier
+    stands; a 1 mm spike is also beyond the training responses and never decided."""
+    data, res = small_fit
+    dec = LiveDecoder(res, n_draws=40)
+    t = np.asarray(data.t_s)
+    assert data.step_mm[10] == 0.0
+    for size, decided in ((0.05, None), (1.0, False)):
+        glitch = data.strain[10].copy()
+        glitch[5] += size / dec.length_mm
+        _, last = _stream(dec, glitch, t)
+        assert any(f.startswith("U_y jumps +") and "at t = 2.5 s and back" in f for f in last.flags)
+        if decided is False:
+            assert last.decision is None
+    _, clean = _stream(dec, data.strain[10], t)
+    assert clean.decision is not None and clean.decision.plate_mm == 0.0 and clean.flags == ()

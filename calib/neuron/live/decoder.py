@@ -23,9 +23,9 @@ scan is decided at the first sample where
    decided only when the scan ends (:meth:`LiveDecoder.finish`), if its probability is
    then ≥ ``threshold``;
 4. the scan so far lies inside the fit's training envelope (no flags): a scan at another
-   speed, period, length, response scale or read-out noise, or whose reading lies far from
-   every training plate (a step the fit was not trained on), is never decided, only
-   flagged.
+   speed, period, length, response scale or read-out noise, with a one-sample spike, or
+   whose reading lies far from every training plate (a step the fit was not trained on),
+   is never decided, only flagged.
 
 A scan that ends below the threshold stays undecided (its final probabilities are still
 given).
@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feeler.calib.neuron.live.envelope import median_of, readout_noise_mm
+from feeler.calib.neuron.live.envelope import median_of, readout_noise_mm, spike_problem
 from feeler.errors import ArgumentError
 
 __all__ = ["Decision", "LiveState", "LiveDecoder"]
@@ -175,7 +175,8 @@ class LiveDecoder:
         self.speed_label = speed_mm_s
         self._t0 = self._x0 = None
         self._x1 = np.nan
-        self._uy: list[float] = []                   # the scan's U_y, for its read-out noise
+        self._uy: list[float] = []                   # the scan's U_y and times, for its read-out noise
+        self._ts: list[float] = []                   # and a one-sample spike
         self._state = None
         self._decision = None
         self._answer = self._answer_of(np.zeros(self.dec.size))
@@ -206,6 +207,7 @@ class LiveDecoder:
         grew = self.sums.push(t_s, float(u) / self.length_mm)
         self._uy.append(float(u))
         t = float(t_s)
+        self._ts.append(t)
         if self._t0 is None:
             self._t0, self._x0 = t, (np.nan if x_mm is None else float(x_mm))
         self._x1 = np.nan if x_mm is None else float(x_mm)
@@ -256,6 +258,9 @@ class LiveDecoder:
         out = self.env.problems_of(self.sums.n, self._t0, t, self.p_at_tau, x_ends_mm=ends,
                                    speed_mm_s=self.speed_label, final=final, noise_mm=noise)
         if peaked or final:                     # the reading is the scan's once its response has peaked
+            spike = spike_problem(self._uy, self._ts)
+            if spike:
+                out.append(spike)
             _, height, _, (distance, k) = self._answer
             if distance > self.env.plate_sds:   # the height (a bisection) only for the message
                 out.append(self.env.plates(distance, float(self.plates_mm[k]), height.get()[0]))
