@@ -380,9 +380,9 @@ def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
 
 def named_scan_ids(frame, path: Path):
     """Scan ids written as names (``touch-01``, ``S1T3``, or ``2.1`` for touch 1 of plate 2),
-    as lab software often writes them: numbered 0, 1, … in order of first appearance → (the frame with those numbers,
-    ``{number: name}``); numeric ids come back unchanged with None. DataFileError naming
-    the row of a missing id."""
+    as lab software often writes them: numbered 0, 1, … in order of first appearance →
+    (the frame with those numbers, ``{number: name}``); numeric ids come back unchanged
+    with None. DataFileError naming the row of a missing id."""
     import pandas as pd
 
     col = frame["scan_id"]
@@ -416,8 +416,8 @@ def shared_scan_id_problem(scan_id, t_s, step_mm=None) -> str:
     steps = steps[np.isfinite(steps)]
     held = f", with steps {', '.join(f'{v:g}' for v in steps)} mm" if steps.size > 1 else ""
     return (f"column scan_id: t_s restarts {restarts} time(s) within scan_id {scan_id_text(scan_id)}{held}: "
-            f"about {restarts + 1} scans share this id; give every scan its own scan_id across the file (ids that start again on "
-            f"each plate are not unique)")
+            f"about {restarts + 1} scans share this id; give every scan its own scan_id across the file (ids that "
+            f"start again on each plate are not unique)")
 
 
 def varying_label_problem(col: str, scan_id, values) -> str:
