@@ -45,7 +45,7 @@ class GrblCommands:
         self.transport.write(b"\x18")
         self.in_flight.clear()
         deadline = time.monotonic() + timeout_s
-        self.unparsed = None
+        self.unparsed, self.reset_wait_s = None, timeout_s
         while True:
             line = self.transport.read_line(max(deadline - time.monotonic(), 0.001), "banner after reset")
             try:

@@ -87,7 +87,7 @@ class Stage(StageTracking):
             try:
                 banner = protocol.soft_reset()
             except StageTimeout as exc:
-                raise PortError(port, _no_banner(exc, protocol.unparsed, baudrate)) from None
+                raise PortError(port, _no_banner(exc, protocol.unparsed, baudrate, protocol.reset_wait_s)) from None
             _check_version(port, banner.version)
             settings = protocol.settings()
             try:
@@ -294,8 +294,9 @@ def _check_version(port: str, version: str) -> None:
                               f"(github.com/gnea/grbl) onto the board")
 
 
-def _no_banner(exc: StageTimeout, unparsed: bytes | None, baudrate: int) -> str:
-    """What a port that never sent Grbl's banner after a reset most likely is."""
+def _no_banner(exc: StageTimeout, unparsed: bytes | None, baudrate: int, waited_s: float) -> str:
+    """What a port that never sent Grbl's banner after a reset (waiting ``waited_s``) most
+    likely is."""
     from feeler.hardware.stage.errors import shown_bytes
 
     heard = exc.partial or unparsed or b""
@@ -307,4 +308,4 @@ def _no_banner(exc: StageTimeout, unparsed: bytes | None, baudrate: int) -> str:
                  f"rate than {baudrate}" + ("" if baudrate == 115200 else " (Grbl 1.1's is 115200)") + "?")
     else:
         guess = f"it answered {shown_bytes(heard)}, not Grbl's banner: is this a Grbl 1.1 board?"
-    return f"no Grbl banner within {exc.timeout_s:.3g} s of a reset (Ctrl-X); {guess}"
+    return f"no Grbl banner within {waited_s:.3g} s of a reset (Ctrl-X); {guess}"

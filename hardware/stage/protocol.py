@@ -95,6 +95,7 @@ class GrblProtocol(GrblCommands):
         self.messages: deque[Message] = deque(maxlen=64)
         self.last_alarm: int | None = None
         self.unparsed: bytes | None = None     # the last line during a reset that was no Grbl reply
+        self.reset_wait_s = 0.0                # how long the last reset waited for a banner, s
         self.awaiting_reset = False
         self.wco_mm: tuple[float, float, float] | None = None
         self.recovered: Counter[str] = Counter()
