@@ -59,8 +59,8 @@ def run(args) -> int:
                  rng=np.random.default_rng(args.seed), n_draws=args.n_draws, progress=args.progress)
     env = Envelope.of_fit(result, c.tau_s)
     batch = env.batch_noise([readout_noise_mm(r.uy_mm) for r in records])    # a noisier set-up: every scan
-    flags = [env.problems(r.t_s, c.p_at_tau[:, k], x_mm=r.x_mm, speed_mm_s=r.speed_mm_s,
-                          uy_mm=None if batch else r.uy_mm)
+    flags = [env.problems(r.t_s, c.p_at_tau[:, k], x_mm=r.x_mm, speed_mm_s=r.speed_mm_s, uy_mm=r.uy_mm,
+                          noise=not batch)
              + ([batch] if batch else [])
              + [f for f in [env.plates(c.plate_sds[k], c.nearest_mm[k], c.height_mm[k])] if f]
              for k, r in enumerate(records)]

@@ -150,25 +150,20 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
         prepare_out_dir(out, _RESULTS, force=False)
     lock = lock_run_dir(out, then="")
     try:
-        return _run_stages(out, force=force, scene_path=scene_path, stages=stages, echo=echo, scenes=scenes,
-                           discriminate_scans=discriminate_scans, progress=progress)
+        out = prepare_out_dir(out, _RESULTS, force=force)
+        ctx = {"out": out, "force": force, "scene_path": Path(scene_path or DEFAULT_SCENE), "print": echo,
+               "seconds": {}, "cpu_seconds": {}, "scenes": dict(scenes or {}),
+               "discriminate_scans": discriminate_scans, "progress": progress}
+        todo = STAGES if stages is None else stages
+        start = time.perf_counter()
+        for i, (name, stage) in enumerate(todo, 1):
+            if progress is not False:
+                so_far = f" ({duration(time.perf_counter() - start)} so far)" if i > 1 else ""
+                echo(f"[{i}/{len(todo)}] {name} ...{so_far}")
+            t0, c0 = time.perf_counter(), time.process_time()
+            stage(ctx)
+            ctx["seconds"][name] = time.perf_counter() - t0
+            ctx["cpu_seconds"][name] = time.process_time() - c0
+        return ctx
     finally:
         release_run_dir(lock)
-
-
-def _run_stages(out, *, force, scene_path, stages, echo, scenes, discriminate_scans, progress) -> dict:
-    out = prepare_out_dir(out, _RESULTS, force=force)
-    ctx = {"out": out, "force": force, "scene_path": Path(scene_path or DEFAULT_SCENE), "print": echo,
-           "seconds": {}, "cpu_seconds": {}, "scenes": dict(scenes or {}), "discriminate_scans": discriminate_scans,
-           "progress": progress}
-    todo = STAGES if stages is None else stages
-    start = time.perf_counter()
-    for i, (name, stage) in enumerate(todo, 1):
-        if progress is not False:
-            so_far = f" ({duration(time.perf_counter() - start)} so far)" if i > 1 else ""
-            echo(f"[{i}/{len(todo)}] {name} ...{so_far}")
-        t0, c0 = time.perf_counter(), time.process_time()
-        stage(ctx)
-        ctx["seconds"][name] = time.perf_counter() - t0
-        ctx["cpu_seconds"][name] = time.process_time() - c0
-    return ctx

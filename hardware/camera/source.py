@@ -13,10 +13,10 @@ the previous frame's and not uniform (clipped black tiles are legitimately equal
 the frame as bad. Pass ``reject_frozen=False`` for noise-free synthetic video.
 
 The check needs a source that stores every pixel: lossless video (FFV1, HuffYUV, PNG in
-AVI, raw pixel formats) or PNG/TIFF/BMP images. A lossy encoder (MPEG-4, XviD, H.264,
-Motion JPEG, JPEG files) rounds the shot noise of an unchanged region away and repeats its
-tiles exactly on purpose: 38 of 40 frames of a noisy sensor recording in mp4v, XVID or
-MJPG were rejected as frozen. Such a source is read with the check off, and a
+AVI, raw pixel formats) or PNG/TIFF/BMP images. A lossy encoder rounds the shot noise of
+an unchanged region away and repeats its tiles exactly on purpose: 38 of 40 frames of a
+noisy sensor recording in mp4v, XVID or MJPG were rejected as frozen. Any source not known
+to keep every pixel (those three, H.264, JPEG files, ...) is read with the check off, and a
 :class:`LossyVideoWarning` says so once (its areas also carry the compression error).
 
 Image sequences (a printf pattern such as ``frames/%05d.png``) are read file by file with

@@ -26,7 +26,8 @@ import re
 import time
 
 from feeler.errors import ArgumentError
-from feeler.hardware.stage.errors import PortError, ProtocolError, StageError, StageLocked, StageTimeout
+from feeler.hardware.stage.errors import (PortError, ProtocolError, StageError, StageLocked, StageTimeout,
+                                          shown_bytes)
 from feeler.hardware.stage.limits import AXES, StageGeometry, StageLimits
 from feeler.hardware.stage.planner import homing_s, move_duration_s
 from feeler.hardware.stage.protocol import GrblProtocol, damage_of
@@ -297,8 +298,6 @@ def _check_version(port: str, version: str) -> None:
 def _no_banner(exc: StageTimeout, unparsed: bytes | None, baudrate: int, waited_s: float) -> str:
     """What a port that never sent Grbl's banner after a reset (waiting ``waited_s``) most
     likely is."""
-    from feeler.hardware.stage.errors import shown_bytes
-
     heard = exc.partial or unparsed or b""
     text = heard.decode("ascii", "replace")
     if not heard:

@@ -66,16 +66,20 @@ def readout_noise_mm(uy_mm) -> float:
     u = np.asarray(uy_mm, float).ravel()
     if u.size < 5:
         return float("nan")
-    d2 = u[2:] - 2.0 * u[1:-1] + u[:-2]
+    return _noise_of(u[2:] - 2.0 * u[1:-1] + u[:-2])
+
+
+def _noise_of(d2: np.ndarray) -> float:
+    """White-noise sd from second differences: their MAD × 1.4826 / √6."""
     return float(1.4826 * median_of(np.abs(d2 - median_of(d2))) / np.sqrt(6.0))
 
 
 #: a single sample this many read-out noise sds off both its neighbours (which agree) is a
-#: glitch, not a touch: 1650 whole scans of the eleven shipped scenes reach 6.9, and a
-#: stream's prefixes (the live decoder's view, 20 samples on) 12.6
+#: glitch, not a touch: 6750 whole scans of the eleven shipped scenes reach 6.9, and a
+#: stream's prefixes (the live decoder's view: 60 750 of them, judged from 20 samples on) 12.6
 SPIKE_SDS = 20.0
 #: second differences away from the spike that its noise is measured on (a stream's first
-#: samples are not judged: with 3 the noise came out 1000× small by chance)
+#: samples are not judged: with 3, prefixes of shipped scans reached 2700 sds by chance)
 SPIKE_MIN_DIFFERENCES = 15
 
 
@@ -97,7 +101,7 @@ def spike_of(uy_mm) -> tuple[int, float, float] | None:
     rest = np.delete(d2, [j for j in (k - 1, k, k + 1) if 0 <= j < d2.size])
     if rest.size < SPIKE_MIN_DIFFERENCES:        # too few to know the noise (3 can agree by chance)
         return None
-    noise = float(1.4826 * median_of(np.abs(rest - median_of(rest))) / np.sqrt(6.0))
+    noise = _noise_of(rest)
     if not noise > 0 or size[k] <= SPIKE_SDS * noise:
         return None
     return k + 1, float(size[k] * np.sign(a[k])), float(size[k] / noise)
@@ -294,20 +298,23 @@ class Envelope:
             return what + hint
         return None
 
-    def problems(self, t_s, p_at_tau, *, x_mm=None, speed_mm_s: float | None = None, uy_mm=None) -> list[str]:
+    def problems(self, t_s, p_at_tau, *, x_mm=None, speed_mm_s: float | None = None, uy_mm=None,
+                 noise: bool = True) -> list[str]:
         """Every reason a whole scan lies outside the envelope (empty: inside).
 
         Args:
             t_s (ndarray[n]): sample times, s. x_mm (ndarray[n] | None): stage position, mm.
             p_at_tau (ndarray[S]): the scan's P at each draw's window.
             speed_mm_s (float | None): the scan's speed label, mm/s.
-            uy_mm (ndarray[n] | None): its U_y (mm), for the read-out noise.
+            uy_mm (ndarray[n] | None): its U_y (mm), for the read-out noise and a spike.
+            noise (bool): check the read-out noise of this scan alone (False: the caller
+                has judged it with its batch, :meth:`batch_noise`).
         """
         t = np.asarray(t_s, float)
         ends = None if x_mm is None else (float(np.asarray(x_mm, float)[0]), float(np.asarray(x_mm, float)[-1]))
         out = self.problems_of(t.size, float(t[0]) if t.size else 0.0, float(t[-1]) if t.size else 0.0,
                                p_at_tau, x_ends_mm=ends, speed_mm_s=speed_mm_s, final=True,
-                               noise_mm=None if uy_mm is None else readout_noise_mm(uy_mm))
+                               noise_mm=None if uy_mm is None or not noise else readout_noise_mm(uy_mm))
         spike = None if uy_mm is None else spike_problem(uy_mm, t)
         return out + ([spike] if spike else [])
 
