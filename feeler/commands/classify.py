@@ -3,13 +3,15 @@
 POSTERIOR is a directory written by `feeler calibrate neuron --out`; SCANS a run directory
 or a scan CSV: scan_id, t_s (s), uy_mm (mm) are required; x_mm (mm) checks the stage speed;
 step_mm and speed_mm_s are labels that add the accuracy and coverage summary (README,
-"Scan CSV format"). Strain uses the posterior's representative length. A scan unlike the
-fit's training scans (speed, sampling period, length, response scale, read-out noise; a
-whole batch noisier than the training scans; a one-sample spike) is flagged with the
-reason; one whose times or displacements look like the wrong units is refused. For each
-scan: the probability of every training plate and the decoded step height with its 90 % interval
-(inverting each plate's predictive band: at any true step the interval covers it 90 % of
-the time), integrating over the posterior. A posterior that failed its diagnostics is refused unless
+"Scan CSV format"), with a warning when the labels contradict the fit: too few inside
+their 90 % intervals, or fewer classified right than the probabilities promised. Strain
+uses the posterior's representative length. A scan unlike the fit's training scans
+(speed, sampling period, length, response scale, read-out noise; a whole batch noisier
+than the training scans; a one-sample spike) is flagged with the reason; one whose times
+or displacements look like the wrong units is refused. For each scan: the probability of
+every training plate and the decoded step height with its 90 % interval (inverting each
+plate's predictive band: at any true step the interval covers it 90 % of the time),
+integrating over the posterior. A posterior that failed its diagnostics is refused unless
 --accept-failed. --out DIR writes classification.csv.
 """
 from __future__ import annotations
@@ -40,7 +42,7 @@ def run(args) -> int:
     from feeler.calib.neuron.classify import classify
     from feeler.calib.neuron.live.envelope import Envelope, readout_noise_mm
     from feeler.calib.neuron.live.scan_csv import read_scan_records
-    from feeler.calib.neuron.live.table import labelled_summary, plate_column, unit_mistake
+    from feeler.calib.neuron.live.table import claims_check, labelled_summary, plate_column, unit_mistake
     from feeler.rundir import prepare_out_dir
 
     from feeler.commands._checks import check_out_dir
@@ -86,6 +88,8 @@ def run(args) -> int:
         print(c.note)
     summary = labelled_summary(table, c.plates_mm)
     print(summary or f"{len(table)} unlabelled scans (no step_mm column): no accuracy to report")
+    for line in claims_check(table, c.plates_mm):
+        print(f"warning: {line}")
     if args.out:
         out = prepare_out_dir(args.out, ("classification.csv",), force=args.force)
         table.to_csv(out / "classification.csv", index=False)

@@ -12,7 +12,15 @@ import numpy as np
 
 from feeler.errors import DataFileError
 
-__all__ = ["plate_column", "unit_mistake", "labelled_summary"]
+__all__ = ["plate_column", "unit_mistake", "labelled_summary", "claims_check"]
+
+# a labelled batch contradicts the fit when what it claims is this improbable (one-sided)…
+CLAIM_P = 1e-3
+# …and misses by this much: coverage below the 0.85 a 90 % interval should keep at worst,
+# accuracy this far below what the probabilities promised (a small shortfall over
+# thousands of scans is significant without mattering)
+CLAIM_COVERAGE_MIN = 0.85
+CLAIM_ACCURACY_SHORT = 0.05
 
 
 def plate_column(step_mm: float) -> str:
@@ -28,6 +36,67 @@ def unit_mistake(path, scan_ids, flags) -> None:
             if "probably in" in r:
                 raise DataFileError(path, f"scan_id {sid}: {r}; the scan CSV takes t_s in s and uy_mm, x_mm in mm "
                                           "(README, 'Scan CSV format')")
+
+
+def _usable_labels(table, plates_mm):
+    """The labelled, unflagged scans of ``table`` (a frame) and which of them carry the
+    step of a trained plate (ndarray[bool]); None without labels."""
+    if "step_mm" not in table.columns:
+        return None
+    lab = table[np.isfinite(table["step_mm"].to_numpy(float))]
+    if lab.empty:
+        return None
+    if "flagged" in lab.columns:
+        lab = lab[~lab["flagged"].to_numpy(bool)]
+    known = np.isclose(lab["step_mm"].to_numpy(float)[:, None], np.asarray(plates_mm, float)[None, :]).any(axis=1)
+    return lab, known
+
+
+def claims_check(table, plates_mm) -> list[str]:
+    """What a labelled batch says against the fit's claims, one line each; empty when
+    nothing (or no labels, or fewer than 20 usable ones).
+
+    Over the unflagged scans labelled with a trained plate:
+    - coverage: k of n labels inside their 90 % interval, tested against Binomial(n, 0.9)
+      (lower tail below :data:`CLAIM_P`) with k/n below :data:`CLAIM_COVERAGE_MIN`;
+    - accuracy: the misses against those the plate probabilities allow, Σ (1 − p_max):
+      the upper tail of a Poisson of that mean (which bounds the exact Poisson-binomial's
+      from above when it is small and is wider when it is not, so the test errs towards
+      silence), with the accuracy :data:`CLAIM_ACCURACY_SHORT` below the promised one.
+
+    Such a batch differs from the training scans in a way the per-scan flags do not test
+    (a wider pad, a harder press: a fit's four plates classified 2 mm-pad scans with 74 % of
+    labels inside their 90 % intervals, every scan unflagged)."""
+    from scipy.stats import binom, poisson
+
+    usable = _usable_labels(table, plates_mm)
+    if usable is None:
+        return []
+    lab, known = usable
+    lab = lab[known]
+    n = len(lab)
+    if n < 20:
+        return []
+    step = lab["step_mm"].to_numpy(float)
+    inside = (step >= lab["lo90_mm"].to_numpy(float)) & (step <= lab["hi90_mm"].to_numpy(float))
+    out = []
+    k = int(inside.sum())
+    p_cover = float(binom.cdf(k, n, 0.9))
+    if p_cover < CLAIM_P and k / n < CLAIM_COVERAGE_MIN:
+        out.append(f"the fit's intervals do not hold for these scans: {k} of {n} labels inside their 90 % "
+                   f"interval ({k / n * 100:.0f} %; p = {p_cover:.1g} for a 90 % interval)")
+    p_max = lab[[plate_column(v) for v in plates_mm]].to_numpy(float).max(axis=1)
+    hits = int(np.isclose(lab["plate_mm"].to_numpy(float), step).sum())
+    promised = float(p_max.sum())
+    p_acc = float(poisson.sf(n - hits - 1, n - promised))
+    if p_acc < CLAIM_P and hits / n < promised / n - CLAIM_ACCURACY_SHORT:
+        out.append(f"the plate probabilities are over-confident for these scans: {hits} of {n} classified as "
+                   f"their labelled plate where they promised {promised:.0f} (p = {p_acc:.1g})")
+    if out:
+        out[-1] += ("; these scans differ from the training scans in a way the per-scan checks do not see "
+                    "(another probe, press or set of plates?), or labels that are wrong: calibrate with "
+                    "scans like them, or check the labels")
+    return out
 
 
 def labelled_summary(table, plates_mm) -> str | None:
