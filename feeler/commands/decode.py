@@ -10,7 +10,9 @@ unlike the fit's training scans never. Writes RUN/decisions.csv (or into --out D
 to a CSV given as RUN): per scan the probability of every plate and the decoded height
 with its 90 % interval at the scan's end (equal to `feeler classify`), the decision
 (plate, probability, time and stage position; empty if none), and whether the scan was
-flagged, with the reason.
+flagged, with the reason. With labels, a warning when the decisions were right less
+often than the probabilities they were taken at promised, or the intervals held for too
+few labels (README, "Scan CSV format").
 
 --follow decodes a run another process is still acquiring: it tails RUN/samples.csv
 (a partial last line waits for its end) and stops when the acquisition lets go of the
@@ -144,6 +146,8 @@ def _follow(decoder, path, out, args) -> None:
 def _summary(decoder) -> None:
     import numpy as np
 
+    from feeler.calib.neuron.live.table import claims_check
+
     t = decoder.table()
     if t.empty:
         print("no scans decoded")
@@ -156,3 +160,5 @@ def _summary(decoder) -> None:
         line += f"; median decision at {np.median(t['decided_at_t_s'].to_numpy(float)[decided]):.3g} s"
     flagged = int(t["flagged"].sum())
     print(line + (f"; {flagged} flagged as unlike the fit's training scans" if flagged else ""))
+    for said in claims_check(t, decoder.live.plates_mm, decided="decided_mm", promised="p_decided"):
+        print(f"warning: {said}")

@@ -33,3 +33,16 @@ def scans_frame(small_fit):
 def fit_dir(small_fit, tmp_path_factory):
     """The small fit saved as `feeler calibrate neuron --out` does."""
     return small_fit[1].save(tmp_path_factory.mktemp("fit") / "fit")
+
+
+@pytest.fixture(scope="session")
+def fresh_frame(small_fit):
+    """24 fresh scans of the training scene (6 per plate, another seed), long format with
+    labels (scan_id, t_s, uy_mm, step_mm): enough for the checks of a labelled batch."""
+    import pandas as pd
+
+    data = scene_scans(seed=77, per_plate=6)[2]
+    length = float(small_fit[1].posterior["posterior"].attrs["length_mm"])
+    n, m = data.strain.shape
+    return pd.DataFrame({"scan_id": np.repeat(np.arange(n), m), "t_s": np.tile(data.t_s, n),
+                         "uy_mm": data.strain.ravel() * length, "step_mm": np.repeat(data.step_mm, m)})

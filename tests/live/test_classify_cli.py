@@ -202,24 +202,15 @@ def test_long_work_says_how_far_it_is_and_no_progress_silences_it(fit_dir, scans
     assert len(capsys.readouterr().err.splitlines()) <= 1             # at most the line said while loading
 
 
-def test_labels_that_contradict_the_fit_are_a_warning(fit_dir, small_fit, tmp_path, capsys):
+def test_labels_that_contradict_the_fit_are_a_warning(fit_dir, fresh_frame, tmp_path, capsys):
     """Fresh scans of the training scene, labelled right: no warning. The same scans with
     the labels of two plates exchanged: the summary's figures alone said so (and every
     scan is unflagged); now a warning names both claims that fail."""
-    import pandas as pd
-
-    from feeler.calib.neuron.synth import scene_scans
-
-    data = scene_scans(seed=77, per_plate=6)[2]
-    length = float(small_fit[1].posterior["posterior"].attrs["length_mm"])
-    n, m = data.strain.shape
-    frame = pd.DataFrame({"scan_id": np.repeat(np.arange(n), m), "t_s": np.tile(data.t_s, n),
-                          "uy_mm": data.strain.ravel() * length, "step_mm": np.repeat(data.step_mm, m)})
-    frame.to_csv(tmp_path / "right.csv", index=False)
+    fresh_frame.to_csv(tmp_path / "right.csv", index=False)
     assert _run(fit_dir, tmp_path / "right.csv") == 0
     out = capsys.readouterr().out
-    assert f"{n} labelled scans" in out and "warning" not in out
-    swapped = frame.assign(step_mm=frame.step_mm.replace({0.05: 0.1, 0.1: 0.05}))
+    assert f"{fresh_frame.scan_id.nunique()} labelled scans" in out and "warning" not in out
+    swapped = fresh_frame.assign(step_mm=fresh_frame.step_mm.replace({0.05: 0.1, 0.1: 0.05}))
     swapped.to_csv(tmp_path / "swapped.csv", index=False)
     assert _run(fit_dir, tmp_path / "swapped.csv") == 0
     warnings = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("warning: ")]

@@ -164,3 +164,20 @@ def test_decode_notes_a_batch_noisier_than_training_and_names_scans_by_number(fi
     assert "scan ids are names (S1-T00 ... S1-T88), read as scan_id 0 ... 11 in order of appearance" in said
     assert "note: these 12 scans' read-out noise (median" in said and "may not hold" in said
     assert len(pd.read_csv(run / "decisions.csv")) == 12
+
+
+def test_decisions_that_contradict_the_labels_are_a_warning(fit_dir, fresh_frame, tmp_path, capsys):
+    """decode checks its decisions as classify checks its answers: right labels, no
+    warning; two plates' labels exchanged, the decisions (each taken at probability >= 0.9)
+    are named over-confident and the end-of-scan intervals as not holding."""
+    fresh_frame.to_csv(tmp_path / "right.csv", index=False)
+    assert main(["decode", str(fit_dir), str(tmp_path / "right.csv"), "--n-draws", "40", "--no-live"]) == 0
+    assert "warning" not in capsys.readouterr().out
+    swapped = fresh_frame.assign(step_mm=fresh_frame.step_mm.replace({0.05: 0.1, 0.1: 0.05}))
+    swapped.to_csv(tmp_path / "swapped.csv", index=False)
+    assert main(["decode", str(fit_dir), str(tmp_path / "swapped.csv"), "--n-draws", "40", "--no-live",
+                 "--force"]) == 0                          # decisions.csv lands beside the CSV: the first run's
+    warnings = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("warning: ")]
+    assert len(warnings) == 2, warnings
+    assert "labels inside their 90 % interval" in warnings[0]
+    assert "the decisions are over-confident for these scans" in warnings[1] and "right where their" in warnings[1]

@@ -21,6 +21,7 @@ CLAIM_P = 1e-3
 # thousands of scans is significant without mattering)
 CLAIM_COVERAGE_MIN = 0.85
 CLAIM_ACCURACY_SHORT = 0.05
+CLAIM_MIN_SCANS = 20     # fewer usable scans than this: no judgement
 
 
 def plate_column(step_mm: float) -> str:
@@ -52,17 +53,21 @@ def _usable_labels(table, plates_mm):
     return lab, known
 
 
-def claims_check(table, plates_mm) -> list[str]:
+def claims_check(table, plates_mm, *, decided: str = "plate_mm", promised: str | None = None) -> list[str]:
     """What a labelled batch says against the fit's claims, one line each; empty when
-    nothing (or no labels, or fewer than 20 usable ones).
+    nothing (or no labels, or fewer than 20 usable scans).
 
     Over the unflagged scans labelled with a trained plate:
     - coverage: k of n labels inside their 90 % interval, tested against Binomial(n, 0.9)
       (lower tail below :data:`CLAIM_P`) with k/n below :data:`CLAIM_COVERAGE_MIN`;
-    - accuracy: the misses against those the plate probabilities allow, Σ (1 − p_max):
-      the upper tail of a Poisson of that mean (which bounds the exact Poisson-binomial's
-      from above when it is small and is wider when it is not, so the test errs towards
-      silence), with the accuracy :data:`CLAIM_ACCURACY_SHORT` below the promised one.
+    - accuracy, over those with a plate in column ``decided`` (classify: the most probable
+      plate; decode: the plate decided, NaN while undecided): the misses against those the
+      probabilities allow, Σ (1 − p), with p the column ``promised`` (decode's
+      ``p_decided``: a posterior at the time it is acted on is calibrated whenever that
+      time is) or else the top plate probability: the upper tail of a Poisson of that
+      mean (which bounds the exact Poisson-binomial's from above when it is small and is
+      wider when it is not, so the test errs towards silence), with the accuracy
+      :data:`CLAIM_ACCURACY_SHORT` below the promised one.
 
     Such a batch differs from the training scans in a way the per-scan flags do not test
     (a wider pad, a harder press: a fit's four plates classified 2 mm-pad scans with 74 % of
@@ -74,24 +79,28 @@ def claims_check(table, plates_mm) -> list[str]:
         return []
     lab, known = usable
     lab = lab[known]
+    out = []
     n = len(lab)
-    if n < 20:
-        return []
     step = lab["step_mm"].to_numpy(float)
     inside = (step >= lab["lo90_mm"].to_numpy(float)) & (step <= lab["hi90_mm"].to_numpy(float))
-    out = []
     k = int(inside.sum())
     p_cover = float(bdtr(k, n, 0.9))
-    if p_cover < CLAIM_P and k / n < CLAIM_COVERAGE_MIN:
+    if n >= CLAIM_MIN_SCANS and p_cover < CLAIM_P and k / n < CLAIM_COVERAGE_MIN:
         out.append(f"the fit's intervals do not hold for these scans: {k} of {n} labels inside their 90 % "
                    f"interval ({k / n * 100:.0f} %; p = {p_cover:.1g} for a 90 % interval)")
-    p_max = lab[[plate_column(v) for v in plates_mm]].to_numpy(float).max(axis=1)
-    hits = int(np.isclose(lab["plate_mm"].to_numpy(float), step).sum())
-    promised = float(p_max.sum())
-    p_acc = float(pdtrc(n - hits - 1, n - promised)) if hits < n else 1.0
-    if p_acc < CLAIM_P and hits / n < promised / n - CLAIM_ACCURACY_SHORT:
-        out.append(f"the plate probabilities are over-confident for these scans: {hits} of {n} classified as "
-                   f"their labelled plate where they promised {promised:.0f} (p = {p_acc:.1g})")
+    plate = lab[decided].to_numpy(float)
+    acted = np.isfinite(plate)
+    p = (lab[promised].to_numpy(float) if promised else
+         lab[[plate_column(v) for v in plates_mm]].to_numpy(float).max(axis=1))[acted]
+    n = int(acted.sum())
+    hits = int(np.isclose(plate[acted], step[acted]).sum())
+    expected = float(p.sum())
+    p_acc = float(pdtrc(n - hits - 1, n - expected)) if hits < n else 1.0
+    if n >= CLAIM_MIN_SCANS and p_acc < CLAIM_P and hits / n < expected / n - CLAIM_ACCURACY_SHORT:
+        said = (f"the decisions are over-confident for these scans: {hits} of {n} right where their "
+                if promised else f"the plate probabilities are over-confident for these scans: {hits} of {n} "
+                                 f"classified as their labelled plate where they ")
+        out.append(f"{said}promised {expected:.0f} (p = {p_acc:.1g})")
     if out:
         out[-1] += ("; these scans differ from the training scans in a way the per-scan checks do not see "
                     "(another probe, press or set of plates?), or labels that are wrong: calibrate with "
