@@ -134,3 +134,28 @@ def test_a_single_sample_spike_is_a_glitch_a_snap_or_a_ride_is_not():
     quantised = np.round(glitch, 2)                                   # no read-out noise to compare with
     assert spike_of(np.round(snap, 2)) is None and spike_of(quantised) is None
     assert any(q.startswith("U_y jumps") for q in ENV.problems(t, [0.03, 0.05], x_mm=t * 0.5, uy_mm=glitch))
+
+
+def test_an_early_glitch_holds_until_the_spike_check_can_judge():
+    """Before 20 samples the noise is unknown, so a one-sample excursion of half the rise
+    without it is held as a possible glitch; a snap, a ride or noise alone is not, nor a
+    small excursion on a large rise, and from 20 samples on :func:`spike_of` judges."""
+    from feeler.calib.neuron.live.envelope import SPIKE_MIN_DIFFERENCES, early_spike
+
+    rng = np.random.default_rng(3)
+    t = np.arange(19) * 0.5
+    noise = 0.001 * rng.standard_normal(t.size)
+    snap = 0.05 + 0.2 * (t >= 5) + noise
+    ride = 0.05 + 0.2 * np.clip((t - 4) / 3, 0, 1) + noise
+    assert not any(early_spike(u) for u in (snap, ride, noise, noise[:3], noise[:2]))
+    glitch = 0.05 + noise
+    glitch[5] += 0.03                                   # 30 noise sds, on a flat stretch
+    assert early_spike(glitch) and early_spike(glitch[:7]) and not early_spike(glitch[:6])   # needs its next sample
+    on_rise = ride.copy()
+    on_rise[2] += 0.03                                  # 0.03 on a 0.2 rise: not what sets the peak
+    assert not early_spike(on_rise)
+    big = ride.copy()
+    big[2] += 0.12
+    assert early_spike(big)
+    longer = np.concatenate([glitch, 0.05 + 0.001 * rng.standard_normal(SPIKE_MIN_DIFFERENCES + 5)])
+    assert not early_spike(longer)                      # long enough: spike_of's to judge

@@ -25,7 +25,10 @@ scan is decided at the first sample where
 4. the scan so far lies inside the fit's training envelope (no flags): a scan at another
    speed, period, length, response scale or read-out noise, with a one-sample spike, or
    whose reading lies far from every training plate (a step the fit was not trained on),
-   is never decided, only flagged.
+   is never decided, only flagged;
+5. before the spike check can judge (20 samples), no sample stands off both neighbours
+   by half the scan's rise without it (:func:`.envelope.early_spike`): it may be a glitch
+   that alone sets the peak.
 
 A scan that ends below the threshold stays undecided (its final probabilities are still
 given).
@@ -36,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feeler.calib.neuron.live.envelope import median_of, readout_noise_mm, spike_problem
+from feeler.calib.neuron.live.envelope import early_spike, median_of, readout_noise_mm, spike_problem
 from feeler.errors import ArgumentError
 
 __all__ = ["Decision", "LiveState", "LiveDecoder"]
@@ -221,7 +224,8 @@ class LiveDecoder:
         new = False
         flags = tuple(self._flags(t, final=False, peaked=peaked))
         k = int(np.argmax(prob))
-        if self._decision is None and peaked and k > 0 and prob[k] >= self.threshold and not flags:
+        if (self._decision is None and peaked and k > 0 and prob[k] >= self.threshold and not flags
+                and not early_spike(self._uy)):
             self._decision = Decision(float(self.plates_mm[k]), float(prob[k]), self.sums.n - 1, t, self._x1)
             new = True
         self._state = LiveState(self.sums.n, t, prob, height, z, peaked, self._decision, new, flags)
@@ -286,7 +290,7 @@ class LiveDecoder:
         flags = tuple(self._flags(s.t_s, final=True))
         new = False
         k = int(np.argmax(s.prob))
-        if self._decision is None and s.prob[k] >= self.threshold and not flags:
+        if self._decision is None and s.prob[k] >= self.threshold and not flags and not early_spike(self._uy):
             self._decision = Decision(float(self.plates_mm[k]), float(s.prob[k]), s.n - 1, s.t_s, self._x1)
             new = True
         return LiveState(s.n, s.t_s, s.prob, s.interval, s.z_mm, s.peaked, self._decision, new, flags)
