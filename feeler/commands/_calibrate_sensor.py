@@ -1,8 +1,8 @@
 """Calibrate a sensor element's force→displacement matrix C (M1).
 
 DATASET is a directory with calibration.csv (ux_mm, uy_mm, uz_mm, fx_n, fy_n, fz_n, and
-optionally point_id) and scene.toml whose [prior] table gives the nominal C₀ (as written by `feeler
-simulate` for a sensor-calibration scene), or a calibration.csv with --c0.
+optionally point_id) and scene.toml whose [prior] table gives the nominal C₀ (as written
+by `feeler simulate` for a sensor-calibration scene), or a calibration.csv with --c0.
 
 Default model: the commanded U is exact and the measured F is noisy, so F = K U + η
 with K = C⁻¹ is fitted and C = K⁻¹ reported (no attenuation). --eiv adds latent stage

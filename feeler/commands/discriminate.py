@@ -10,9 +10,9 @@ step between two scan speeds (--speeds REF TEST). 95 % intervals include the pos
 and the Monte Carlo error of the --n-scans simulated touches (bootstrap per draw; "MC se"
 is the latter alone). The touches belong to the forward model and are seeded from the
 scene's seed, so reruns with another --seed (posterior draws, resamples) agree within
-their intervals; --touch-seed simulates another set of touches. A threshold that many draws do not reach within the searched range
-is printed as a bound ("> 25.00 um") with the fraction of draws. A failed posterior is
-refused unless --accept-failed.
+their intervals; --touch-seed simulates another set of touches. A threshold that many
+draws do not reach within the searched range is printed as a bound ("> 25.00 um") with
+the fraction of draws. A failed posterior is refused unless --accept-failed.
 """
 from __future__ import annotations
 

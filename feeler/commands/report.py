@@ -10,7 +10,8 @@ missing part would need. Then one section per part, failed calibrations first.
 Writes report.html (self-contained: figures inlined, opens offline), report.pdf (the same
 HTML laid out by WeasyPrint) and report-manifest.json (every figure with the files it
 came from). Progress: a live line on a terminal, otherwise a line per stage: each
-section, each figure drawn, each PDF step and page (--no-progress: none). A corrupt file of the run stops with a one-line error naming it (exit 2).
+section, each figure drawn, each PDF step and page (--no-progress: none). A corrupt file
+of the run stops with a one-line error naming it (exit 2).
 
 Examples:
     feeler report runs/demo
