@@ -179,7 +179,9 @@ _SHOW = ("subject", "standard_um", "standard_speed_mm_s", "comparison_speed_mm_s
 
 
 def run_psychophysics(args) -> int:
-    print(f"fit psychophysics: reading {args.data} ...", flush=True)
+    from feeler.calib.progress import stage
+
+    stage(f"fit psychophysics: reading {args.data}", args.progress)     # stderr: stdout is the result
     import warnings
 
     import numpy as np

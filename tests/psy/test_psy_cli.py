@@ -25,9 +25,11 @@ def data(tmp_path_factory, simulate):
 
 def test_exact_default_writes_thresholds_curves_and_index(data, tmp_path, capsys):
     code = main(["fit", "psychophysics", str(data), "--out", str(tmp_path)])
-    text = capsys.readouterr().out
+    captured = capsys.readouterr()
+    text = captured.out
     lines = text.splitlines()
-    assert code == 0 and lines[0].startswith("fit psychophysics: reading") and lines[1].startswith("DATA: SYNTHETIC")
+    assert code == 0 and lines[0].startswith("DATA: SYNTHETIC")     # stdout is the result; progress on stderr
+    assert f"fit psychophysics: reading {data} ..." in captured.err.splitlines()
     assert "backend exact (adaptive grid)" in text and "verdict: ok" in text
     table = pd.read_csv(tmp_path / "thresholds.csv", comment="#")
     assert tuple(table.columns) == THRESHOLD_COLUMNS and set(LEGACY_COLUMNS) <= set(table.columns)
