@@ -47,6 +47,7 @@ def reliability(conf, hit, n_bins: int = 10):
 def classify_section(inv, spec) -> Section:
     """Confusion matrix (counts and mean confidence), calibration curve and summary table."""
     from feeler.calib.neuron.classify import expected_calibration_error
+    from feeler.calib.neuron.live.table import claims_check, plate_column
     from feeler.errors import DataFileError
 
     part = spec.parts[0]
@@ -87,6 +88,11 @@ def classify_section(inv, spec) -> Section:
                   ("step_mm", "n scans", "accuracy", "mean top probability", "90 % interval coverage"),
                   tuple(rows), src, caption=f"Expected calibration error (10 bins): {fmt(ece, 3)}.{left_out}")
     blocks = [_confusion(step, decided, conf, plates, src), _heights(frame, step, src)]
+    claims = claims_check(frame.drop(columns="flagged", errors="ignore")          # as `feeler classify` warns
+                          .rename(columns={c: plate_column(v) for c, v in pcols.items()}), plates)
+    if claims:
+        blocks.insert(0, Note("Warning: " + " Warning: ".join(c[0].upper() + c[1:] + "." for c in claims),
+                              sources=src))
     rel_curve = reliability(conf, hit)
     if len(rel_curve) >= MIN_BINS:
         blocks.append(_calibration(conf, hit, ece, src))

@@ -75,6 +75,25 @@ def test_flagged_scans_are_left_out_of_the_numbers_as_classify_does(copy_run):
     assert block.kind == "note" and block.text.startswith("All 1 classified scans are flagged")
 
 
+def test_labels_that_contradict_the_fit_are_a_warning_first(copy_run):
+    """The section warns as `feeler classify` does when the labels contradict the fit:
+    30 scans, probability columns written with a trailing zero, the intervals holding 15
+    labels where a 90 % interval holds 27, the top probabilities 0.99 where 15 are right."""
+    path = copy_run / "classify" / "classification.csv"
+    head = "scan_id,step_mm,plate_mm,p_0.00mm,p_0.10mm,height_mm,lo90_mm,hi90_mm,flagged\n"
+    right = [f"{k},0.1,0.1,0.01,0.99,0.1,0.09,0.11,False" for k in range(15)]
+    wrong = [f"{k},0.0,0.1,0.01,0.99,0.1,0.09,0.11,False" for k in range(15, 30)]
+    path.write_text(head + "\n".join(right + wrong) + "\n", encoding="utf-8")
+    inv = discover(copy_run)
+    first = classify_section(inv, _spec(inv, "classify:classify")).blocks[0]
+    assert first.kind == "note" and first.text.startswith("Warning: The fit's intervals do not hold")
+    assert "15 of 30 labels inside" in first.text and "15 of 30 classified as their labelled plate" in first.text
+    path.write_text(head + "\n".join(right + [w.replace(",0.0,0.1,", ",0.1,0.1,") for w in wrong]) + "\n",
+                    encoding="utf-8")
+    assert not any(b.kind == "note" and "Warning" in b.text
+                   for b in classify_section(inv, _spec(inv, "classify:classify")).blocks)
+
+
 def test_a_one_point_calibration_curve_is_replaced_by_words(run_dir):
     inv = discover(run_dir)
     section = classify_section(inv, _spec(inv, "classify:classify"))
