@@ -62,6 +62,8 @@ def test_shipped_four_plates_matches_the_paper():
     ("position_mm = 5.0", "position_mm = 0.5", "surface.position_mm", "inside the traverse"),
     ('profile = "step"', 'profile = "grating"\ncount = 5\nspacing_mm = 2.0', "surface.position_mm", "inside"),
     ("uy0_sd_mm = 0.0125", "uy0_sd_mm = 0.02", "probe.uy0_sd_mm", "uy0_mean_mm/3"),
+    # a pad wider than the traverse: said as such (it gave an inverted range, "[25.6, -15.6] mm")
+    ("pad_width_mm = 1.5", "pad_width_mm = 50", "probe.pad_width_mm", "(51.2 mm) must be shorter than motion.traverse_mm"),
     ("tau_s = 3.0", "tau_s = 25.0", "neuron.tau_s", "shorter than one scan"),
 ])
 def test_each_rule_names_file_and_key(tmp_path, old, new, key, words):

@@ -122,6 +122,10 @@ class Scene:
             raise SceneError(path, "motion.dt_s", f"{m.dt_s}: more than 1e6 samples per scan")
         margin = p.pad_width_mm / 2 + 3 * m.x0_sd_mm
         lo, hi = m.x0_mm + margin, m.x0_mm + m.traverse_mm - margin
+        if lo > hi:                                 # no edge fits at all: say which lengths clash
+            raise SceneError(path, "probe.pad_width_mm",
+                             f"{p.pad_width_mm}: the pad plus 3 sds of start scatter on each side "
+                             f"({2 * margin:g} mm) must be shorter than motion.traverse_mm = {m.traverse_mm:g} mm")
         if s.position_mm < lo or self.last_edge_mm() > hi:
             raise SceneError(path, "surface.position_mm",
                              f"{s.position_mm}: edges at {s.position_mm:g}..{self.last_edge_mm():g} mm must lie "
