@@ -65,8 +65,8 @@ def claims_check(table, plates_mm, *, decided: str = "plate_mm", promised: str |
       probabilities allow, Σ (1 − p), with p the column ``promised`` (decode's
       ``p_decided``: a posterior at the time it is acted on is calibrated whenever that
       time is) or else the top plate probability: the upper tail of a Poisson of that
-      mean (which bounds the exact Poisson-binomial's from above when it is small and is
-      wider when it is not, so the test errs towards silence), with the accuracy
+      mean, wider than the exact Poisson-binomial's (whose variance, Σ p(1 − p), is
+      smaller), so the test errs towards silence; with the accuracy
       :data:`CLAIM_ACCURACY_SHORT` below the promised one.
 
     Such a batch differs from the training scans in a way the per-scan flags do not test
