@@ -6,13 +6,15 @@ scan is fed to the streaming decoder one sample at a time; a scan is decided at 
 first sample where its response has passed its peak (fallen below 1 − --drop of its
 maximum) and the most probable plate has probability >= --threshold; the lowest plate
 only at the scan's end (before the step the response looks like it), a scan flagged as
-unlike the fit's training scans never. Writes RUN/decisions.csv (or into --out DIR; next
-to a CSV given as RUN): per scan the probability of every plate and the decoded height
-with its 90 % interval at the scan's end (equal to `feeler classify`), the decision
-(plate, probability, time and stage position; empty if none), and whether the scan was
-flagged, with the reason. With labels, a warning when the decisions were right less
-often than the probabilities they were taken at promised, or the intervals held for too
-few labels (README, "Scan CSV format").
+unlike the fit's training scans never; before its 20th sample, not while one sample
+stands off both neighbours by half the scan's rise (a possible glitch, too early to
+judge). Writes RUN/decisions.csv (or into --out DIR; next to a CSV given as RUN): per
+scan the probability of every plate and the decoded height with its 90 % interval at the
+scan's end (equal to `feeler classify`), the decision (plate, probability, time and stage
+position; empty if none), and whether the scan was flagged, with the reason. With
+labels, a warning when the decisions were right less often than the probabilities they
+were taken at promised, or the intervals held for too few labels (README, "Scan CSV
+format").
 
 --follow decodes a run another process is still acquiring: it tails RUN/samples.csv
 (a partial last line waits for its end) and stops when the acquisition lets go of the
