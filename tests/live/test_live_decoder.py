@@ -166,7 +166,7 @@ def test_a_one_sample_glitch_is_named_in_the_scans_flags(small_fit):
     is never decided. The stream judges spikes from its 20th sample on (before, too few
     samples to know the noise); until then a sample standing off both neighbours by half
     the scan's rise without it holds the decision. Without the hold a 30 um glitch was
-    decided as 0.05 mm at p = 0.999 by the 14th sample, whatever the scan's plate."""
+    decided as 0.05 mm at p = 0.999 at the 15th sample, whatever the scan's plate."""
     data, res = small_fit
     dec = LiveDecoder(res, n_draws=40)
     t = np.asarray(data.t_s)

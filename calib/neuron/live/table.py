@@ -40,17 +40,18 @@ def unit_mistake(path, scan_ids, flags) -> None:
 
 
 def _usable_labels(table, plates_mm):
-    """The labelled, unflagged scans of ``table`` (a frame) and which of them carry the
-    step of a trained plate (ndarray[bool]); None without labels."""
+    """(the labelled, unflagged scans of ``table`` (a frame), how many labelled ones were
+    flagged, which of the unflagged carry the step of a trained plate (ndarray[bool]));
+    None without labels."""
     if "step_mm" not in table.columns:
         return None
     lab = table[np.isfinite(table["step_mm"].to_numpy(float))]
     if lab.empty:
         return None
-    if "flagged" in lab.columns:
-        lab = lab[~lab["flagged"].to_numpy(bool)]
+    flagged = lab["flagged"].to_numpy(bool) if "flagged" in lab.columns else np.zeros(len(lab), bool)
+    lab = lab[~flagged]
     known = np.isclose(lab["step_mm"].to_numpy(float)[:, None], np.asarray(plates_mm, float)[None, :]).any(axis=1)
-    return lab, known
+    return lab, int(flagged.sum()), known
 
 
 def claims_check(table, plates_mm, *, decided: str = "plate_mm", promised: str | None = None) -> list[str]:
@@ -77,7 +78,7 @@ def claims_check(table, plates_mm, *, decided: str = "plate_mm", promised: str |
     usable = _usable_labels(table, plates_mm)
     if usable is None:
         return []
-    lab, known = usable
+    lab, _, known = usable
     lab = lab[known]
     out = []
     n = len(lab)
@@ -112,19 +113,15 @@ def labelled_summary(table, plates_mm) -> str | None:
     """Accuracy and 90 % coverage over the labelled scans of ``table`` that are not
     flagged (outside the fit's training envelope, where its numbers mean nothing), with
     how many flagged ones were left out; None without labels."""
-    if "step_mm" not in table.columns:
+    usable = _usable_labels(table, plates_mm)
+    if usable is None:
         return None
-    lab = table[np.isfinite(table["step_mm"].to_numpy(float))]
+    lab, n_flagged, known = usable
     if lab.empty:
-        return None
-    flagged = lab["flagged"].to_numpy(bool) if "flagged" in lab.columns else np.zeros(len(lab), bool)
-    if flagged.all():
-        return (f"{len(lab)} labelled scans, all flagged (outside the fit's training envelope: see the flags): "
+        return (f"{n_flagged} labelled scans, all flagged (outside the fit's training envelope: see the flags): "
                 f"no accuracy to report")
-    left_out = f"; {int(flagged.sum())} flagged scan(s) left out" if flagged.any() else ""
-    lab = lab[~flagged]
+    left_out = f"; {n_flagged} flagged scan(s) left out" if n_flagged else ""
     step = lab["step_mm"].to_numpy(float)
-    known = np.isclose(step[:, None], np.asarray(plates_mm)[None, :]).any(axis=1)
     hit = np.isclose(lab["plate_mm"].to_numpy(float), step)
     inside = (step >= lab["lo90_mm"].to_numpy(float)) & (step <= lab["hi90_mm"].to_numpy(float))
     plates = np.asarray(plates_mm, float)
