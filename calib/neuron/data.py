@@ -24,6 +24,8 @@ class NeuronData:
         kernel (str): temporal window of the neuron.
         x_mm (ndarray[n_scans, n_time] | None): stage position, mm (for the units check).
         speed_mm_s (ndarray[n_scans] | None): commanded stage speed, mm/s (same).
+        scan_id (ndarray[n_scans] | None): each scan's id, to name a scan in the checks
+            (None: named by its place in the data).
     """
     strain: np.ndarray
     t_s: np.ndarray
@@ -32,6 +34,7 @@ class NeuronData:
     kernel: str = "boxcar"
     x_mm: np.ndarray | None = None
     speed_mm_s: np.ndarray | None = None
+    scan_id: np.ndarray | None = None
 
     def table(self, n_grid: int = 256) -> PeakTable:
         """Peak u₁ on a log-τ grid from one sample interval to half the scan duration.
@@ -54,7 +57,8 @@ def data_from_scans(scans, *, length_mm: float, kernel: str = "boxcar") -> Neuro
     t = shared_times(scans.t_s)
     return NeuronData(strain=strain(scans.uy_mm, length_mm), t_s=t,
                       step_mm=np.asarray(scans.step_mm, float), length_mm=float(length_mm), kernel=kernel,
-                      x_mm=np.asarray(scans.x_mm, float), speed_mm_s=np.asarray(scans.speed_mm_s, float))
+                      x_mm=np.asarray(scans.x_mm, float), speed_mm_s=np.asarray(scans.speed_mm_s, float),
+                      scan_id=np.asarray(scans.scan_id))
 
 
 def shared_times(t_s) -> np.ndarray:
