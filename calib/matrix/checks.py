@@ -16,6 +16,12 @@ rows b_i of B per output axis (K for the inverse model, C for the forward one).
   Mahalanobis distance is χ²₃; a tail probability below 0.01/3 says prior and data
   disagree (the prior then drags the fit and inflates the noise, as it did on a
   near-singular sensor: σ_n 14× the truth);
+- what the posterior pins (:func:`sign_problems`): a compliance on the sensor's own axis,
+  C[i,i], whose 95 % interval holds 0 — the fit cannot tell its sign, so no force can be
+  read from that axis (forces that do not follow the displacements: rows shuffled,
+  columns mismatched, a contact that slips). The design and conflict checks do not see
+  this: the design spans every direction and a prior wide enough for the nominal C₀
+  also holds a row of K near 0;
 - posterior predictive (:func:`ppc_problems`): replicated data from posterior draws,
   with two discrepancies per axis — lack of fit (replicated points: between-point over
   within-point scatter of the residuals) and the largest standardised residual
@@ -32,8 +38,8 @@ import numpy as np
 from feeler.calib.diagnostics import repeated_rows
 from feeler.calib.matrix.data import AXES, weak_directions
 
-__all__ = ["design_problems", "repeat_problems", "unit_problems", "conflict_problems", "ppc_problems", "ALPHA",
-           "UNIT_FACTOR"]
+__all__ = ["design_problems", "repeat_problems", "unit_problems", "conflict_problems", "sign_problems",
+           "ppc_problems", "ALPHA", "UNIT_FACTOR"]
 
 ALPHA = 0.01
 UNIT_FACTOR = 30.0
@@ -165,6 +171,28 @@ def conflict_problems(x: np.ndarray, y: np.ndarray, b0: np.ndarray, s: float, *,
                        f"{np.sqrt(d2):.1f} prior sd from the prior's {np.array2string(b0[i], precision=3)} "
                        f"(prior-data conflict, p = {p:.1g}): the prior drags the fit; widen --rel-sd or check C0")
     return out
+
+
+def sign_problems(c_draws: np.ndarray, c0: np.ndarray) -> list[str]:
+    """One line when the 95 % interval of a diagonal compliance C[i,i] holds 0, from
+    ``c_draws (ndarray[S, 3, 3])`` (mm/N; non-finite draws count as unknown) and the
+    nominal ``c0``."""
+    c = np.asarray(c_draws, float).reshape(-1, 3, 3)
+    diag = np.diagonal(c, axis1=1, axis2=2)                                # (S, 3)
+    finite = np.isfinite(diag).all(axis=1)
+    if not finite.any():
+        return [f"C: no draw of the compliance is finite (nominal diagonal {np.diag(c0).tolist()} mm/N): "
+                f"the forces do not follow the displacements"]
+    lo, hi = np.quantile(diag[finite], [0.025, 0.975], axis=0)
+    bad = [i for i in range(3) if lo[i] <= 0 <= hi[i]]
+    if not bad:
+        return []
+    spans = ", ".join(f"C[{i},{i}] [{lo[i]:.3g}, {hi[i]:.3g}] (nominal {c0[i, i]:.3g})" for i in bad)
+    axes = ("axis " if len(bad) == 1 else "axes ") + ", ".join(AXES[i] for i in bad)
+    what = "95 % interval" if len(bad) == 1 else "95 % intervals"
+    return [f"C: the data do not pin the sign of the compliance on {axes}: {what} {spans} mm/N hold 0; "
+            f"the forces there barely follow the displacements (rows shuffled, columns mismatched, or a contact "
+            f"that slips?)"]
 
 
 def _groups(x: np.ndarray) -> np.ndarray:

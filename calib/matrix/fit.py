@@ -29,7 +29,7 @@ import numpy as np
 from feeler.calib.fit import FitResult, make_result, posterior_from_draws
 from feeler.calib.matrix.backends import sample_emcee, sample_nuts
 from feeler.calib.matrix.checks import (conflict_problems, design_problems, ppc_problems, repeat_problems,
-                                        unit_problems)
+                                        sign_problems, unit_problems)
 from feeler.calib.matrix.data import CalibrationData, weak_directions
 from feeler.calib.matrix.exact import exact_posterior
 from feeler.calib.matrix.prior import MatrixPrior
@@ -79,7 +79,8 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
         weak_directions(x, what=what, unit=unit)
     problems = design_problems(x, matrix=rp.matrix, what=what, unit=unit)
     problems += repeat_problems(data.point_id, data.u_mm, data.f_n, matrix=rp.matrix)
-    if not problems:
+    design_ok = not problems
+    if design_ok:
         b_unit = "mm/N" if model == "forward" else "N/mm"
         problems += unit_problems(x, y, prior.c0, forward=model == "forward")
         problems += conflict_problems(x, y, rp.b0, rp.sd, matrix=rp.matrix, unit=b_unit)
@@ -107,6 +108,8 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
     attrs = dict(model=model, noise=noise, student_nu=student_nu,
                  noise_sd_known=[] if known is None else [float(v) for v in known])
     posterior = _named_posterior(B, None if known is not None else S, model, data, stats, attrs)
+    if design_ok:                      # a design that spans every direction: is C's sign pinned?
+        problems += sign_problems(posterior["posterior"]["C"].values, prior.c0)
     priors = rp.stated()
     if known is not None:
         priors["sigma"] = f"known: {list(map(float, known))} {rp.noise_unit}"

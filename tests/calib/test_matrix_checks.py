@@ -149,3 +149,33 @@ def test_a_file_appended_to_itself_is_named():
     from feeler.calib.matrix.checks import repeat_problems
 
     assert repeat_problems(replicated.point_id, replicated.u_mm, replicated.f_n, matrix="K") == []
+
+
+def test_forces_that_do_not_follow_the_displacements_fail_naming_the_axes():
+    """Displacement rows shuffled against the forces: the design still spans every direction
+    and a prior wide enough for C0 (sd 2.5 N/mm per entry of K) still holds K's rows near 0,
+    so every earlier check passed and the verdict said ok with C[0,0] = -0.8 +- 84 mm/N."""
+    data = _campaign()
+    mixed = CalibrationData(data.u_mm[np.random.default_rng(3).permutation(len(data.u_mm))], data.f_n,
+                            data.point_id)
+    res = _fit(mixed)
+    lines = [q for q in res.verdict.problems if "do not pin the sign" in q]
+    assert len(lines) == 1 and lines[0].startswith("C: the data do not pin the sign of the compliance on axes "), \
+        res.verdict.problems
+    assert "rows shuffled" in lines[0]
+    assert not [q for q in _fit(data).verdict.problems if "sign" in q]
+
+
+def test_sign_check_on_constructed_draws():
+    from feeler.calib.matrix.checks import sign_problems
+
+    c0 = np.diag([0.25, 0.2, 0.25])
+    rng = np.random.default_rng(0)
+    pinned = c0 + 0.01 * rng.standard_normal((400, 3, 3))
+    assert sign_problems(pinned, c0) == []
+    loose = pinned.copy()
+    loose[:, 1, 1] = 0.05 + 0.1 * rng.standard_normal(400)             # 95 % interval about [-0.15, 0.25]
+    (line,) = sign_problems(loose, c0)
+    assert line.startswith("C: the data do not pin the sign of the compliance on axis y: 95 % interval C[1,1] [")
+    assert "(nominal 0.2) mm/N hold 0" in line
+    assert "no draw of the compliance is finite" in sign_problems(np.full((10, 3, 3), np.inf), c0)[0]
