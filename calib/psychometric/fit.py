@@ -179,7 +179,8 @@ def _rows_and_checks(cells: Cells, r, fitted, task: Task, pc: float, label: str,
             problems += checks.bracket_problems(name, what, stats["pse"]["lb"], stats["pse"]["ub"], lo[c], hi[c])
             problems += checks.conflict_problems(name, c, r, d)
             if np.isfinite(dev) and not (o < 0 and len(cells.subjects) == 1):      # 'all' = the one subject
-                problems += checks.spread_problems(name, task, x, n, k, dev, point["lapse"])
+                problems += checks.spread_problems(name, task, x, n, k, dev, point["lapse"],
+                                                   standard_um=float(cells.conditions[c][0]))
     if len(cells.subjects) == 1:                   # 'all' is the one subject: the same check
         first = {(rw["standard_um"], rw["standard_speed_mm_s"], rw["comparison_speed_mm_s"]): rw
                  for rw in rows if rw["subject"] != POOLED}

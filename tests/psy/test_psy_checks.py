@@ -138,8 +138,35 @@ def test_responses_that_step_between_two_levels_bound_the_spread_only_from_above
     threshold interval that came from the prior."""
     result = _fit(_counts([0, 0, 0, 0, 20, 20, 20]))
     (line,) = _spread(result)
-    assert line.startswith("A [10 um, 20/20 mm/s]: the responses step between two adjacent tested levels")
+    assert line.startswith("A [10 um, 20/20 mm/s]: the responses step at or between two adjacent tested levels")
     assert "deviance 0.00" in line and "closer together" in line
+
+
+def test_a_step_on_the_standard_with_half_the_responses_there_bounds_the_spread_only_from_above():
+    """0 of 20 below the standard, 10 of 20 at it, 20 of 20 above: the sharpest observer
+    there is (a comparison equal to the standard is judged higher half the time whatever
+    the spread). No step between two levels gives the half, so the check let it pass:
+    verdict ok with DT 0.21 [0.08, 0.36] µm, an interval from the prior."""
+    result = _fit(_counts([0, 0, 0, 10, 20, 20, 20]))
+    (line,) = _spread(result)
+    assert line.startswith("A [10 um, 20/20 mm/s]: the responses step at or between two adjacent tested levels")
+    assert "deviance 0.00" in line
+    # a half at a level that is not the standard is not a step there: a smooth curve
+    assert not _spread(_fit(_counts([0, 1, 4, 10, 16, 19, 20])))
+
+
+def test_responses_that_fall_as_the_comparison_rises_are_named_as_coded_the_other_way_round():
+    """Counts of 'standard judged higher' in the comparison column: the rising curve fits
+    no better than a flat line, and the check said the threshold lies beyond the tested
+    levels ('test a wider range'), the wrong advice."""
+    result = _fit(_counts([20, 19, 16, 10, 4, 1, 0]))
+    lines = [p for p in result.verdict.problems if "fall as the comparison rises" in p]
+    assert len(lines) == 1 and lines[0].startswith("A [10 um, 20/20 mm/s]: the responses fall as the comparison "
+                                                   "rises across 7.6–12.4 µm (a falling curve fits with deviance ")
+    assert "give n_trials minus them as n_comparison_higher" in lines[0]
+    assert not any("do not rise" in p for p in result.verdict.problems)
+    # chance at every level falls no more than it rises: still 'do not rise'
+    assert "do not rise" in _spread(_fit(_counts([11, 10, 12, 10, 9, 10, 9])))[0]
 
 
 def test_responses_that_do_not_rise_bound_the_threshold_only_from_below():

@@ -14,22 +14,24 @@ are the heights in µm, can the data pin the function down.
   range of fingertip step heights: likely mm or nm.
 - **Identifiability**: fewer than two tested levels, a 95 % interval of the location
   reaching more than the tested range beyond the tested levels, and the boundary models
-  of the spread (:func:`spread_problems`): a step between two adjacent levels (σ → 0)
-  or a flat line (σ → ∞) that the likelihood-ratio test cannot reject against the fitted
-  curve — the data then bound the spread on one side only.
+  of the spread (:func:`spread_problems`): a step at or between two adjacent levels
+  (σ → 0) or a flat line (σ → ∞) that the likelihood-ratio test cannot reject against the
+  fitted curve — the data then bound the spread on one side only; and comparison
+  responses that fall as the comparison rises (coded the other way round).
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from scipy.special import ndtr
 from scipy.stats import beta as beta_dist
 
 from feeler.models.psychometric import LAPSE_MAX
 
 __all__ = ["deviance", "gof", "worst_cell", "unit_problems", "conflict_problems", "level_problems",
            "bracket_problems", "gof_problems", "spread_problems", "one_answer_problem", "GOF_ALPHA", "CONFLICT_Z",
-           "CONFLICT_TAIL", "PLAUSIBLE_UM", "BOUNDARY_LR"]
+           "CONFLICT_TAIL", "PLAUSIBLE_UM", "BOUNDARY_LR", "FALLING_LR"]
 
 GOF_ALPHA = 0.05
 CONFLICT_Z = 4.0
@@ -38,6 +40,8 @@ PLAUSIBLE_UM = (0.05, 1000.0)   # fingertip step heights: far below the edge thr
 # 5 % critical value of a likelihood ratio for a parameter on its boundary (σ → 0 or ∞):
 # ½χ²₀ + ½χ²₁ (Self & Liang 1987), i.e. the 90 % point of χ²₁
 BOUNDARY_LR = 2.71
+# a falling curve beating the flat line by the 1 % point of χ²₁: responses that fall, not noise
+FALLING_LR = 6.63
 
 
 def deviance(n: np.ndarray, k: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -185,13 +189,31 @@ def one_answer_problem(label: str, task, n_trials: int, counted: bool, span: str
             f"the responses are probably coded the other way round (1 = incorrect)")
 
 
+def _falling_deviance(x, n, k, levels, above, base, scale) -> float:
+    """Smallest deviance of a falling function of the level: the steps ``above (ndarray[M,
+    m])`` turned round, and falling cumulative Gaussians on a grid of locations over the
+    tested range and spreads from a quarter of the smallest level spacing to the range."""
+    span = float(levels[-1] - levels[0])
+    gap = float(np.min(np.diff(levels)))
+    loc = np.linspace(levels[0], levels[-1], 25)
+    sig = np.geomspace(gap / 4, span, 10)
+    smooth = ndtr((x[None, None, :] - loc[:, None, None]) / sig[None, :, None]).reshape(-1, x.size)
+    shapes = np.concatenate([above, smooth])                                      # (M', m), rising
+    p_fall = np.clip(base[:, None, None] + scale[:, None, None] * (1.0 - shapes[None]), 1e-12, 1 - 1e-12)
+    return float(np.min(deviance(n, k, p_fall)))
+
+
 def spread_problems(label: str, task, x: np.ndarray, n: np.ndarray, k: np.ndarray, fitted_deviance: float,
-                    fitted_lapse: float) -> list[str]:
+                    fitted_lapse: float, standard_um: float | None = None) -> list[str]:
     """A spread the data bound on one side only, by likelihood ratio against the fitted curve.
 
     The boundary models: a step between two adjacent tested levels (σ → 0, with a lapse
-    up to the fitted one: a larger lapse turns a step into a shallow curve of its own),
-    and a flat line (σ → ∞: one proportion at every level). When either fits the counts
+    up to the fitted one: a larger lapse turns a step into a shallow curve of its own) or,
+    for comparison rows, on the ``standard_um`` level with half the responses there (a
+    comparison equal to the standard is judged higher half the time however sharp the
+    function, so that cell says nothing of the spread), and a flat line (σ → ∞: one
+    proportion at every level). A comparison row that a flat line fits as well as the rising curve, but
+    a falling curve far better (:data:`FALLING_LR`), is named as coded the other way round. When either fits the counts
     within :data:`BOUNDARY_LR` of the best deviance, the data cannot reject it, and the
     spread, the difference threshold and the slope are bounds, not estimates: below the
     level spacing (a step), or beyond the tested range (flat). Rows with one level are
@@ -204,8 +226,11 @@ def spread_problems(label: str, task, x: np.ndarray, n: np.ndarray, k: np.ndarra
     base, scale, _ = task.base_scale_rest(lam)                                    # (L,)
     cuts = np.concatenate([[levels[0] - 1.0], (levels[:-1] + levels[1:]) / 2, [levels[-1] + 1.0]])
     above = (x[None, :] > cuts[:, None]).astype(float)                            # (M, m)
+    if standard_um is not None and not task.is_nafc and np.any(x == standard_um):
+        above = np.concatenate([above, ((x > standard_um) + 0.5 * (x == standard_um))[None, :]])
     p_step = np.clip(base[:, None, None] + scale[:, None, None] * above[None], 1e-12, 1 - 1e-12)
     d_step = float(np.min(deviance(n, k, p_step)))
+    d_fall = _falling_deviance(x, n, k, levels, above, base, scale)
     b0, s0, _ = task.base_scale_rest(0.0)
     p_flat = float(np.clip(k.sum() / n.sum(), max(float(b0), 1e-12), min(float(b0 + s0), 1 - 1e-12)))
     d_flat = float(deviance(n, k, np.full(x.shape, p_flat)))
@@ -214,12 +239,17 @@ def spread_problems(label: str, task, x: np.ndarray, n: np.ndarray, k: np.ndarra
     span = f"{levels[0]:.4g}–{levels[-1]:.4g} µm"
     if k.sum() in (0, n.sum()):                     # one answer throughout: a flat line and a step fit exactly
         return [one_answer_problem(label, task, int(n.sum()), bool(k.sum()), span)]
+    if flat and not task.is_nafc and d_flat - d_fall > FALLING_LR:
+        return [f"{label}: the responses fall as the comparison rises across {span} (a falling curve fits with "
+                f"deviance {d_fall:.2f}, a flat line {d_flat:.2f}, the rising curve {fitted_deviance:.2f}): the "
+                f"counts are probably of the standard judged higher; give n_trials minus them as "
+                f"n_comparison_higher"]
     if step and flat:
         return [f"{label}: the data cannot pin down the spread: a step between two tested levels and a flat "
                 f"line fit its {int(n.sum())} trials as well as the curve (likelihood ratio < {BOUNDARY_LR}); "
                 f"more trials are needed"]
     if step:
-        return [f"{label}: the responses step between two adjacent tested levels (a step function fits as well: "
+        return [f"{label}: the responses step at or between two adjacent tested levels (a step function fits as well: "
                 f"deviance {d_step:.2f}, the curve's {fitted_deviance:.2f}): the spread and the threshold are below the level "
                 f"spacing and not pinned down; test levels closer together around the PSE"]
     if flat:
