@@ -200,6 +200,10 @@ def test_units_micrometres_and_milliseconds(data):
     assert [q.split(": ")[-1] for q in minutes] == ["times probably in min (expected s)"]
     x_um = unit_problems(table, plates, length_mm=3.0, t_s=data.t_s, x_mm=1000 * data.x_mm, speed_mm_s=data.speed_mm_s)
     assert [q.split(": ")[-1] for q in x_um] == ["x probably in um (expected mm)"]
+    # the speed label in mm/min, the unit of a Grbl feed rate: 1/60 of the speed x and t give (it said 'ms')
+    per_min = unit_problems(table, plates, length_mm=3.0, t_s=data.t_s, x_mm=data.x_mm, speed_mm_s=60 * data.speed_mm_s)
+    assert [q.split(": ")[-1] for q in per_min] == [
+        "speed_mm_s probably in mm/min, the unit of Grbl's feed rate F (expected mm/s)"]
     res = _quiet_fit(dataclasses.replace(data, strain=1000 * data.strain))
     assert not res.verdict.ok and "U_y probably in um" in res.verdict.problems[0]
 

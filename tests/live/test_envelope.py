@@ -23,6 +23,7 @@ def test_each_check_flags_and_names_units():
     assert "x probably in um" in ENV.speed(500.0, labelled=0.5)
     assert "times probably in min" in ENV.speed(30.0, labelled=0.5)          # t_s in minutes: 60× (it said x in um)
     assert "times probably in ms" in ENV.speed(0.0005, labelled=0.5)
+    assert "speed_mm_s probably in mm/min" in ENV.speed(0.5, labelled=30.0)    # a Grbl feed rate: 60×
     assert "did not move" in ENV.speed(0.0)
     assert ENV.duration(30.0, final=False) and ENV.duration(5.0, final=False) is None
     assert ENV.duration(5.0, final=True)

@@ -158,9 +158,12 @@ UNIT_FACTOR = 30.0     # a scale further off than this is a unit mistake, not ph
 
 def stage_units(ratio: float) -> str:
     """The likely unit mistake when x and t give ``ratio`` times the commanded stage speed
-    (further off than :data:`UNIT_FACTOR`): times in ms below; above, times in minutes
-    (×60) or x in µm (×1000), whichever is nearer on a log scale."""
+    (further off than :data:`UNIT_FACTOR`), whichever is nearer on a log scale: below,
+    the speed label in mm/min (÷60: Grbl's feed rate F is in mm/min) or times in ms
+    (÷1000); above, times in minutes (×60) or x in µm (×1000)."""
     if ratio < 1:
+        if ratio > 1 / np.sqrt(60 * 1000):
+            return "speed_mm_s probably in mm/min, the unit of Grbl's feed rate F (expected mm/s)"
         return "times probably in ms (expected s)"
     return "times probably in min (expected s)" if ratio < np.sqrt(60 * 1000) else "x probably in um (expected mm)"
 
