@@ -40,13 +40,15 @@ def fit_element(index: int, *, datasets: tuple[str, ...], seed: int):
 
     from feeler.calib.fit import DiagnosticWarning
     from feeler.calib.matrix import fit_matrix, read_calibration_csv
+    from feeler.calib.matrix.data import DesignWarning
     from feeler.commands._calibrate_sensor import _locate, _prior
 
     csv, scene = _locate(Path(datasets[index]))
     data = read_calibration_csv(csv)
     prior, _, _ = _prior(_Defaults(), scene)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DiagnosticWarning)
+    with warnings.catch_warnings():                 # both are in the element's verdict, printed below the table;
+        warnings.simplefilter("ignore", DiagnosticWarning)       # in a dask worker they would print raw, with
+        warnings.simplefilter("ignore", DesignWarning)           # their source line (no one-line formatter there)
         return fit_matrix(data, prior, backend="exact", rng=np.random.default_rng(seed + index),
                           progress=False)
 

@@ -66,3 +66,20 @@ def test_a_failed_element_says_why_below_the_table(elements, tmp_path, capsys):
     assert len(why) == 1 and "with axes x and y exchanged" in why[0]
     assert why[0].endswith(f"{tmp_path / 'z' / 'swapped' / 'verdict.json'})")
     assert not any(ln.startswith("elem1: ") for ln in lines)
+
+
+def test_an_element_with_an_unidentified_design_prints_no_raw_warning(elements, tmp_path, capfd):
+    """An element whose stage moved along y only: on the LocalCluster its design warning
+    reached stderr from the worker process raw, with the source path and line; the same
+    news is the element's verdict, printed below the table."""
+    flat = tmp_path / "y-only"
+    flat.mkdir()
+    for f in Path(elements[1]).iterdir():
+        (flat / f.name).write_bytes(f.read_bytes())
+    table = pd.read_csv(flat / "calibration.csv", comment="#")
+    table[(table.ux_mm == 0) & (table.uz_mm == 0)].to_csv(flat / "calibration.csv", index=False)
+    assert main(["calibrate", "sensors", elements[0], str(flat), "--out", str(tmp_path / "o"), "--no-progress"]) == 1
+    out, err = capfd.readouterr()
+    assert err == "", err
+    (why,) = [ln for ln in out.splitlines() if ln.startswith("y-only: ")]
+    assert "the data do not pin K along the displacement direction" in why
