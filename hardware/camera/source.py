@@ -28,6 +28,7 @@ from __future__ import annotations
 import logging
 import re
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import warnings
@@ -84,6 +85,21 @@ def _is_device(src) -> bool:
     return isinstance(src, int) or (isinstance(src, str) and src.isdigit())
 
 
+@contextmanager
+def _opencv_silent():
+    """OpenCV's own log lines off while a source opens: a missing device index printed
+    '[ WARN:0@0.018] global cap_ffmpeg_impl.hpp:1246 open VIDEOIO/FFMPEG: ...' ahead of the
+    one-line error, which says what the user needs (``isOpened`` is checked instead)."""
+    from cv2.utils import logging as cvlog
+
+    level = cvlog.getLogLevel()
+    cvlog.setLogLevel(cvlog.LOG_LEVEL_SILENT)
+    try:
+        yield
+    finally:
+        cvlog.setLogLevel(level)
+
+
 def open_source(src: int | str | Path) -> cv2.VideoCapture:
     """Open a camera device index, a video file or an image-sequence pattern.
 
@@ -92,7 +108,8 @@ def open_source(src: int | str | Path) -> cv2.VideoCapture:
             of a sequence) that OpenCV cannot decode — one line naming the source.
     """
     if _is_device(src):
-        cap = cv2.VideoCapture(int(src))
+        with _opencv_silent():
+            cap = cv2.VideoCapture(int(src))
         if not cap.isOpened():
             raise DataFileError(f"camera {int(src)}", "no camera device at this index")
         return cap
@@ -101,11 +118,13 @@ def open_source(src: int | str | Path) -> cv2.VideoCapture:
         first = _sequence_files(text)
         if not first:
             raise DataFileError(text, "image sequence has no files matching the pattern")
-        cap = cv2.VideoCapture(text, cv2.CAP_IMAGES)
+        with _opencv_silent():
+            cap = cv2.VideoCapture(text, cv2.CAP_IMAGES)
     else:
         if not Path(text).is_file():
             raise DataFileError(text, "no such video file")
-        cap = cv2.VideoCapture(text)
+        with _opencv_silent():
+            cap = cv2.VideoCapture(text)
     if not cap.isOpened():
         raise DataFileError(text, "cannot be opened as a video or image sequence (corrupt?)")
     return cap
