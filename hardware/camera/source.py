@@ -31,9 +31,15 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import os
 import warnings
 
-import cv2
+# libav's own log (e.g. '[ffv1 @ 0x55...] slice CRC mismatch' on a damaged frame) off stderr:
+# damaged frames are named by feeler's own checks, counted and never used. Read by OpenCV when
+# its ffmpeg backend starts, at the first capture; a user may set it to debug a source.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+
+import cv2  # noqa: E402
 import numpy as np
 
 from feeler.errors import ArgumentError, DataFileError
