@@ -37,6 +37,9 @@ class Scans:
         t_s, x_mm, ux_mm, uy_mm, uz_mm (ndarray[n_scans, n_time]): samples (s, mm); each
             scan's own sample times (simulated scans share one row, acquired scans record
             when each sample was taken).
+        labels (tuple[str, ...] | None): how a message names each scan when its number is
+            not what the user wrote: ``scan_id 'touch-04'`` for ids written as names,
+            ``scan file scan_03.csv`` for a directory of scan files; None: ``scan_id N``.
     """
 
     scan_id: np.ndarray
@@ -47,6 +50,11 @@ class Scans:
     ux_mm: np.ndarray
     uy_mm: np.ndarray
     uz_mm: np.ndarray
+    labels: tuple[str, ...] | None = None
+
+    def label(self, k: int) -> str:
+        """How a message names scan ``k`` (0-based place)."""
+        return self.labels[k] if self.labels is not None else f"scan_id {self.scan_id[k]}"
 
 
 @dataclass(frozen=True)
@@ -374,8 +382,14 @@ def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
     if bad.size:
         raise DataFileError(path, f"column t_s: not strictly increasing within scan_id "
                                   f"{scan_id_text(ids[bad[0]], named)}")
+    labels = None
+    if names is not None:
+        labels = tuple(f"scan file {names[int(i)]}" if int(i) in names else f"scan_id {i}" for i in ids)
+    elif named is not None:
+        labels = tuple(f"scan_id {scan_id_text(i, named)}" for i in ids)
     return Scans(scan_id=ids.astype(int), step_mm=grid("step_mm")[:, 0], speed_mm_s=grid("speed_mm_s")[:, 0],
-                 t_s=t, x_mm=grid("x_mm"), ux_mm=grid("ux_mm"), uy_mm=grid("uy_mm"), uz_mm=grid("uz_mm"))
+                 t_s=t, x_mm=grid("x_mm"), ux_mm=grid("ux_mm"), uy_mm=grid("uy_mm"), uz_mm=grid("uz_mm"),
+                 labels=labels)
 
 
 def named_scan_ids(frame, path: Path):

@@ -48,20 +48,21 @@ def _mm(v) -> str:
     return f"{v + 0.0:g} mm"                   # + 0.0: a step of -0 reads 0
 
 
-def scan_name(k: int, scan_ids=None) -> str:
-    """How a check names scan ``k`` (0-based place in the data): by its id when the data
-    carry ids for every scan, else by its place in file order."""
-    if scan_ids is not None and 0 <= k < len(scan_ids):
-        return f"scan_id {scan_ids[k]}"
+def scan_name(k: int, scan_names=None) -> str:
+    """How a check names scan ``k`` (0-based place in the data): by the data's own name for
+    it (:attr:`~feeler.calib.neuron.data.NeuronData.scan_names`: its scan_id as written,
+    or its file), else by its place in file order."""
+    if scan_names is not None and 0 <= k < len(scan_names):
+        return str(scan_names[k])
     return f"scan {k + 1} in file order"
 
 
 def data_problems(table: PeakTable, plates: Plates, strain: np.ndarray | None = None,
-                  length_mm: float | None = None, scan_ids=None) -> list[str]:
+                  length_mm: float | None = None, scan_names=None) -> list[str]:
     """What the design cannot pin down, before any sampling; with the scans' ``strain
     (ndarray[n_scans, n_time])``, also scans that repeat another sample for sample, and with
     the representative ``length_mm`` (U_y = strain × length) scans with a single-sample
-    spike (:func:`~feeler.calib.neuron.live.envelope.spike_of`). ``scan_ids`` name the
+    spike (:func:`~feeler.calib.neuron.live.envelope.spike_of`). ``scan_names`` name the
     scans (:func:`scan_name`)."""
     out = []
     if plates.steps_mm.size < 2:
@@ -85,22 +86,22 @@ def data_problems(table: PeakTable, plates: Plates, strain: np.ndarray | None = 
                     if length_mm else [])
         if glitches:                        # one sample can make a scan's peak, and the fit's plates, meaningless
             k, q = glitches[0]
-            out.append(f"uy_mm: {len(glitches)} scan(s) with a single-sample spike (e.g. {scan_name(k, scan_ids)}: "
+            out.append(f"uy_mm: {len(glitches)} scan(s) with a single-sample spike (e.g. {scan_name(k, scan_names)}: "
                        f"{q})")
         copies, earlier = repeated_rows(np.asarray(strain, float))    # (n_scans, n_time): scans equal to an earlier one
         copies = copies[~flat[plates.group[copies]]]                   # noise-free plates are reported above
         if copies.size:
             k = int(copies[0])
             out.append(f"plate_sd_mm: {copies.size} of {len(earlier)} scans repeat an earlier scan sample for "
-                       f"sample (e.g. {_pair(k, int(earlier[k]), scan_ids)}; no two real touches "
+                       f"sample (e.g. {_pair(k, int(earlier[k]), scan_names)}; no two real touches "
                        f"agree exactly): touches counted twice make the fit surer than its data; remove the copies")
     return out
 
 
-def _pair(k: int, j: int, scan_ids=None) -> str:
+def _pair(k: int, j: int, scan_names=None) -> str:
     """Scan ``k`` = scan ``j``, named as :func:`scan_name` does."""
-    if scan_ids is not None and max(k, j) < len(scan_ids):
-        return f"scan_id {scan_ids[k]} = scan_id {scan_ids[j]}"
+    if scan_names is not None and max(k, j) < len(scan_names):
+        return f"{scan_names[k]} = {scan_names[j]}"
     return f"scan {k + 1} = scan {j + 1} in file order"
 
 
@@ -203,8 +204,8 @@ def loo_pit(table: PeakTable, plates: Plates, noise: str, log_w: np.ndarray, *, 
 
 
 def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.ndarray, post: dict, *,
-                       growth_max: float = 3.0, scan_ids=None) -> tuple[list[str], dict]:
-    """Problems of the decoder's fit, and what was measured (for the output); ``scan_ids``
+                       growth_max: float = 3.0, scan_names=None) -> tuple[list[str], dict]:
+    """Problems of the decoder's fit, and what was measured (for the output); ``scan_names``
     name the scans (:func:`scan_name`)."""
     out, info = [], {}
     C = plates.steps_mm.size
@@ -237,7 +238,7 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
                 out.append(f"plate_mean_mm: plate {_mm(step)}: its scans sit {side} in their predictive "
                            f"(mean leave-one-out PIT {np.mean(u):.2f}): the decoder is biased for this plate")
         info.update(loo_coverage90=cover, loo_mean_pit=bias, p_min=float(min(pvals)))
-        out += _odd_scans(table, plates, pit, log_w, scan_ids)
+        out += _odd_scans(table, plates, pit, log_w, scan_names)
     sd = np.median(np.asarray(post["plate_sd_mm"]).reshape(-1, C), axis=0)
     flat = sd < 1e-6 * (plates.steps_mm[-1] - plates.steps_mm[0])
     if flat.any():
@@ -271,7 +272,7 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
     return out, info
 
 
-def _odd_scans(table: PeakTable, plates: Plates, pit: np.ndarray, log_w: np.ndarray, scan_ids=None) -> list[str]:
+def _odd_scans(table: PeakTable, plates: Plates, pit: np.ndarray, log_w: np.ndarray, scan_names=None) -> list[str]:
     """A training scan far outside the other touches of its plate: its two-sided
     leave-one-out tail 2·min(PIT, 1 − PIT) below ``ODD_ALPHA`` over all scans
     (Bonferroni). One mislabelled or corrupted scan widens its plate and bends the noise
@@ -302,7 +303,7 @@ def _odd_scans(table: PeakTable, plates: Plates, pit: np.ndarray, log_w: np.ndar
                 "if it is not a touch of this plate")
     more = f" and {odd.size - 1} more" if odd.size > 1 else ""
     shown = f"= {tail[k]:.1g}" if tail[k] >= 1e-15 else "< 1e-15"      # 1 − PIT resolves no finer
-    return [f"step_mm: {scan_name(k, scan_ids)}{more} (labelled {_mm(plates.steps_mm[own])}) lies far outside the "
+    return [f"step_mm: {scan_name(k, scan_names)}{more} (labelled {_mm(plates.steps_mm[own])}) lies far outside the "
             f"other touches of its plate (leave-one-out p {shown}, below {ODD_ALPHA:g} over "
             f"{int(known.sum())} scans); {like}"]
 

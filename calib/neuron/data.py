@@ -24,8 +24,8 @@ class NeuronData:
         kernel (str): temporal window of the neuron.
         x_mm (ndarray[n_scans, n_time] | None): stage position, mm (for the units check).
         speed_mm_s (ndarray[n_scans] | None): commanded stage speed, mm/s (same).
-        scan_id (ndarray[n_scans] | None): each scan's id, to name a scan in the checks
-            (None: named by its place in the data).
+        scan_names (tuple[str, ...] | None): how the checks name each scan (``scan_id 5``,
+            ``scan_id 'touch-04'``, ``scan file scan_03.csv``; None: by its place in the data).
     """
     strain: np.ndarray
     t_s: np.ndarray
@@ -34,7 +34,7 @@ class NeuronData:
     kernel: str = "boxcar"
     x_mm: np.ndarray | None = None
     speed_mm_s: np.ndarray | None = None
-    scan_id: np.ndarray | None = None
+    scan_names: tuple[str, ...] | None = None
 
     def table(self, n_grid: int = 256) -> PeakTable:
         """Peak u₁ on a log-τ grid from one sample interval to half the scan duration.
@@ -58,7 +58,7 @@ def data_from_scans(scans, *, length_mm: float, kernel: str = "boxcar") -> Neuro
     return NeuronData(strain=strain(scans.uy_mm, length_mm), t_s=t,
                       step_mm=np.asarray(scans.step_mm, float), length_mm=float(length_mm), kernel=kernel,
                       x_mm=np.asarray(scans.x_mm, float), speed_mm_s=np.asarray(scans.speed_mm_s, float),
-                      scan_id=np.asarray(scans.scan_id))
+                      scan_names=tuple(scans.label(k) for k in range(len(scans.scan_id))))
 
 
 def shared_times(t_s) -> np.ndarray:

@@ -113,3 +113,32 @@ def test_a_csv_beside_another_kinds_scene_says_what_to_do(run_and_fit, tmp_path,
                            "robot-scan scene of these scans; move the CSV to a directory of its own (and give "
                            "--length-mm) or take that scene.toml away")
     assert not (tmp_path / "f").exists()
+
+
+def test_a_mislabelled_scan_is_named_as_the_lab_wrote_it(run_and_fit, tmp_path, capsys):
+    """One touch of the 0.2 mm plate labelled 0 mm fails the verdict, naming the scan as the
+    file did: its text scan_id, or its file in a directory of one file per scan."""
+    import shutil
+
+    import pandas as pd
+
+    run, _ = run_and_fit
+    frame = pd.read_csv(run / "scans.csv")
+    wrong = int(frame.loc[frame.step_mm == 0.2, "scan_id"].iloc[0])
+    frame.loc[frame.scan_id == wrong, "step_mm"] = 0.0
+    named = frame.assign(scan_id="touch-" + frame.scan_id.astype(str))
+    (tmp_path / "named").mkdir()
+    named.to_csv(tmp_path / "named" / "scans.csv", index=False)
+    shutil.copy(run / "scene.toml", tmp_path / "named")
+    assert main(["calibrate", "neuron", str(tmp_path / "named"), "--draws", "300", "--no-progress"]) == 1
+    line = [ln for ln in capsys.readouterr().out.splitlines() if "step_mm:" in ln]
+    assert len(line) == 1 and f"step_mm: scan_id 'touch-{wrong}' (labelled 0 mm) lies far outside" in line[0]
+    assert "matches plate 0.2 mm" in line[0]
+    files = tmp_path / "files"
+    files.mkdir()
+    for sid, scan in frame.groupby("scan_id"):
+        scan.drop(columns="scan_id").to_csv(files / f"touch_{sid:03d}.csv", index=False)
+    shutil.copy(run / "scene.toml", files)
+    assert main(["calibrate", "neuron", str(files), "--draws", "300", "--no-progress"]) == 1
+    line = [ln for ln in capsys.readouterr().out.splitlines() if "step_mm:" in ln]
+    assert len(line) == 1 and f"step_mm: scan file touch_{wrong:03d}.csv (labelled 0 mm)" in line[0]

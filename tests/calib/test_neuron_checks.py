@@ -154,8 +154,9 @@ def test_a_scan_with_a_one_sample_glitch_is_named_first(data):
     strain[7, 12] += 1.0 / data.length_mm
     res = _quiet_fit(dataclasses.replace(data, strain=strain))
     assert not res.verdict.ok
-    assert res.verdict.problems[0].startswith(f"uy_mm: 1 scan(s) with a single-sample spike (e.g. scan_id "
-                                              f"{data.scan_id[7]}: U_y jumps +")
+    assert res.verdict.problems[0].startswith(f"uy_mm: 1 scan(s) with a single-sample spike (e.g. "
+                                              f"{data.scan_names[7]}: U_y jumps +")
+    assert data.scan_names[7] == "scan_id 7"
     assert "at sample 13 and back" in res.verdict.problems[0]
     assert not any("spike" in q for q in data_problems(data.table(n_grid=16), Plates.of(data.step_mm), data.strain,
                                                        data.length_mm))
@@ -268,7 +269,7 @@ def test_a_mislabelled_training_scan_is_named_with_the_plate_it_reads_like(data)
     wrong[k] = 0.0
     res = _quiet_fit(dataclasses.replace(data, step_mm=wrong))
     lines = [q for q in res.verdict.problems if q.startswith("step_mm:")]
-    assert len(lines) == 1 and lines[0].startswith(f"step_mm: scan_id {data.scan_id[k]} (labelled 0 mm) lies far "
+    assert len(lines) == 1 and lines[0].startswith(f"step_mm: {data.scan_names[k]} (labelled 0 mm) lies far "
                                                    "outside the other touches of its plate"), res.verdict.problems
     assert "matches plate 0.2 mm" in lines[0] and "probably mislabelled" in lines[0]
     assert not [q for q in _quiet_fit(data).verdict.problems if q.startswith("step_mm:")]
@@ -280,10 +281,10 @@ def test_a_scan_at_ten_times_its_scale_is_named_as_matching_no_plate(data):
     strain[k] *= 10.0
     res = _quiet_fit(dataclasses.replace(data, strain=strain))
     lines = [q for q in res.verdict.problems if q.startswith("step_mm:")]
-    assert len(lines) == 1 and f"scan_id {data.scan_id[k]} (labelled 0.05 mm)" in lines[0], res.verdict.problems
+    assert len(lines) == 1 and f"{data.scan_names[k]} (labelled 0.05 mm)" in lines[0], res.verdict.problems
     assert "matches no plate: a corrupted scan" in lines[0] and "p < 1e-15" in lines[0]
     # without ids (data built by hand) a scan is named by its place in the file
-    nameless = dataclasses.replace(data, strain=strain, scan_id=None)
+    nameless = dataclasses.replace(data, strain=strain, scan_names=None)
     assert f"scan {k + 1} in file order (labelled 0.05 mm)" in " ".join(_quiet_fit(nameless).verdict.problems)
 
 
