@@ -97,6 +97,13 @@ def test_a_scan_or_a_batch_noisier_than_training_is_flagged():
     assert env.noise(1.49 * top) is None and env.noise(0.1 * top) is None    # less noise: not flagged
     line = env.noise(1.6 * top)
     assert line.startswith(f"read-out noise {1.6 * top * 1e3:.3g} um, 1.6× the noisiest training scan's")
+    # noise-free training scans (a fit used with --accept-failed): no ratio to give ('0.887 um the noisiest
+    # training scan's 0 um'), and a plate of no spread puts a reading 1e14 sds away
+    quiet = Envelope(0.5, 20.0, 0.5, ENV.p_lo, ENV.p_hi, noise_mm=np.zeros(8))
+    assert quiet.noise(0.000887) == ("read-out noise 0.887 um where the training scans had none (noise-free: the "
+                                     "plates were learned without noise)")
+    assert "lies more than 10^4 sds from the nearest trained plate (0 mm)" in ENV.plates(1.5e14, 0.0, 0.00648)
+    assert "lies 7 sds from" in ENV.plates(7.2, 0.05, 0.08)
     same = np.random.default_rng(6).lognormal(np.log(0.001), 0.2, 40)
     assert env.batch_noise(same) is None and env.batch_noise(same / 2) is None
     line = env.batch_noise(same * 1.5)

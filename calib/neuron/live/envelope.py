@@ -230,7 +230,8 @@ class Envelope:
         ``height_mm``: beyond :attr:`plate_sds`, a step the fit was not trained on."""
         if not distance_sd > self.plate_sds:
             return None
-        return (f"decoded height {height_mm:.3g} mm lies {distance_sd:.0f} sds from the nearest trained plate "
+        far = f"{distance_sd:.0f}" if distance_sd < 1e4 else "more than 10^4"        # a plate of no spread: 1e14
+        return (f"decoded height {height_mm:.3g} mm lies {far} sds from the nearest trained plate "
                 f"({nearest_mm:g} mm): a step the fit was not trained on, so its plate probabilities (which assume "
                 f"a trained plate) do not apply")
 
@@ -262,9 +263,11 @@ class Envelope:
         top = float(train.max())
         if noise_mm <= self.noise_factor * top:
             return None
-        times = f", {_times(noise_mm / top)}" if top > 0 else ""
-        return (f"read-out noise {noise_mm * 1e3:.3g} um{times} the noisiest training scan's {top * 1e3:.3g} um "
-                f"(a noisier set-up: the plates were learned at less noise)")
+        if top == 0:
+            return (f"read-out noise {noise_mm * 1e3:.3g} um where the training scans had none (noise-free: the "
+                    f"plates were learned without noise)")
+        return (f"read-out noise {noise_mm * 1e3:.3g} um, {_times(noise_mm / top)} the noisiest training scan's "
+                f"{top * 1e3:.3g} um (a noisier set-up: the plates were learned at less noise)")
 
     def batch_noise(self, noise_mm) -> str | None:
         """A batch of scans noisier than training (:data:`BATCH_NOISE_FACTOR` on the ratio of
