@@ -27,7 +27,9 @@ rows b_i of B per output axis (K for the inverse model, C for the forward one).
   within-point scatter of the residuals) and the largest standardised residual
   (outliers, wrong noise law). Posterior predictive p < 0.01/6 fails. An axis whose
   least-squares residuals vanish (noise-free data: the matrix is pinned exactly) has
-  nothing to check and is skipped.
+  nothing to check and is skipped: residuals below :data:`NOISE_FREE` of the outputs'
+  scale, which is what a CSV's rounding leaves of exact data (replicated points rounded
+  alike read as a 'lack of fit' of the rounding otherwise).
 """
 from __future__ import annotations
 
@@ -39,10 +41,13 @@ from feeler.calib.diagnostics import repeated_rows
 from feeler.calib.matrix.data import AXES, weak_directions
 
 __all__ = ["design_problems", "repeat_problems", "unit_problems", "conflict_problems", "sign_problems",
-           "ppc_problems", "ALPHA", "UNIT_FACTOR"]
+           "ppc_problems", "ALPHA", "UNIT_FACTOR", "NOISE_FREE"]
 
 ALPHA = 0.01
 UNIT_FACTOR = 30.0
+# residual RMS over output RMS below which an axis is noise-free: a CSV's rounding (6-9
+# significant digits) leaves 1e-9..1e-6; a force gauge's noise is 1e-4 of its range or more
+NOISE_FREE = 1e-5
 GRAMS_FORCE_PER_N = 1000 / 9.80665      # a force gauge's gram-force, per newton
 
 
@@ -224,8 +229,7 @@ def ppc_problems(x: np.ndarray, y: np.ndarray, B: np.ndarray, sigma: np.ndarray,
     def extreme(yy):
         return np.max(np.abs(yy - mu) / sigma[:, None, :], axis=1)
 
-    resid = y - x @ _lstsq(x, y).T
-    noisy = np.sqrt(np.mean(resid ** 2, axis=0)) > 1e-9 * np.sqrt(np.mean(y ** 2, axis=0))
+    noisy = _relative_residual(x, y) > NOISE_FREE
     out = []
     checks = [("lack of fit (between / within replicated points)", lack_of_fit)] if replicated else []
     checks.append(("largest standardised residual", extreme))
@@ -242,6 +246,13 @@ def ppc_problems(x: np.ndarray, y: np.ndarray, B: np.ndarray, sigma: np.ndarray,
             out.append(f"{matrix}: posterior predictive check of axis {AXES[i]}: {name}, p = {p[i]:.3g}{where}; "
                        f"the {noise} linear model does not describe these data")
     return out
+
+
+def _relative_residual(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Least-squares residual RMS over the output RMS, per output axis: ndarray[p]."""
+    resid = y - x @ _lstsq(x, y).T
+    scale = np.maximum(np.sqrt(np.mean(y ** 2, axis=0)), np.finfo(float).tiny)
+    return np.sqrt(np.mean(resid ** 2, axis=0)) / scale
 
 
 def _chi2_sf_3(d2: float) -> float:
