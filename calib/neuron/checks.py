@@ -20,10 +20,10 @@ support; any problem fails the verdict (:func:`feeler.calib.fit.make_result`).
   Per plate: the fraction inside the central 90 % band must be compatible with
   0.85–0.95 (the interval coverage the decoder promises), and the mean PIT with ½ (a
   plate whose scans sit high or low: bias). Per scan: a PIT so far out (0.1 % over all
-  scans) that the scan is probably mislabelled or corrupted. Then: adjacent plates whose order the
-  posterior cannot tell (or puts the other way round: swapped labels), and a window τ
-  the data do not pin (its posterior spread over 70 % of the prior's, on a prior range
-  wider than ×1.5).
+  scans) that the scan is probably mislabelled or corrupted. Then: adjacent plates whose
+  order the posterior cannot tell (or puts the other way round: swapped labels), and a
+  window τ the data do not pin (its posterior spread over 70 % of the prior's, on a prior
+  range wider than ×1.5).
 """
 from __future__ import annotations
 
@@ -301,11 +301,16 @@ def _odd_scans(table: PeakTable, plates: Plates, pit: np.ndarray, log_w: np.ndar
         like = ("its reading matches no plate: a corrupted scan (its scale or offset) or a touch unlike the rest "
                 "(a tilted or slipping contact), which the decoder's plates do not describe; check it, and remove it "
                 "if it is not a touch of this plate")
-    more = f" and {odd.size - 1} more" if odd.size > 1 else ""
+    rest = [int(j) for j in odd[np.argsort(tail[odd])] if j != k]
+    more = ""
+    if rest:
+        names = ", ".join(scan_name(j, scan_names) for j in rest[:3]) + (", ..." if len(rest) > 3 else "")
+        lie = "scan lies outside its plate" if len(rest) == 1 else "scans lie outside their plates"
+        more = f"; {len(rest)} more {lie} too ({names})"
     shown = f"= {tail[k]:.1g}" if tail[k] >= 1e-15 else "< 1e-15"      # 1 − PIT resolves no finer
-    return [f"step_mm: {scan_name(k, scan_names)}{more} (labelled {_mm(plates.steps_mm[own])}) lies far outside the "
+    return [f"step_mm: {scan_name(k, scan_names)} (labelled {_mm(plates.steps_mm[own])}) lies far outside the "
             f"other touches of its plate (leave-one-out p {shown}, below {ODD_ALPHA:g} over "
-            f"{int(known.sum())} scans); {like}"]
+            f"{int(known.sum())} scans); {like}{more}"]
 
 
 def window_edge_notes(tau_s, priors) -> list[str]:

@@ -304,3 +304,17 @@ def test_clean_training_sets_are_not_called_mislabelled_beyond_the_level():
         lw = tau_log_weights(elpd, np.random.default_rng(seed))
         flagged += bool(_odd_scans(table, plates, loo_pit(table, plates, noise, lw), lw))
     assert flagged <= 1, flagged
+
+
+def test_odd_scans_beyond_the_worst_are_counted_and_named():
+    from feeler.calib.neuron.checks import _odd_scans, loo_pit
+
+    rng = np.random.default_rng(11)
+    plates = Plates.of(np.repeat([0.0, 0.05, 0.1], 30))
+    p = np.repeat([1.0, 2.0, 3.0], 30) + 0.1 * rng.standard_normal(90)
+    p[[3, 40, 70]] += [-0.6, 0.8, 1.0]                      # 6-10 sds outside their plates, the last the furthest
+    table, lw = _table(p), np.zeros(2)
+    names = tuple(f"scan_id 'T{k}'" for k in range(90))
+    (line,) = _odd_scans(table, plates, loo_pit(table, plates, "per-plate", lw), lw, names)
+    assert line.startswith("step_mm: scan_id 'T70' (labelled 0.1 mm) lies far outside the other touches")
+    assert line.endswith("; 2 more scans lie outside their plates too (scan_id 'T40', scan_id 'T3')"), line
