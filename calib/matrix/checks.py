@@ -45,8 +45,9 @@ __all__ = ["design_problems", "repeat_problems", "unit_problems", "conflict_prob
 
 ALPHA = 0.01
 UNIT_FACTOR = 30.0
-# residual RMS over output RMS below which an axis is noise-free: a CSV's rounding (6-9
-# significant digits) leaves 1e-9..1e-6; a force gauge's noise is 1e-4 of its range or more
+# residual RMS over output RMS below which an axis is noise-free: exact forces leave 0.6-1.6e-9
+# as simulate writes them and 0.7-1.0e-6 at 6 significant digits; the shipped campaign's
+# 0.02 N noise leaves 0.02-0.14
 NOISE_FREE = 1e-5
 GRAMS_FORCE_PER_N = 1000 / 9.80665      # a force gauge's gram-force, per newton
 

@@ -92,8 +92,8 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
     plates = Plates.of(d)
     pri = priors or make_priors(table)
     rng = np.random.default_rng(seed)
-    ids = data.scan_names if data.scan_names is not None and len(data.scan_names) == d.size else None
-    problems = data_problems(table, plates, data.strain, data.length_mm, ids) + unit_problems(
+    names = data.scan_names if data.scan_names is not None and len(data.scan_names) == d.size else None
+    problems = data_problems(table, plates, data.strain, data.length_mm, names) + unit_problems(
         table, plates, length_mm=data.length_mm, t_s=data.t_s, x_mm=data.x_mm, speed_mm_s=data.speed_mm_s)
     usable = usable_noise_models(plates)
     scores: dict[str, float] = {}
@@ -124,7 +124,7 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
                                          rng=rng, progress=progress)
         problems += note
     fit_problems, info = posterior_problems(table, plates, noise, log_w, post, growth_max=pri.growth_max,
-                                            scan_names=ids)
+                                            scan_names=names)
     problems += fit_problems
     info["window_edge"] = window_edge_notes(post["tau_s"], pri)
     attrs = {"model": "neuron", "length_mm": data.length_mm, "kernel": data.kernel, "noise": noise,
