@@ -51,6 +51,14 @@ def _check_arguments(data: NeuronData, backend: str, noise: str) -> np.ndarray:
         raise ArgumentError("step_mm", f"one scan on each of {d.size} plates",
                             "at least 2 scans of a plate (the decoder's noise is the spread of a plate's scans; "
                             "about 10 per plate pin it down)")
+    _, counts = np.unique(d, return_counts=True)
+    lone = int(np.sum(counts == 1))
+    if lone >= 3 and 2 * lone >= counts.size:
+        # labels that differ touch to touch (a gauge's reading of each touch) make plates of one scan each
+        raise ArgumentError("step_mm", f"{counts.size} distinct steps over {d.size} scans, {lone} of them with one "
+                            f"scan", "the decoder learns each plate from its repeated touches, so every touch of a "
+                            "plate needs that plate's one step (these change from touch to touch, like measured "
+                            "heights" + _rounding_hint(d) + ")")
     s = np.asarray(data.strain, float)
     if not np.all(np.isfinite(s)):
         raise ArgumentError("scans", "non-finite displacements", "finite U_y in every sample")
@@ -58,6 +66,25 @@ def _check_arguments(data: NeuronData, backend: str, noise: str) -> np.ndarray:
         raise ArgumentError("scans", "U_y constant in every scan (all-zero displacements?)",
                             "scans whose U_y changes over the plate")
     return d
+
+
+#: grids (mm) tried by :func:`_rounding_hint`, finest first
+_ROUNDING_MM = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0)
+
+
+def _rounding_hint(d: np.ndarray) -> str:
+    """"; rounded to the nearest 0.05 mm they form 4 plates …" for labels ``d`` (mm): the
+    finest grid of :data:`_ROUNDING_MM` on which they form at least 2 plates, none with
+    fewer than 2 scans or than half the largest plate's (a finer grid splits a plate's
+    touches at a rounding boundary into a large and a small plate); "" when no grid does."""
+    for grid in _ROUNDING_MM:
+        steps, counts = np.unique(np.round(d / grid) * grid, return_counts=True)
+        if steps.size >= 2 and counts.min() >= max(2.0, 0.5 * counts.max()):
+            sizes = f"{counts[0]} scans each" if counts.min() == counts.max() else \
+                f"{counts.min()} to {counts.max()} scans"
+            return (f"; rounded to the nearest {grid:g} mm they form {steps.size} plates "
+                    f"({', '.join(f'{v + 0.0:g}' for v in steps)} mm) of {sizes}")
+    return ""
 
 
 def _readout_noise(data: NeuronData) -> np.ndarray:
@@ -84,7 +111,8 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
             recorded in the posterior for ``discriminate``.
     Raises:
         ArgumentError: unknown backend or noise model, fewer than 4 labels, one scan on
-            every plate, labels or scans not finite, scans that never change.
+            every plate or on most of them (labels that look like measured heights), labels
+            or scans not finite, scans that never change.
     """
     d = _check_arguments(data, backend, noise)
     start = time.perf_counter()

@@ -50,7 +50,7 @@ def run(args) -> int:
 
     from feeler.calib.fit import DiagnosticWarning
     from feeler.calib.progress import stage
-    from feeler.errors import ArgumentError
+    from feeler.errors import ArgumentError, DataFileError
 
     if args.emcee_steps is not None and args.emcee_steps < 100:
         raise ArgumentError("--emcee-steps", args.emcee_steps, ">= 100")
@@ -64,9 +64,15 @@ def run(args) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DecoderMisfitWarning)          # printed below instead
         warnings.simplefilter("ignore", DiagnosticWarning)
-        result = fit_neuron(data, backend=args.backend, noise=args.noise, seed=args.seed, chains=args.chains,
-                            draws=args.draws, tune=args.tune, emcee_steps=args.emcee_steps, progress=args.progress,
-                            scene_toml=scene_toml, scene_path=str(scene_path.resolve()) if scene_toml else None)
+        try:
+            result = fit_neuron(data, backend=args.backend, noise=args.noise, seed=args.seed, chains=args.chains,
+                                draws=args.draws, tune=args.tune, emcee_steps=args.emcee_steps,
+                                progress=args.progress, scene_toml=scene_toml,
+                                scene_path=str(scene_path.resolve()) if scene_toml else None)
+        except ArgumentError as err:
+            if err.name != "step_mm":
+                raise
+            raise DataFileError(csv, f"column step_mm: {err.value}: {err.allowed}") from None
     print(f"M2 neuron: {scans.step_mm.size} scans from {csv}, strain = U_y / {length_mm:g} mm, "
           f"backend {args.backend}" + ("" if scene_toml else "; no scene.toml: discriminate will need --scene"))
     attrs = result.posterior["posterior"].attrs

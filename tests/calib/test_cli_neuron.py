@@ -1,5 +1,6 @@
 """`feeler calibrate neuron`, `classify` and `discriminate` end to end on the shipped scene."""
 import json
+import re
 
 import pytest
 
@@ -142,3 +143,32 @@ def test_a_mislabelled_scan_is_named_as_the_lab_wrote_it(run_and_fit, tmp_path, 
     assert main(["calibrate", "neuron", str(files), "--draws", "300", "--no-progress"]) == 1
     line = [ln for ln in capsys.readouterr().out.splitlines() if "step_mm:" in ln]
     assert len(line) == 1 and f"step_mm: scan file touch_{wrong:03d}.csv (labelled 0 mm)" in line[0]
+
+
+def test_labels_that_change_touch_to_touch_are_refused_with_the_plates_they_round_to(run_and_fit, tmp_path, capsys):
+    """Each touch labelled with its own measured height (a gauge's reading, 2 um sd about the
+    nominal step) made 67 plates, 50 of one scan: the fit ran and failed with 65 problems,
+    one line per pair of 'plates'. Now one line names the file and the column, before any
+    work, with the grid the labels round to."""
+    import numpy as np
+    import pandas as pd
+
+    run, _ = run_and_fit
+    frame = pd.read_csv(run / "scans.csv")
+    ids = frame.scan_id.unique()
+    gauge = dict(zip(ids, np.random.default_rng(11).normal(0.0, 0.002, ids.size)))
+    frame["step_mm"] = (frame.step_mm + frame.scan_id.map(gauge)).round(4).clip(lower=0)
+    csv = tmp_path / "measured" / "scans.csv"
+    csv.parent.mkdir()
+    frame.to_csv(csv, index=False)
+    capsys.readouterr()
+    assert main(["calibrate", "neuron", str(csv), "--length-mm", "3", "--out", str(tmp_path / "f"),
+                 "--no-progress"]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"feeler: error: {csv}: column step_mm: ")
+    assert "of them with one scan" in err[0] and "like measured heights" in err[0]
+    # the finest grid that puts every touch on its plate: 0.01 mm when no reading crosses a rounding boundary
+    assert re.search(r"rounded to the nearest 0\.0[125] mm they form 4 plates \(0, 0\.05, 0\.1, 0\.2 mm\) of 24 "
+                     r"scans each\)$", err[0]), err[0]
+    assert captured.out == "" and not (tmp_path / "f").exists()

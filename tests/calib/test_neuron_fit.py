@@ -108,6 +108,18 @@ def test_bad_labels_and_scans(plates_data):
     lone = dataclasses.replace(plates_data, strain=plates_data.strain[first], step_mm=plates_data.step_mm[first])
     with pytest.raises(ArgumentError, match="one scan on each of 4 plates.*at least 2 scans of a plate"):
         fit_neuron(lone)
+    # most plates of one scan: labels that change from touch to touch; the hint rounds them to the plates
+    gauge = plates_data.step_mm + np.random.default_rng(3).normal(0.0, 0.002, plates_data.step_mm.size)
+    with pytest.raises(ArgumentError, match=r"of them with one scan.*nearest 0\.0[125] mm they form 4 plates "
+                                            r"\(0, 0\.05, 0\.1, 0\.2 mm\) of 24 scans each"):
+        fit_neuron(dataclasses.replace(plates_data, step_mm=np.round(gauge, 4)))
+    # a few odd labels are not that: the fit runs, and its verdict names them
+    stray = plates_data.step_mm.copy()
+    stray[:2] = [0.0123, 0.0456]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        verdict = fit_neuron(dataclasses.replace(plates_data, step_mm=stray), draws=100).verdict
+    assert not verdict.ok and any("0.0123 mm, 0.0456 mm have one scan" in p for p in verdict.problems)
     with pytest.raises(ArgumentError, match="all-zero displacements"):
         fit_neuron(dataclasses.replace(plates_data, strain=np.zeros_like(plates_data.strain)))
     with pytest.raises(ArgumentError, match="non-finite"):
