@@ -43,6 +43,25 @@ def test_labels_in_micrometres_are_named_in_the_summary(fit_dir, scans_frame, tm
     assert "labels are probably in um (expected mm)" in line
 
 
+def test_measured_heights_as_labels_are_named_in_the_summary(fit_dir, scans_frame, tmp_path, capsys):
+    """Each scan labelled with its plate's height as a gauge read it (2 um sd about the
+    nominal step): only exact plate steps count for the accuracy, and the summary said
+    only "labelled with a step the fit has no plate for". It now says they lie near the
+    plates and how to count them; labels a quarter of a plate gap away are new steps."""
+    ids = scans_frame.scan_id.unique()
+    gauge = dict(zip(ids, np.random.default_rng(5).normal(0.0, 0.002, ids.size)))
+    measured = scans_frame.assign(step_mm=(scans_frame.step_mm + scans_frame.scan_id.map(gauge)).round(4))
+    measured.to_csv(tmp_path / "measured.csv", index=False)
+    assert _run(fit_dir, tmp_path / "measured.csv") == 0
+    line = [ln for ln in capsys.readouterr().out.splitlines() if "labelled scans" in ln][0]
+    assert "like measured heights; label each scan with its plate's step to count it)" in line
+    between = scans_frame.assign(step_mm=scans_frame.step_mm.where(scans_frame.step_mm != 0.1, 0.075))
+    between.to_csv(tmp_path / "between.csv", index=False)
+    assert _run(fit_dir, tmp_path / "between.csv") == 0
+    line = [ln for ln in capsys.readouterr().out.splitlines() if "labelled scans" in ln][0]
+    assert "labelled with a step the fit has no plate for)" in line and "measured" not in line
+
+
 def test_scans_of_different_lengths(fit_dir, scans_frame, tmp_path, capsys):
     """A scan cut at half its length is flagged and left out of the accuracy, which says
     so; scans of one or two samples are flags too, never a unit error, and with every

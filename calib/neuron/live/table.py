@@ -131,6 +131,11 @@ def labelled_summary(table, plates_mm) -> str | None:
         if np.isclose(step[~known, None] / 1000, plates[None, :], atol=1e-9).any(axis=1).all():
             extra += f": steps {step[~known].min():g}-{step[~known].max():g} against plates " \
                      f"{plates.min():g}-{plates.max():g} mm, so the labels are probably in um (expected mm)"
+        elif plates.size > 1:
+            off = np.min(np.abs(step[~known, None] - plates[None, :]), axis=1)
+            if off.max() < 0.25 * np.min(np.diff(plates)):      # near a plate: a measured height, not a new step
+                extra += (f": all within {off.max():.2g} mm of a trained plate, like measured heights; label each "
+                          f"scan with its plate's step to count it")
         extra += ")"
     hits = (f"{hit[known].mean() * 100:.1f} % classified as their labelled plate" if known.all() else
             f"{hit[known].mean() * 100:.1f} % of the {int(known.sum())} labelled with a trained plate classified as it"
