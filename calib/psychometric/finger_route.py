@@ -31,6 +31,7 @@ from feeler.calib.diagnostics import Thresholds
 from feeler.calib.fit import FitResult, make_result, posterior_from_draws
 from feeler.calib.psychometric.model.cells import make_cells
 from feeler.calib.psychometric.fit import with_problems
+from feeler.calib.psychometric.outputs.checks import speed_problems
 from feeler.errors import ArgumentError
 from feeler.models.neuron import peak_pulse_density, peak_window_sum
 from feeler.models.observer import conversion_factor, log_choice_prob
@@ -40,9 +41,6 @@ __all__ = ["RouteGrid", "fit_finger_route", "accepted_heights", "predict_p_highe
            "PAPER_TAU_MAX_S"]
 
 PAPER_TAU_MAX_S = 0.3  # paper §4.2: simulations "coincide well ... below τ = 300 msec"
-# mm/s: a fingertip's scan, a window around the paper's 20 and 40 mm/s wide enough for slow
-# strokes and fast swipes; a median ×10³ outside it is m/s or µm/s
-PLAUSIBLE_SPEED_MM_S = (1.0, 1000.0)
 
 
 @dataclass(frozen=True)
@@ -161,23 +159,8 @@ def fit_finger_route(trials: pd.DataFrame, *, rng: np.random.Generator, grid: Ro
     result = make_result(tree, backend=f"grid ({level})", priors=priors,
                          seconds=time.perf_counter() - start)
     speeds = sorted(set(zip(trials["standard_speed_mm_s"], trials["comparison_speed_mm_s"])))
-    return with_problems(result, _speed_problems(np.ravel(speeds)) + _edge_problems(prob, taus, sigmas)
+    return with_problems(result, speed_problems(np.ravel(speeds)) + _edge_problems(prob, taus, sigmas)
                          + _pinned_problems(prob, taus, speeds))
-
-
-def _speed_problems(speeds_mm_s: np.ndarray) -> list[str]:
-    """Scan speeds ~10³ off a fingertip's (:data:`PLAUSIBLE_SPEED_MM_S`): m/s or µm/s. The
-    chain simulates the skin at the given speeds, so τ then comes out at a grid bound."""
-    v = np.asarray(speeds_mm_s, float)
-    med, (lo, hi) = float(np.median(v)), PLAUSIBLE_SPEED_MM_S
-    span = f"{v.min():.4g}–{v.max():.4g}"
-    if med < lo:
-        return [f"speeds: the scan speeds {span} 'mm/s' are below a fingertip's ({lo:g}–{hi:g} mm/s): were they "
-                f"given in m/s? (× 1000 → {1000 * v.min():.4g}–{1000 * v.max():.4g} mm/s)"]
-    if med > hi:
-        return [f"speeds: the scan speeds {span} 'mm/s' are above a fingertip's ({lo:g}–{hi:g} mm/s): were they "
-                f"given in µm/s? (÷ 1000 → {v.min() / 1000:.4g}–{v.max() / 1000:.4g} mm/s)"]
-    return []
 
 
 def _pinned_problems(prob: np.ndarray, taus: np.ndarray, speeds: list) -> list[str]:

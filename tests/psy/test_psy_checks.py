@@ -75,6 +75,19 @@ def test_heights_off_by_a_thousand_name_the_unit(simulate, scale, unit):
     assert not checks.unit_problems(trials.comparison_um.to_numpy())
 
 
+def test_speeds_in_mm_per_min_fail_naming_the_unit(simulate):
+    """Speeds written as a stage's feed rate (mm/min: 1200 and 2400 for 20 and 40 mm/s)
+    passed with verdict ok and went into every output as 1200 'mm/s'."""
+    trials, _ = simulate(41, n_subjects=2)
+    per_min = trials.assign(standard_speed_mm_s=trials.standard_speed_mm_s * 60,
+                            comparison_speed_mm_s=trials.comparison_speed_mm_s * 60)
+    result = _fit(per_min)
+    speeds = [p for p in result.verdict.problems if p.startswith("speeds:")]
+    assert not result.verdict.ok and len(speeds) == 1
+    assert "given in mm/min, a stage's feed-rate unit (÷ 60 → 20–40 mm/s)" in speeds[0]
+    assert not [p for p in _fit(trials).verdict.problems if p.startswith("speeds:")]
+
+
 def test_priors_in_um_on_heights_in_mm_are_a_conflict_naming_the_unit(simulate):
     """Enough trials that the data outweigh the prior: σ sits ~10³ below the prior's."""
     trials, _ = simulate(41, n_subjects=1, n_trials=80)

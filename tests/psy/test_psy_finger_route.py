@@ -3,9 +3,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from feeler.calib.psychometric.finger_route import (RouteGrid, _edge_problems, _speed_problems, accepted_heights,
+from feeler.calib.psychometric.finger_route import (RouteGrid, _edge_problems, accepted_heights,
                                        fit_finger_route, paper_verdict, predict_p_higher, tau_report)
 from feeler.calib.fit import DiagnosticWarning
+from feeler.calib.psychometric.outputs.checks import speed_problems
 from feeler.errors import ArgumentError
 
 GRID = RouteGrid(n_tau=81, n_sigma=50, n_lapse=5)
@@ -125,5 +126,13 @@ def test_speeds_in_metres_per_second_are_named(design):
         result = fit_finger_route(slow, rng=np.random.default_rng(5), grid=GRID, draws=200)
     assert result.verdict.problems[0] == ("speeds: the scan speeds 0.02–0.04 'mm/s' are below a fingertip's "
                                           "(1–1000 mm/s): were they given in m/s? (× 1000 → 20–40 mm/s)")
-    assert _speed_problems(np.array([20.0, 40.0])) == []
-    assert "µm/s" in _speed_problems(np.array([2e4, 4e4]))[0]
+    assert speed_problems(np.array([20.0, 40.0])) == []
+    # above the window both slips bring it back: each is named with what it gives
+    assert speed_problems(np.array([2e4, 4e4])) == [
+        "speeds: the scan speeds 2e+04–4e+04 'mm/s' are above a fingertip's (1–1000 mm/s): were they given in "
+        "mm/min, a stage's feed-rate unit (÷ 60 → 333.3–666.7 mm/s) or in µm/s (÷ 1000 → 20–40 mm/s)?"]
+    assert speed_problems(np.array([1200.0, 2400.0])) == [
+        "speeds: the scan speeds 1200–2400 'mm/s' are above a fingertip's (1–1000 mm/s): were they given in "
+        "mm/min, a stage's feed-rate unit (÷ 60 → 20–40 mm/s) or in µm/s (÷ 1000 → 1.2–2.4 mm/s)?"]
+    assert speed_problems(np.array([np.nan, 5e7])) == [
+        "speeds: the scan speeds 5e+07–5e+07 'mm/s' are above a fingertip's (1–1000 mm/s)"]

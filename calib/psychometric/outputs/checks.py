@@ -11,7 +11,9 @@ are the heights in µm, can the data pin the function down.
   1 − :data:`CONFLICT_TAIL` quantile; a factor of ~10³ between posterior and prior
   names the likely unit mistake.
 - **Units**: heights whose median is below 0.05 µm or above 1000 µm are ~10³ off the
-  range of fingertip step heights: likely mm or nm.
+  range of fingertip step heights: likely mm or nm. Scan speeds whose median lies outside
+  1–1000 mm/s (:func:`speed_problems`): m/s below; above, mm/min (a stage's feed rate,
+  ×60) or µm/s (×10³), each named with what it converts to.
 - **Identifiability**: fewer than two tested levels, a 95 % interval of the location
   reaching more than the tested range beyond the tested levels, and the boundary models
   of the spread (:func:`spread_problems`): a step at or between two adjacent levels
@@ -31,12 +33,17 @@ from feeler.models.psychometric import LAPSE_MAX
 
 __all__ = ["deviance", "gof", "worst_cell", "unit_problems", "conflict_problems", "level_problems",
            "bracket_problems", "gof_problems", "spread_problems", "one_answer_problem", "GOF_ALPHA", "CONFLICT_Z",
-           "CONFLICT_TAIL", "PLAUSIBLE_UM", "BOUNDARY_LR", "FALLING_LR"]
+           "CONFLICT_TAIL", "PLAUSIBLE_UM", "BOUNDARY_LR", "FALLING_LR", "speed_problems", "PLAUSIBLE_SPEED_MM_S"]
 
 GOF_ALPHA = 0.05
 CONFLICT_Z = 4.0
 CONFLICT_TAIL = 1e-4
 PLAUSIBLE_UM = (0.05, 1000.0)   # fingertip step heights: far below the edge threshold .. 1 mm
+# mm/s: a fingertip's scan, a window around the paper's 20 and 40 mm/s wide enough for slow
+# strokes and fast swipes; a median ×10³ outside it is m/s or µm/s, ×60 above it mm/min
+PLAUSIBLE_SPEED_MM_S = (1.0, 1000.0)
+# units a speed column may have been written in by mistake, above the window: (name, per mm/s)
+_FAST_SPEED_UNITS = (("mm/min, a stage's feed-rate unit", 60.0), ("µm/s", 1000.0))
 # 5 % critical value of a likelihood ratio for a parameter on its boundary (σ → 0 or ∞):
 # ½χ²₀ + ½χ²₁ (Self & Liang 1987), i.e. the 90 % point of χ²₁
 BOUNDARY_LR = 2.71
@@ -97,6 +104,28 @@ def gof_problems(rows: list[dict]) -> list[str]:
             f"{r['gof_p']:.4f} < {cut:.2g} = {GOF_ALPHA}/{len(tested)}); check the design (--nafc?) and that "
             f"cell's counts, or try --overdispersion"
             for r in tested if r["gof_p"] < cut]
+
+
+def speed_problems(speeds_mm_s) -> list[str]:
+    """One problem when the scan speeds' median lies outside :data:`PLAUSIBLE_SPEED_MM_S`,
+    naming each unit that brings it inside with the speeds it converts to (missing
+    speeds, NaN, are left out)."""
+    v = np.asarray(speeds_mm_s, float).ravel()
+    v = v[np.isfinite(v) & (v > 0)]
+    if not v.size:
+        return []
+    med, (lo, hi) = float(np.median(v)), PLAUSIBLE_SPEED_MM_S
+    head = f"speeds: the scan speeds {v.min():.4g}–{v.max():.4g} 'mm/s'"
+    if med < lo:
+        return [f"{head} are below a fingertip's ({lo:g}–{hi:g} mm/s): were they given in m/s? "
+                f"(× 1000 → {1000 * v.min():.4g}–{1000 * v.max():.4g} mm/s)"]
+    if med <= hi:
+        return []
+    fits = [f"{name} (÷ {per:g} → {v.min() / per:.4g}–{v.max() / per:.4g} mm/s)"
+            for name, per in _FAST_SPEED_UNITS if lo <= med / per <= hi]
+    if not fits:
+        return [f"{head} are above a fingertip's ({lo:g}–{hi:g} mm/s)"]
+    return [f"{head} are above a fingertip's ({lo:g}–{hi:g} mm/s): were they given in {' or in '.join(fits)}?"]
 
 
 def unit_problems(levels_um: np.ndarray) -> list[str]:
