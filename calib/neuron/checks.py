@@ -42,6 +42,12 @@ ALPHA = 0.01          # family-wise level of each check (Bonferroni over plates)
 # scenes and four-plates (200 each) are flagged at most 1 % of the time at 0.001 (tilted 2 of 200:
 # a touch on a lifted corner, which real plates make too), up to 4 % at 0.01
 ODD_ALPHA = 0.001
+# mm: labelled steps whose largest lies outside this range, with U_y rising with them at a gain
+# of about 1, are lengths in another unit throughout: an elastomer tactile element a few mm thick
+# cannot follow a step of over 10 mm, and a set of plates whose largest step is under 1 um is
+# below a tactile read-out's noise (the shipped scenes' is 1 um per frame). Steps of 10 um and
+# more written in um, and of 1 mm and less written in m, fall outside.
+PLAUSIBLE_STEP_MM = (1e-3, 10.0)
 
 
 def _mm(v) -> str:
@@ -123,7 +129,8 @@ def _slope_z(peak: np.ndarray, plates: Plates) -> np.ndarray:
 
 def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_mm=None,
                   speed_mm_s=None) -> list[str]:
-    """Scales off by ~10³: displacements vs steps, times vs the stage's speed."""
+    """Scales off by ~10³: displacements vs steps, times vs the stage's speed, and steps
+    and displacements in one wrong unit together (:data:`PLAUSIBLE_STEP_MM`)."""
     out = []
     if plates.steps_mm.size >= 2:
         mean, _ = plate_stats(table.peak[:, -1], plates)                   # longest window: the whole rise
@@ -146,6 +153,14 @@ def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_
                       else "steps probably in um (or U_y in m)")
             out.append(f"a: the scans' rise in U_y is {gain:.3g} times the labelled steps (expected about 1, both "
                        f"in mm): {likely}")
+        elif gain > 0:
+            top, (lo, hi) = float(np.max(np.abs(c))), PLAUSIBLE_STEP_MM
+            if not lo <= top <= hi:
+                likely = "um" if top > hi else "m"
+                where = "more than a tactile element deforms" if top > hi else "finer than a tactile read-out resolves"
+                out.append(f"a: the labelled steps reach {top:.4g} mm and the scans' rise in U_y follows them (gain "
+                           f"{gain:.3g}), {where} (largest step {lo:g}-{hi:g} mm): steps and U_y probably both in "
+                           f"{likely} (expected mm)")
     t = np.atleast_2d(np.asarray(t_s, float))
     dt = float(np.median(np.diff(t, axis=-1)))
     if dt > 60.0:

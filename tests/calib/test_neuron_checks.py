@@ -209,6 +209,23 @@ def test_units_micrometres_and_milliseconds(data):
     assert not res.verdict.ok and "U_y probably in um" in res.verdict.problems[0]
 
 
+def test_steps_and_displacements_both_in_another_unit(data):
+    """Steps and U_y both in µm (or both in m): their ratio is about 1, so the ratio check
+    passed, and the fit said verdict ok on plates of 50-200 mm. The largest step names it."""
+    table = data.table(n_grid=32)
+    for scale, unit in ((1000.0, "um"), (1e-3, "m")):
+        (q,) = unit_problems(PeakTable(table.log_tau, scale * table.peak), Plates.of(scale * data.step_mm),
+                             length_mm=3.0, t_s=data.t_s)
+        assert q.startswith(f"a: the labelled steps reach {0.2 * scale:.4g} mm and the scans' rise in U_y follows "
+                            f"them") and q.endswith(f"steps and U_y probably both in {unit} (expected mm)")
+    res = _quiet_fit(dataclasses.replace(data, strain=1000 * data.strain, step_mm=1000 * data.step_mm))
+    assert not res.verdict.ok and "probably both in um" in res.verdict.problems[0]
+    # the hard scenes' finest plates (0-0.03 mm) and a coarse 5 mm step set are lengths in mm
+    for scale in (0.15, 25.0):
+        assert unit_problems(PeakTable(table.log_tau, scale * table.peak), Plates.of(scale * data.step_mm),
+                             length_mm=3.0, t_s=data.t_s) == []
+
+
 def test_checks_are_recorded(data):
     res = _quiet_fit(data)
     checks = json.loads(res.posterior["posterior"].attrs["checks"])
