@@ -10,7 +10,10 @@ rows b_i of B per output axis (K for the inverse model, C for the forward one).
 - units (:func:`unit_problems`): the least-squares compliance against the nominal C₀
   (a scale ~10³ off, forces and displacements swapped, axes exchanged, an axis of the
   opposite sign);
-  a ratio beyond ×30 is no sensor tolerance but a unit (×10³: µm for mm, mN for N);
+  a ratio beyond ×30 is no sensor tolerance but a unit (×10³: µm for mm, mN for N); with
+  the compliance right, outputs scattering about the least-squares fit ×30 beyond the
+  noise prior's scale are forces and displacements both in another unit
+  (:func:`noise_unit_problems`: mN and µm leave the compliance as it was);
 - prior–data conflict (:func:`conflict_problems`): the least-squares row b̂_i against
   its prior N(b0_i, s²I): under the model b̂_i ~ N(b0_i, s²I + σ̂_i²(XᵀX)⁻¹), so its
   Mahalanobis distance is χ²₃; a tail probability below 0.01/3 says prior and data
@@ -40,7 +43,8 @@ import numpy as np
 from feeler.calib.diagnostics import repeated_rows
 from feeler.calib.matrix.data import AXES, weak_directions
 
-__all__ = ["design_problems", "repeat_problems", "unit_problems", "conflict_problems", "sign_problems",
+__all__ = ["design_problems", "repeat_problems", "unit_problems", "noise_unit_problems", "conflict_problems",
+           "sign_problems",
            "ppc_problems", "ALPHA", "UNIT_FACTOR", "NOISE_FREE"]
 
 ALPHA = 0.01
@@ -118,6 +122,25 @@ def unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool
                 f"u{'xyz'[i]}_mm or f{'xyz'[i]}_n probably has the opposite sign (the sensor's axis convention)"
                 for i in flipped]
     return []
+
+
+def noise_unit_problems(x: np.ndarray, y: np.ndarray, sigma_scale: float, *, forward: bool) -> list[str]:
+    """One line when the outputs ``y`` scatter about their least-squares fit on ``x`` (the
+    median over axes of the residual sd) more than :data:`UNIT_FACTOR` times the
+    half-normal noise prior's ``sigma_scale``: with the compliance as nominal, both
+    columns are in another unit (µm and mN). [] with 3 rows or fewer."""
+    n = x.shape[0]
+    if n <= 3:
+        return []
+    resid = y - x @ _lstsq(x, y).T
+    sd = float(np.median(np.sqrt(np.sum(resid ** 2, axis=0) / (n - 3))))
+    ratio = sd / sigma_scale
+    if not ratio > UNIT_FACTOR:        # far below is a quiet gauge as well as kN and m: not named
+        return []
+    what, unit = ("displacements", "mm") if forward else ("forces", "N")
+    return [f"sigma: the {what} scatter {sd:.3g} {unit} about the least-squares fit, {ratio:.3g} times the noise "
+            f"prior's scale {sigma_scale:g} {unit}, while their ratio, the compliance, is the nominal's: forces "
+            f"probably in mN and displacements in um (expected N and mm)"]
 
 
 def _exchanged_axes(c: np.ndarray, c0: np.ndarray) -> str | None:

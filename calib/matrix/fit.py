@@ -28,8 +28,8 @@ import numpy as np
 
 from feeler.calib.fit import FitResult, make_result, posterior_from_draws
 from feeler.calib.matrix.backends import sample_emcee, sample_nuts
-from feeler.calib.matrix.checks import (conflict_problems, design_problems, ppc_problems, repeat_problems,
-                                        sign_problems, unit_problems)
+from feeler.calib.matrix.checks import (conflict_problems, design_problems, noise_unit_problems, ppc_problems,
+                                        repeat_problems, sign_problems, unit_problems)
 from feeler.calib.matrix.data import CalibrationData, weak_directions
 from feeler.calib.matrix.exact import exact_posterior
 from feeler.calib.matrix.prior import MatrixPrior
@@ -83,6 +83,8 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
     if design_ok:
         b_unit = "mm/N" if model == "forward" else "N/mm"
         problems += unit_problems(x, y, prior.c0, forward=model == "forward")
+        if not problems:                  # a compliance ~10³ off is named above; with it right, the noise's scale
+            problems += noise_unit_problems(x, y, rp.sigma_scale, forward=model == "forward")
         problems += conflict_problems(x, y, rp.b0, rp.sd, matrix=rp.matrix, unit=b_unit)
     known = None if noise_sd is None else np.asarray(noise_sd, dtype=float)
     seed = int(rng.integers(2**31 - 1))

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from feeler.calib.matrix import CalibrationData, MatrixPrior, fit_matrix
-from feeler.calib.matrix.checks import conflict_problems, design_problems, ppc_problems, unit_problems
+from feeler.calib.matrix.checks import (conflict_problems, design_problems, noise_unit_problems, ppc_problems,
+                                        unit_problems)
 from feeler.scene import load_scene
 from feeler.simulate.calibration import draw_campaign
 
@@ -53,6 +54,24 @@ def test_units_um_and_mn_are_named():
     assert len(gf) == 1 and "forces probably in gram-force (expected N; 1 N = 102 gf" in gf[0]
     assert unit_problems(d.u_mm, d.f_n, PRIOR.c0, forward=False) == []
     assert unit_problems(d.f_n, 1000 * d.u_mm, PRIOR.c0, forward=True)[0].startswith("C: the data's compliance is")
+
+
+def test_forces_and_displacements_both_in_another_unit_are_named():
+    """mN and µm together leave the compliance as nominal, so the unit check passed; the
+    half-normal noise prior (0.1 N) then dragged the force noise from 20 'N' to 3.7 and
+    the verdict blamed outliers ("a typo or a slipped contact?"). The scatter names it,
+    first, for either regression."""
+    d = _campaign()
+    both = CalibrationData(1000 * d.u_mm, 1000 * d.f_n, d.point_id)
+    for model in ("inverse", "forward"):
+        res = _fit(both, model=model)
+        assert not res.verdict.ok and res.verdict.problems[0].startswith("sigma: the ")
+        assert res.verdict.problems[0].endswith("is the nominal's: forces probably in mN and displacements in um "
+                                                "(expected N and mm)")
+    assert noise_unit_problems(d.u_mm, d.f_n, PRIOR.sigma_f_scale_n, forward=False) == []
+    # a gauge 10x noisier than the prior's scale is not a unit
+    noisy = d.f_n + np.random.default_rng(4).normal(0.0, 1.0, d.f_n.shape)
+    assert noise_unit_problems(d.u_mm, noisy, PRIOR.sigma_f_scale_n, forward=False) == []
 
 
 def test_swapped_columns_and_a_flipped_axis_are_named():
