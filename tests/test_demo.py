@@ -105,3 +105,38 @@ def test_speed_tables_of_the_last_bench_are_copied_with_their_source(tmp_path):
     _speed_tables(ctx)
     assert (out / "benchmarks" / "ratios.csv").read_text() == (bench / "ratios.csv").read_text()
     assert str(bench) in (out / "benchmarks" / "SOURCE.txt").read_text()
+
+
+def test_a_failed_fit_skips_what_needs_it_and_the_rest_still_runs(tmp_path, small, capsys, monkeypatch):
+    """A neuron fit that fails its verdict (a user's own scene, say) stopped the demo: no
+    report, no human fits. Now the stages that need it are skipped, the others run, and
+    the demo ends failed, naming the stage, its log and what was skipped."""
+    import argparse
+
+    import feeler.demo
+    from feeler.commands import demo as demo_command
+    from feeler.demo.campaign import DemoIncomplete, StageFailed
+
+    ran = []
+
+    def fit(ctx):
+        raise StageFailed("calibrate-neuron", 1, ctx["out"] / "logs" / "calibrate-neuron.txt")
+
+    stages = [("calibrate neuron", fit), ("classify", lambda ctx: ran.append("classify")),
+              ("psychophysics", lambda ctx: ran.append("psychophysics"))]
+    printed = []
+    with pytest.raises(DemoIncomplete) as info:
+        run_demo(tmp_path / "demo", scene_path=small, echo=printed.append, stages=stages)
+    assert ran == ["psychophysics"] and info.value.skipped == ["classify"] and info.value.code == 1
+    assert list(info.value.failed) == ["calibrate neuron"] and "psychophysics" in info.value.ctx["seconds"]
+    assert "[2/3] classify: skipped, it needs calibrate neuron, which failed" in printed
+    assert str(info.value).startswith("1 demo stage failed: 'calibrate neuron' (exit 1, see ")
+    assert str(info.value).endswith("skipped as they need it: 'classify'")
+    # the command prints its closing table, then fails with the same line and the stage's exit status
+    monkeypatch.setattr(feeler.demo, "run_demo", lambda *a, **k: run_demo(tmp_path / "cli", scene_path=small,
+                                                                           echo=lambda s: None, stages=stages))
+    code = demo_command.run(argparse.Namespace(out=str(tmp_path / "cli"), force=False, scene=None, progress=False))
+    captured = capsys.readouterr()
+    assert code == 1
+    assert "classify                    -       -   skipped: it needs calibrate neuron, which failed" in captured.out
+    assert captured.err.startswith("feeler: failed: 1 demo stage failed: 'calibrate neuron'")

@@ -17,7 +17,10 @@ This is what `make demo` runs. Stages, each with its progress line:
        fidelities), labelled as measured during the demo;
   13   write OUT/report.html, OUT/report.pdf and OUT/report-manifest.json.
 Every stage's full output is kept in OUT/logs/. A closing table lists each stage's wall
-and CPU time and verdict.
+and CPU time and verdict. A stage that fails (a fit whose verdict fails, with --scene a
+scene the fits cannot pin down) is named with its log; the stages that need its results
+are skipped, the others still run and the report shows them all with the failed verdict;
+the demo then exits with that stage's status (1 for a failed verdict).
 """
 from __future__ import annotations
 
@@ -42,26 +45,43 @@ def register(parser) -> None:
 def run(args) -> int:
     import json
 
-    from feeler.demo import FIGURES, run_demo
+    import sys
 
-    ctx = run_demo(args.out, force=args.force, scene_path=args.scene, progress=args.progress)
+    from feeler.demo import FIGURES, STAGES, run_demo
+    from feeler.demo.campaign import NEEDS, DemoIncomplete
+
+    incomplete = None
+    try:
+        ctx = run_demo(args.out, force=args.force, scene_path=args.scene, progress=args.progress)
+    except DemoIncomplete as exc:                  # the closing table still; the exit status says it failed
+        incomplete, ctx = exc, exc.ctx
     out = ctx["out"]
     print("\nsummary" + "-" * 62)
     print(f"{'stage':20s} {'seconds':>8s} {'cpu s':>7s}   result")
-    for name, sec in ctx["seconds"].items():
-        print(f"{name:20s} {sec:8.1f} {ctx['cpu_seconds'][name]:7.1f}   {_result(out, name, json)}")
+    skipped = incomplete.skipped if incomplete else []
+    for name in [n for n, _ in STAGES if n in ctx["seconds"] or n in skipped]:
+        if name in skipped:
+            print(f"{name:20s} {'-':>8s} {'-':>7s}   skipped: it needs {NEEDS[name]}, which failed")
+            continue
+        sec = ctx["seconds"][name]
+        print(f"{name:20s} {sec:8.1f} {ctx['cpu_seconds'][name]:7.1f}   {_result(out, name, json, incomplete)}")
     print(f"{'total':20s} {sum(ctx['seconds'].values()):8.1f} {sum(ctx['cpu_seconds'].values()):7.1f}")
     print(f"figures: {', '.join(str(out / f) for f in FIGURES)}")
     if "report" in ctx:
         print(f"report:  {ctx['report'].html}")
+    if incomplete is not None:
+        print(f"feeler: failed: {incomplete}", file=sys.stderr)
+        return incomplete.code
     return 0
 
 
 _FITS = {"calibrate sensor": "m1", "calibrate neuron": "m2", "psychophysics": "m4", "finger route": "finger-route"}
 
 
-def _result(out, stage: str, json) -> str:
+def _result(out, stage: str, json, incomplete=None) -> str:
     """One line per stage for the closing table, read back from the run's files."""
+    if incomplete is not None and stage in incomplete.failed and stage not in _FITS:
+        return f"FAILED (exit {incomplete.failed[stage].code}; see {incomplete.failed[stage].log})"
     if stage in _FITS:
         path = out / _FITS[stage] / "verdict.json"
         if path.is_file():

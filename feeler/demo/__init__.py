@@ -24,6 +24,7 @@ import numpy as np
 import feeler
 from feeler.calib.progress import duration
 from feeler.datasets import proportion_correct, read_scans, strain
+from feeler.demo.campaign import NEEDS, DemoIncomplete, StageFailed
 from feeler.rundir import prepare_out_dir, write_json
 from feeler.scene import load_scene
 
@@ -139,6 +140,8 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
             a terminal or on one.
 
     Raises:
+        DemoIncomplete: after the last stage, when some failed (the stages needing them
+            skipped, :data:`~feeler.demo.campaign.NEEDS`); its ``ctx`` is the context.
         OverwriteError: ``out`` holds demo results and ``force`` is false.
         RunLocked: another demo is writing ``out`` (its PID in the message).
     """
@@ -156,14 +159,25 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
                "discriminate_scans": discriminate_scans, "progress": progress}
         todo = STAGES if stages is None else stages
         start = time.perf_counter()
+        failed, skipped = {}, []
         for i, (name, stage) in enumerate(todo, 1):
+            if NEEDS.get(name) in failed:
+                skipped.append(name)
+                echo(f"[{i}/{len(todo)}] {name}: skipped, it needs {NEEDS[name]}, which failed")
+                continue
             if progress is not False:
                 so_far = f" ({duration(time.perf_counter() - start)} so far)" if i > 1 else ""
                 echo(f"[{i}/{len(todo)}] {name} ...{so_far}")
             t0, c0 = time.perf_counter(), time.process_time()
-            stage(ctx)
+            try:
+                stage(ctx)
+            except StageFailed as exc:                 # the others still run: the report shows them all
+                failed[name] = exc
+                echo(f"{name}: FAILED ({exc}); going on with the stages that do not need it")
             ctx["seconds"][name] = time.perf_counter() - t0
             ctx["cpu_seconds"][name] = time.process_time() - c0
+        if failed:
+            raise DemoIncomplete(failed, skipped, ctx)
         return ctx
     finally:
         release_run_dir(lock)

@@ -4,8 +4,10 @@
 Each stage runs the same sub-command a user would type (through :func:`feeler.cli.main`,
 in-process), so the demo and the CLI cannot drift apart. A stage's full output goes to
 ``OUT/logs/<stage>.txt``; the terminal gets the lines that matter (summary tables,
-verdicts, the discrimination table). A stage whose command exits non-zero stops the demo
-with that stage named; earlier results stay on disk.
+verdicts, the discrimination table). A stage whose command exits non-zero is named and
+the demo goes on with the stages that do not need its results (:data:`NEEDS`), so the
+report still shows what the others found and the failed fit's verdict; the demo then
+ends with :class:`DemoIncomplete`. Earlier results stay on disk.
 
 Run-directory layout written here (the report reads it):
 
@@ -30,7 +32,7 @@ from pathlib import Path
 
 from feeler.errors import FeelerError
 
-__all__ = ["CAMPAIGN_STAGES", "StageFailed", "held_out_scene"]
+__all__ = ["CAMPAIGN_STAGES", "NEEDS", "StageFailed", "DemoIncomplete", "held_out_scene"]
 
 DATA = Path(__file__).resolve().parents[2] / "datasets-synthetic"
 HELD_OUT_SEED_OFFSET = 100_000_000
@@ -42,6 +44,22 @@ class StageFailed(FeelerError):
     def __init__(self, stage: str, code: int, log: Path):
         self.stage, self.code, self.log = stage, code, log
         super().__init__(f"demo stage {stage!r} exited {code}; see {log}")
+
+
+class DemoIncomplete(FeelerError):
+    """The demo ran to its end with some stages failed (and the stages needing them
+    skipped). Attributes: ``failed`` ({stage: StageFailed}), ``skipped`` (stage names),
+    ``ctx`` (the demo's context, for its closing table)."""
+
+    def __init__(self, failed: dict, skipped: list, ctx: dict):
+        self.failed, self.skipped, self.ctx = failed, skipped, ctx
+        first = next(iter(failed.values()))
+        report = f"; the report shows what the others found: {ctx['report'].html}" if "report" in ctx else ""
+        super().__init__(f"{len(failed)} demo stage{'s' if len(failed) > 1 else ''} failed: "
+                         + ", ".join(f"{name!r} (exit {e.code}, see {e.log})" for name, e in failed.items())
+                         + (f"; skipped as they need {'it' if len(failed) == 1 else 'them'}: "
+                            f"{', '.join(repr(n) for n in skipped)}" if skipped else "") + report)
+        self.code = first.code
 
 
 def _run(ctx: dict, stage: str, argv: list[str], keep) -> None:
@@ -194,6 +212,10 @@ def _report(ctx: dict) -> None:
     ctx["report"] = report
     ctx["print"](f"\nreport: {report.html}" + (f" and {report.pdf} ({report.n_pages} pages)" if report.pdf else ""))
 
+
+#: stages that read another's results: skipped when that one failed (classify and
+#: discriminate refuse a failed neuron fit; the finger route reads the M4 stage's trials)
+NEEDS = {"classify": "calibrate neuron", "discriminate": "calibrate neuron"}
 
 #: (name, func(ctx)) appended to :data:`feeler.demo.STAGES`
 CAMPAIGN_STAGES = [("calibrate sensor", _calibrate_sensor), ("calibrate neuron", _calibrate_neuron),
