@@ -126,7 +126,10 @@ def _calibrate_sensor(ctx: dict) -> None:
 
 
 def _calibrate_neuron(ctx: dict) -> None:
-    ctx["print"]("\nM2 — the neuron's (a, τ, h) and decoder noise σ from the four plates (exact grid):")
+    scene = ctx.get("scene")
+    n = len(scene.surface.heights_mm) if scene is not None else 4
+    plates = {2: "two", 3: "three", 4: "four", 5: "five", 6: "six"}.get(n, str(n))
+    ctx["print"](f"\nM2 — the neuron's (a, τ, h) and decoder noise σ from the {plates} plates (exact grid):")
     _run(ctx, "calibrate-neuron", ["calibrate", "neuron", str(ctx["run_dir"]), "--out", str(ctx["out"] / "m2"),
                                    "--no-progress", *_force(ctx)], keep=_from("name"))
 
