@@ -135,8 +135,10 @@ def read_csv_file(path: Path, *, comment: str | None = None):
     Separated by commas, semicolons or tabs (:func:`csv_dialect`); in a file separated by
     semicolons or tabs a decimal comma is read as a point (``0,05`` → 0.05). A UTF-8 byte
     order mark (spreadsheets write one) is dropped. ``comment``: lines starting with it
-    are skipped, and kept (without it) in ``attrs["comments"]``. The header repeated
-    further down (files joined with ``cat``) is an error naming its line."""
+    are skipped, and kept (without it) in ``attrs["comments"]``; lines starting with ``#``
+    are always skipped so (a lab's notes above the header: sensor, date, operator), as
+    they were only for the readers that asked. The header repeated further down (files
+    joined with ``cat``) is an error naming its line."""
     import io
 
     import pandas as pd
@@ -153,8 +155,11 @@ def read_csv_file(path: Path, *, comment: str | None = None):
     repeats = _repeated_header(text, header)
     if repeats:
         raise DataFileError(path, repeated_header_problem(repeats))
+    lines = text.splitlines()
+    remarks = [ln.lstrip()[1:].strip() for ln in lines if ln.lstrip().startswith("#")]
+    data = "\n".join(ln for ln in lines if not ln.lstrip().startswith("#")) if remarks else text
     try:
-        frame = pd.read_csv(io.StringIO(text), sep=sep, comment=comment,
+        frame = pd.read_csv(io.StringIO(data), sep=sep, comment=comment,
                             dtype=None if decimal == "." else str)
     except (ValueError, pd.errors.ParserError) as exc:
         raise DataFileError(path, f"not a readable CSV: {' '.join(str(exc).split())}") from None
@@ -177,6 +182,8 @@ def read_csv_file(path: Path, *, comment: str | None = None):
     if comment:
         frame.attrs["comments"] = [ln.lstrip()[len(comment):].strip() for ln in text.splitlines()
                                    if ln.lstrip().startswith(comment)]
+    elif remarks:
+        frame.attrs["comments"] = remarks
     return frame
 
 

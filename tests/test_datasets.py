@@ -362,3 +362,21 @@ def test_scans_with_units_in_the_header_say_which_columns_to_rename(tmp_path):
     with pytest.raises(DataFileError, match=r"missing column\(s\) step_mm, t_s, uy_mm; required: .*; the header has "
                                             r"'step \(mm\)', 't \[s\]', 'Uy \(mm\)': rename them step_mm, t_s, uy_mm"):
         read_scans(path)
+
+
+def test_a_labs_notes_above_the_header_are_comments_not_a_parse_error(tmp_path):
+    """'# sensor 12, 2026-11-20' above the header (as feeler's own trial files carry) was
+    "not a readable CSV: Error tokenizing data. C error: Expected 1 fields in line 3, saw 9"
+    for scans: only the readers that asked skipped '#' lines. Now every CSV reader does,
+    and keeps them."""
+    from feeler.datasets import read_csv_file
+
+    plain = read_scans(write_csv(tmp_path / "scans.csv", good_rows()))
+    text = (tmp_path / "scans.csv").read_text()
+    noted = tmp_path / "noted.csv"
+    noted.write_text("# sensor element 12, 2026-11-20\n  # operator AB\n" + text)
+    got = read_scans(noted)
+    for col in ("scan_id", "step_mm", "t_s", "uy_mm"):
+        np.testing.assert_array_equal(getattr(got, col), getattr(plain, col))
+    assert read_csv_file(noted).attrs["comments"] == ["sensor element 12, 2026-11-20", "operator AB"]
+    assert "comments" not in read_csv_file(tmp_path / "scans.csv").attrs

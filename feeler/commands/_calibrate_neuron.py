@@ -128,6 +128,9 @@ def locate_scans(path: Path, length_mm: float | None):
             raise DataFileError(path, no_scans_problem(path))
     elif path.suffix == ".csv":
         csv = path
+        kind = what_it_is(csv, expected="scans.csv")         # a trial table or a calibration file, say
+        if kind:
+            raise DataFileError(csv, f"not robot scans: {kind}")
     else:
         raise DataFileError(path, "not a run directory or a scans CSV")
     scene_path = _scene_beside(csv)

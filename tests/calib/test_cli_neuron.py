@@ -116,6 +116,25 @@ def test_a_csv_beside_another_kinds_scene_says_what_to_do(run_and_fit, tmp_path,
     assert not (tmp_path / "f").exists()
 
 
+def test_another_kind_of_csv_is_named_for_what_it_is(run_and_fit, tmp_path, capsys):
+    """A trial table or a calibration file given as scans: calibrate neuron said the scene
+    beside it was 'not the robot-scan scene of these scans', and classify listed the
+    missing columns. Both now say what the file is and which command reads it."""
+    run, fit = run_and_fit
+    trials = tmp_path / "psy"
+    assert main(["simulate", str(FOUR_PLATES.with_name("psychophysics-2afc.toml")), "--out", str(trials)]) == 0
+    capsys.readouterr()
+    assert main(["calibrate", "neuron", str(trials / "trials.csv"), "--length-mm", "3", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (f"feeler: error: {trials / 'trials.csv'}: not robot scans: trials.csv is a psychophysics trial "
+                   "table: `feeler fit psychophysics` and `feeler fit finger-route` fit it")
+    assert main(["classify", str(fit), str(trials / "trials.csv"), "--n-draws", "20", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith(f"feeler: error: {trials / 'trials.csv'}: missing column(s) scan_id, t_s, uy_mm")
+    assert err.endswith("; trials.csv is a psychophysics trial table: `feeler fit psychophysics` and "
+                        "`feeler fit finger-route` fit it")
+
+
 def test_a_mislabelled_scan_is_named_as_the_lab_wrote_it(run_and_fit, tmp_path, capsys):
     """One touch of the 0.2 mm plate labelled 0 mm fails the verdict, naming the scan as the
     file did: its text scan_id, or its file in a directory of one file per scan."""

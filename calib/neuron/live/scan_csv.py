@@ -91,10 +91,12 @@ def records_from_frame(frame, path) -> list[ScanRecord]:
     missing = [c for c in REQUIRED if c not in frame.columns]
     if missing:
         from feeler.datasets import renamed_hint
+        from feeler.rundir import what_it_is
 
+        kind = what_it_is(Path(path), header=list(frame.columns), expected="scans.csv")
         raise DataFileError(path, f"missing column(s) {', '.join(missing)}; required: {', '.join(REQUIRED)} "
                                   f"(t_s in s, uy_mm in mm); optional: {', '.join(OPTIONAL)}"
-                                  + renamed_hint(frame.columns, missing))
+                                  + renamed_hint(frame.columns, missing) + (f"; {kind}" if kind else ""))
     if len(frame) == 0:
         raise DataFileError(path, "no rows")
     cols = [c for c in REQUIRED + OPTIONAL + ("attempt",) if c in frame.columns]
