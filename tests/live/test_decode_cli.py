@@ -122,6 +122,14 @@ def test_follow_rows_of_a_decimal_comma_logger(tmp_path):
     assert rows == [{"scan_id": "0", "t_s": "0.5", "uy_mm": "0.1"}, {"scan_id": "0", "t_s": "1", "uy_mm": "0.25"}]
 
 
+def test_follow_rows_skip_a_loggers_notes(tmp_path):
+    """'#' lines a logger writes (its start, a new plate) are comments, as in every CSV
+    feeler reads: the first was taken for the header."""
+    (tmp_path / "samples.csv").write_text("# logger v2, sensor 12\nscan_id,t_s,uy_mm\n0,0.5,0.1\n# plate 2\n1,0.5,0.3\n")
+    rows = list(follow_rows(tmp_path, poll_s=0.001, active=lambda: False, sleep=lambda s: None))
+    assert rows == [{"scan_id": "0", "t_s": "0.5", "uy_mm": "0.1"}, {"scan_id": "1", "t_s": "0.5", "uy_mm": "0.3"}]
+
+
 def test_follow_rows_stop_at_a_header_written_again(tmp_path):
     """A lab logger restarted onto the same file writes its header once more: the rows before
     it are decoded, then one line names where (not 'non-numeric value' in some column)."""

@@ -75,7 +75,7 @@ def follow_rows(run: str | Path, *, poll_s: float = 0.2, wait_s: float = 30.0, a
             *lines, buf = buf.split("\n")
             for line in lines:
                 lineno += 1
-                if not line.strip():
+                if not line.strip() or line.lstrip().startswith("#"):     # a logger's notes: comments
                     continue
                 if header is None:
                     sep, decimal = csv_dialect(line)                # a lab's own logger may write ';' and 0,5
