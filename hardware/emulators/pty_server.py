@@ -91,11 +91,32 @@ def _die_with_parent() -> None:
 
 def _child(config: GrblConfig, faults: tuple[Fault, ...], seed: int, parent_pid: int, conn) -> None:
     stop = []
+    signal.signal(signal.SIGINT, signal.SIG_IGN)        # Ctrl-C is the parent's to handle: it stops us
     signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
     _die_with_parent()
     # the ppid check also covers a parent that died before prctl ran, and non-Linux systems
     serve_pty(GrblEmulator(config, faults, seed), conn.send,
               lambda: bool(stop) or os.getppid() != parent_pid)
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while the block runs (in the main thread; elsewhere nothing changes).
+
+    A terminal's Ctrl-C goes to the whole process group: an emulator child that heard it
+    printed a KeyboardInterrupt traceback under the campaign's own one-line message.
+    Python leaves a signal that is ignored at start-up ignored, so a child spawned
+    meanwhile never installs its handler."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 @contextlib.contextmanager
@@ -106,7 +127,8 @@ def emulator_process(config: GrblConfig = GrblConfig(), faults: tuple[Fault, ...
     here, there = ctx.Pipe(duplex=False)
     process = ctx.Process(target=_child, args=(config, tuple(faults), seed, os.getpid(), there),
                           daemon=True, name="grbl-emulator")
-    process.start()
+    with _sigint_ignored():                 # inherited through exec: the child starts deaf to Ctrl-C
+        process.start()
     try:
         deadline = time.monotonic() + start_timeout_s
         while not here.poll(0.05):

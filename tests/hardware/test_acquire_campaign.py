@@ -284,6 +284,24 @@ def test_sigterm_stops_the_run_cleanly_and_says_where(tmp_path):
     assert summary["complete"] is False and summary["stopped"] == "KeyboardInterrupt: signal 15"
 
 
+def test_ctrl_c_at_a_terminal_is_one_line_not_the_emulators_traceback(tmp_path):
+    """A terminal's Ctrl-C signals the whole process group: the emulator child printed a
+    KeyboardInterrupt traceback (pty_server.py, select) under 'feeler: interrupted'."""
+    run = tmp_path / "stopped"
+    cmd = [sys.executable, "-m", "feeler", "acquire", "--emulate", "--plan", str(TINY), "--out", str(run),
+           "--no-progress"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)              # its own group, as a shell's job is
+    deadline = time.monotonic() + 60
+    while not ((run / "samples.csv").exists() and (run / "samples.csv").read_text().count("\n") >= 3):
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.005)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130
+    assert err.strip().splitlines() == ["feeler: interrupted (run the same command with --resume to continue)"]
+
+
 def test_missing_camera_on_resume_changes_nothing(reference, tmp_path, capfd):
     run, _ = reference
     before = {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()}
