@@ -53,8 +53,11 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
     from feeler.calib.dask_logging import cluster_options
 
     if scheduler is None:
-        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, host="127.0.0.1", **cluster_options())
+        from feeler.children import sigint_ignored
+
+        with sigint_ignored():          # the workers never see a Ctrl-C (a traceback each): we stop them
+            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, host="127.0.0.1", **cluster_options())
         client = Client(cluster)
     else:
         try:

@@ -22,6 +22,7 @@ import tty
 from dataclasses import dataclass
 from typing import Callable, Iterator
 
+from feeler.children import sigint_ignored
 from feeler.hardware.emulators.faults import Fault
 from feeler.hardware.emulators.grbl import GrblConfig, GrblEmulator
 
@@ -100,26 +101,6 @@ def _child(config: GrblConfig, faults: tuple[Fault, ...], seed: int, parent_pid:
 
 
 @contextlib.contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """SIGINT ignored while the block runs (in the main thread; elsewhere nothing changes).
-
-    A terminal's Ctrl-C goes to the whole process group: an emulator child that heard it
-    printed a KeyboardInterrupt traceback under the campaign's own one-line message.
-    Python leaves a signal that is ignored at start-up ignored, so a child spawned
-    meanwhile never installs its handler."""
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, before)
-
-
-@contextlib.contextmanager
 def emulator_process(config: GrblConfig = GrblConfig(), faults: tuple[Fault, ...] = (),
                      seed: int = 0, start_timeout_s: float = 30.0) -> Iterator[EmulatorProcess]:
     """Run an emulator in a child process tied to this one; yields once its pty path is known."""
@@ -127,7 +108,7 @@ def emulator_process(config: GrblConfig = GrblConfig(), faults: tuple[Fault, ...
     here, there = ctx.Pipe(duplex=False)
     process = ctx.Process(target=_child, args=(config, tuple(faults), seed, os.getpid(), there),
                           daemon=True, name="grbl-emulator")
-    with _sigint_ignored():                 # inherited through exec: the child starts deaf to Ctrl-C
+    with sigint_ignored():                  # the child inherits SIGINT ignored: Ctrl-C is ours to handle
         process.start()
     try:
         deadline = time.monotonic() + start_timeout_s

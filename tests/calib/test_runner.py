@@ -16,15 +16,27 @@ def _seeded_job(seed: int, n: int) -> np.ndarray:
     return np.linalg.svd(x, compute_uv=False) + rng.standard_t(3)
 
 
+def _job_and_sigint(seed: int, n: int):
+    import signal
+    return _seeded_job(seed, n), signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+
+
 def test_local_cluster_equals_serial():
+    """... and its workers ignore SIGINT: a terminal's Ctrl-C reaches the whole process
+    group, and each worker printed a KeyboardInterrupt traceback under 'feeler: interrupted'."""
+    import signal
+
     job = partial(_seeded_job, n=50)
     seeds = range(100, 112)
     serial = map_seeds(job, seeds, scheduler="serial")
-    dist = map_seeds(job, seeds)              # LocalCluster, 2 processes on 127.0.0.1
+    before = signal.getsignal(signal.SIGINT)
+    dist = map_seeds(partial(_job_and_sigint, n=50), seeds)     # LocalCluster, 2 processes on 127.0.0.1
     assert len(dist) == 12
-    for a, b in zip(serial, dist):
+    for a, (b, deaf) in zip(serial, dist):
         np.testing.assert_array_equal(a, b)
+        assert deaf
     assert not np.array_equal(serial[0], serial[1])
+    assert signal.getsignal(signal.SIGINT) is before             # ours again once the workers started
 
 
 def test_existing_scheduler_by_address():

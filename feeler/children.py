@@ -1,0 +1,38 @@
+"""Child processes that a terminal's Ctrl-C must not reach.
+
+A terminal sends SIGINT to its whole foreground process group: the emulator child of
+``acquire --emulate`` and the dask worker processes of ``calibrate sensors`` heard it
+with feeler itself and printed their KeyboardInterrupt tracebacks under feeler's own
+one-line "interrupted". Processes started inside :func:`sigint_ignored` inherit SIGINT
+ignored (an ignored signal stays ignored through exec, and Python then installs no
+handler of its own, nor does asyncio's runner), so they never see it; feeler stops them
+itself on the way out.
+
+The disposition is process-wide, so a Ctrl-C pressed while the block runs is lost: keep
+the block to the start of the children (a dask cluster's start takes 1–3 s). Blocking the
+signal instead (a per-thread mask, which children inherit too) would only defer it, but
+distributed spawns its workers from threads that do not carry the mask of the thread that
+made the cluster (measured: the workers' SigBlk was 0).
+"""
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from typing import Iterator
+
+__all__ = ["sigint_ignored"]
+
+
+@contextlib.contextmanager
+def sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while the block runs, for the processes it starts (in the main
+    thread; elsewhere, where Python cannot set a handler, nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
