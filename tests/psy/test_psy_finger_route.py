@@ -124,15 +124,15 @@ def test_speeds_in_metres_per_second_are_named(design):
                          comparison_speed_mm_s=design.comparison_speed_mm_s / 1000)
     with pytest.warns(DiagnosticWarning):
         result = fit_finger_route(slow, rng=np.random.default_rng(5), grid=GRID, draws=200)
-    assert result.verdict.problems[0] == ("speeds: the scan speeds 0.02–0.04 'mm/s' are below a fingertip's "
-                                          "(1–1000 mm/s): were they given in m/s? (× 1000 → 20–40 mm/s)")
+    assert result.verdict.problems[0] == ("speeds: the scan speeds 0.02–0.04 'mm/s' (median 0.02) are below a "
+                                          "fingertip's (1–1000 mm/s): were they given in m/s (× 1000 → 20–40 mm/s)?")
     assert speed_problems(np.array([20.0, 40.0])) == []
     # above the window both slips bring it back: each is named with what it gives
     assert speed_problems(np.array([2e4, 4e4])) == [
-        "speeds: the scan speeds 2e+04–4e+04 'mm/s' are above a fingertip's (1–1000 mm/s): were they given in "
-        "mm/min, a stage's feed-rate unit (÷ 60 → 333.3–666.7 mm/s) or in µm/s (÷ 1000 → 20–40 mm/s)?"]
+        "speeds: the scan speeds 2e+04–4e+04 'mm/s' (median 3e+04) are above a fingertip's (1–1000 mm/s): were they "
+        "given in mm/min, a stage's feed-rate unit (÷ 60 → 333.3–666.7 mm/s) or in µm/s (÷ 1000 → 20–40 mm/s)?"]
     assert speed_problems(np.array([1200.0, 2400.0])) == [
-        "speeds: the scan speeds 1200–2400 'mm/s' are above a fingertip's (1–1000 mm/s): were they given in "
-        "mm/min, a stage's feed-rate unit (÷ 60 → 20–40 mm/s) or in µm/s (÷ 1000 → 1.2–2.4 mm/s)?"]
+        "speeds: the scan speeds 1200–2400 'mm/s' (median 1.8e+03) are above a fingertip's (1–1000 mm/s): were they "
+        "given in mm/min, a stage's feed-rate unit (÷ 60 → 20–40 mm/s) or in µm/s (÷ 1000 → 1.2–2.4 mm/s)?"]
     assert speed_problems(np.array([np.nan, 5e7])) == [
-        "speeds: the scan speeds 5e+07–5e+07 'mm/s' are above a fingertip's (1–1000 mm/s)"]
+        "speeds: the scan speeds 5e+07–5e+07 'mm/s' (median 5e+07) are above a fingertip's (1–1000 mm/s)"]

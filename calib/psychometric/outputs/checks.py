@@ -42,8 +42,8 @@ PLAUSIBLE_UM = (0.05, 1000.0)   # fingertip step heights: far below the edge thr
 # mm/s: a fingertip's scan, a window around the paper's 20 and 40 mm/s wide enough for slow
 # strokes and fast swipes; a median ×10³ outside it is m/s or µm/s, ×60 above it mm/min
 PLAUSIBLE_SPEED_MM_S = (1.0, 1000.0)
-# units a speed column may have been written in by mistake, above the window: (name, per mm/s)
-_FAST_SPEED_UNITS = (("mm/min, a stage's feed-rate unit", 60.0), ("µm/s", 1000.0))
+# units a speed column may have been written in by mistake, above the window: (name, factor into mm/s)
+_FAST_SPEED_UNITS = (("mm/min, a stage's feed-rate unit", 1 / 60), ("µm/s", 1e-3))
 # 5 % critical value of a likelihood ratio for a parameter on its boundary (σ → 0 or ∞):
 # ½χ²₀ + ½χ²₁ (Self & Liang 1987), i.e. the 90 % point of χ²₁
 BOUNDARY_LR = 2.71
@@ -106,45 +106,37 @@ def gof_problems(rows: list[dict]) -> list[str]:
             for r in tested if r["gof_p"] < cut]
 
 
-def speed_problems(speeds_mm_s) -> list[str]:
-    """One problem when the scan speeds' median lies outside :data:`PLAUSIBLE_SPEED_MM_S`,
-    naming each unit that brings it inside with the speeds it converts to (missing
-    speeds, NaN, are left out)."""
-    v = np.asarray(speeds_mm_s, float).ravel()
+def _off_scale(values, window: tuple[float, float], *, label: str, what: str, unit: str, norm: str,
+               below: tuple, above: tuple) -> list[str]:
+    """One problem when the median of the positive ``values`` lies outside ``window``,
+    naming each likely unit of ``below`` or ``above`` ((name, factor into ``unit``), …)
+    that brings the median inside, with what the values convert to."""
+    v = np.asarray(values, float).ravel()
     v = v[np.isfinite(v) & (v > 0)]
     if not v.size:
         return []
-    med, (lo, hi) = float(np.median(v)), PLAUSIBLE_SPEED_MM_S
-    head = f"speeds: the scan speeds {v.min():.4g}–{v.max():.4g} 'mm/s'"
-    if med < lo:
-        return [f"{head} are below a fingertip's ({lo:g}–{hi:g} mm/s): were they given in m/s? "
-                f"(× 1000 → {1000 * v.min():.4g}–{1000 * v.max():.4g} mm/s)"]
-    if med <= hi:
+    med, (lo, hi) = float(np.median(v)), window
+    if lo <= med <= hi:
         return []
-    fits = [f"{name} (÷ {per:g} → {v.min() / per:.4g}–{v.max() / per:.4g} mm/s)"
-            for name, per in _FAST_SPEED_UNITS if lo <= med / per <= hi]
-    if not fits:
-        return [f"{head} are above a fingertip's ({lo:g}–{hi:g} mm/s)"]
-    return [f"{head} are above a fingertip's ({lo:g}–{hi:g} mm/s): were they given in {' or in '.join(fits)}?"]
+    side, candidates = ("below", below) if med < lo else ("above", above)
+    fits = [f"{name} ({f'× {f:g}' if f >= 1 else f'÷ {1 / f:g}'} → {f * v.min():.4g}–{f * v.max():.4g} {unit})"
+            for name, f in candidates if lo <= med * f <= hi]
+    return [f"{label}: the {what} {v.min():.4g}–{v.max():.4g} '{unit}' (median {med:.3g}) are {side} {norm} "
+            f"({lo:g}–{hi:g} {unit})" + (f": were they given in {' or in '.join(fits)}?" if fits else "")]
+
+
+def speed_problems(speeds_mm_s) -> list[str]:
+    """One problem when the scan speeds' median lies outside :data:`PLAUSIBLE_SPEED_MM_S`:
+    m/s below; mm/min or µm/s above, each named when it brings the median inside
+    (missing speeds, NaN, are left out)."""
+    return _off_scale(speeds_mm_s, PLAUSIBLE_SPEED_MM_S, label="speeds", what="scan speeds", unit="mm/s",
+                      norm="a fingertip's", below=(("m/s", 1000.0),), above=_FAST_SPEED_UNITS)
 
 
 def unit_problems(levels_um: np.ndarray) -> list[str]:
     """One problem when the tested heights look like mm or nm rather than µm."""
-    levels = np.asarray(levels_um, float)
-    levels = levels[levels > 0]
-    if not levels.size:
-        return []
-    med, (lo, hi) = float(np.median(levels)), PLAUSIBLE_UM
-    span = f"{levels.min():.4g}–{levels.max():.4g}"
-    if med < lo:
-        return [f"heights: the tested levels {span} 'µm' (median {med:.3g}) are below fingertip step "
-                f"heights ({lo:g}–{hi:g} µm): were they given in mm? "
-                f"(× 1000 → {1000 * levels.min():.4g}–{1000 * levels.max():.4g} µm)"]
-    if med > hi:
-        return [f"heights: the tested levels {span} 'µm' (median {med:.3g}) are above fingertip step "
-                f"heights ({lo:g}–{hi:g} µm): were they given in nm? "
-                f"(÷ 1000 → {levels.min() / 1000:.4g}–{levels.max() / 1000:.4g} µm)"]
-    return []
+    return _off_scale(levels_um, PLAUSIBLE_UM, label="heights", what="tested levels", unit="µm",
+                      norm="fingertip step heights", below=(("mm", 1000.0),), above=(("nm", 1e-3),))
 
 
 def _unit_hint(ratio: float) -> str:
