@@ -217,7 +217,8 @@ def _report(ctx: dict) -> None:
 
 
 #: stages that read another's results: skipped when that one failed (classify and
-#: discriminate refuse a failed neuron fit; the finger route reads the M4 stage's trials)
+#: discriminate refuse a failed neuron fit). The finger route reads the trials that the
+#: psychophysics stage simulates before its M4 fit, so a failed M4 verdict leaves it its data
 NEEDS = {"classify": "calibrate neuron", "discriminate": "calibrate neuron"}
 
 #: (name, func(ctx)) appended to :data:`feeler.demo.STAGES`
