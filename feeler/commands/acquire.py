@@ -67,6 +67,8 @@ def register(parser) -> None:
     parser.add_argument("--decode", metavar="FIT_DIR", default=None,
                         help="decode every scan while acquiring with this neuron fit (feeler calibrate neuron "
                              "--out): RUN/decisions.csv, as `feeler decode`, and a line per decision")
+    parser.add_argument("--accept-failed", action="store_true",
+                        help="use a --calibration or --decode fit that failed its diagnostics")
     parser.add_argument("--realtime", action="store_true",
                         help="run the acquisition loop at real-time priority (SCHED_FIFO 10) if the system "
                              "permits: root, CAP_SYS_NICE or ulimit -r; otherwise say why and run as usual")
@@ -95,7 +97,8 @@ def run(args) -> int:
     decoding = ()
     if args.decode:                                # the fit is checked before anything moves
         from feeler.calib.neuron.live.observer import decode_observer
-        decoding = (decode_observer(args.decode, args.out, observers, force=args.force or args.resume),)
+        decoding = (decode_observer(args.decode, args.out, observers, force=args.force or args.resume,
+                                    accept_failed=args.accept_failed),)
     with contextlib.ExitStack() as stack:          # undone in reverse: priority first, then the log filters
         for progress in observers:
             for handler in logging.getLogger().handlers:
@@ -109,7 +112,7 @@ def run(args) -> int:
                   f"feeler: acquisition loop at real-time priority (SCHED_FIFO {DEFAULT_PRIORITY})", file=sys.stderr)
         summary = acquire(args.plan, args.out, stage_port=args.stage, camera_src=args.camera,
                           emulate=args.emulate, resume=args.resume, force=args.force,
-                          calibration=args.calibration,
+                          calibration=args.calibration, accept_failed=args.accept_failed,
                           emulator_faults=tuple(parse_fault(spec) for spec in args.fault),
                           unlock=args.unlock, home=args.home, late_fraction=args.late_fraction,
                           observers=observers + decoding)

@@ -35,8 +35,9 @@ def load_plan(path: str | Path):
     return plan
 
 
-def c_from_calibration(directory: str | Path | None) -> tuple[np.ndarray, str]:
-    """C (3, 3) mm/N: the posterior mean of an M1 fit directory, or the optics' nominal C.
+def c_from_calibration(directory: str | Path | None, *, accept_failed: bool = False) -> tuple[np.ndarray, str]:
+    """C (3, 3) mm/N: the posterior mean of an M1 fit directory, or the optics' nominal C
+    (a fit that failed its diagnostics only with ``accept_failed``).
 
     Raises:
         DataFileError: an unreadable fit directory. CalibrationFailed: a failed fit.
@@ -46,7 +47,7 @@ def c_from_calibration(directory: str | Path | None) -> tuple[np.ndarray, str]:
         return OpticsParams().c_matrix, "nominal optics"
     from feeler.calib.fit import load, require_ok
 
-    result = require_ok(load(directory), what=f"M1 fit {directory}")
+    result = require_ok(load(directory), accept_failed=accept_failed, what=f"M1 fit {directory}")
     post = result.posterior["posterior"]
     if "C" not in post:
         raise ArgumentError("--calibration", str(directory), "an M1 fit directory (posterior with C)")
@@ -56,7 +57,7 @@ def c_from_calibration(directory: str | Path | None) -> tuple[np.ndarray, str]:
 
 def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = None,
             camera_src: str | None = None, emulate: bool = False, resume: bool = False,
-            force: bool = False, calibration: str | Path | None = None,
+            force: bool = False, calibration: str | Path | None = None, accept_failed: bool = False,
             emulator_faults: tuple = (), unlock: bool = False, home: bool = False,
             late_fraction: float = LATE_FRACTION, observers: tuple = ()) -> dict:
     """Run (or resume) a campaign into ``out``; returns the summary.
@@ -72,7 +73,8 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
         ArgumentError: conflicting or missing arguments, a plan of another kind.
         SceneError: an invalid plan, or a move beyond the stage's soft limits or feed ceiling.
         DataFileError: a camera or video that cannot be opened, an unreadable fit directory.
-        CalibrationFailed: ``calibration`` is a fit that failed its diagnostics.
+        CalibrationFailed: ``calibration`` is a fit that failed its diagnostics (and not
+            ``accept_failed``).
         PortError: a stage port that does not exist, is busy or is not permitted.
         StageLocked: a locked board and neither ``unlock`` nor ``home``.
         RunLocked: another process writes ``out``.
@@ -93,7 +95,7 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
     if unlock and home:
         raise ArgumentError("--unlock", True, "not together with --home (homing unlocks)")
     plan = load_plan(plan_path)
-    c_mm_per_n, c_source = c_from_calibration(calibration)
+    c_mm_per_n, c_source = c_from_calibration(calibration, accept_failed=accept_failed)
     setup = Setup(plan, plan_layout(plan, plan_path), c_mm_per_n, optics_of_plan(plan), late_fraction)
     world = VirtualWorld.of_plan(plan, plan_path) if emulate and camera_src is None else None
     with contextlib.ExitStack() as stack:

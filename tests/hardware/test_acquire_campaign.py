@@ -159,6 +159,8 @@ def test_replay_with_a_frozen_frame_and_a_calibrated_c(reference, tmp_path):
     with pytest.raises(CalibrationFailed, match="accept-failed"):
         acquire(plan, replay, emulate=True, camera_src=str(video), calibration=failed)
     assert not replay.exists()
+    from feeler.hardware.acquire.session import c_from_calibration
+    assert c_from_calibration(failed, accept_failed=True)[1] == f"posterior mean of {failed}"   # acquire --accept-failed
     fit, c_mean = m1_fit_dir(tmp_path, 1000)
     summary = acquire(plan, replay, emulate=True, camera_src=str(video), calibration=fit)
     assert summary["complete"] and summary["bad_frames"] == 1 and summary["camera"] == str(video)

@@ -34,3 +34,22 @@ def test_decode_with_a_missing_fit_fails_before_anything_moves(tmp_path, capsys)
                  "--decode", str(tmp_path / "no-fit")]) == 2
     assert "no-fit" in capsys.readouterr().err
     assert not (run / "samples.csv").exists()
+
+
+def test_a_failed_fit_is_refused_and_the_option_it_names_exists(fit_dir, tmp_path, capsys):
+    """A --decode fit that failed its diagnostics is refused before anything moves, with
+    'pass --accept-failed to use it anyway', an option acquire did not have (argparse then
+    said 'unrecognized arguments'); with it the run decodes."""
+    import json
+    import shutil
+
+    failed = tmp_path / "failed-fit"
+    shutil.copytree(fit_dir, failed)
+    (failed / "verdict.json").write_text(json.dumps({"ok": False, "problems": ["tau_s: not pinned"]}))
+    run = tmp_path / "run"
+    argv = ["acquire", "--emulate", "--plan", str(TINY), "--out", str(run), "--no-progress", "--decode", str(failed)]
+    assert main(argv) != 0
+    err = capsys.readouterr().err
+    assert "pass --accept-failed to use it anyway" in err and not (run / "samples.csv").exists()
+    assert main([*argv, "--accept-failed"]) == 0
+    assert (run / "decisions.csv").is_file()

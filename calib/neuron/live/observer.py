@@ -49,9 +49,10 @@ class DecodeObserver(CampaignObserver):
 
 
 def decode_observer(fit_dir, run_dir, others=(), *, force: bool = False, seed: int = 0, n_draws: int = 400,
-                    threshold: float = 0.9) -> DecodeObserver:
+                    threshold: float = 0.9, accept_failed: bool = False) -> DecodeObserver:
     """The observer of ``acquire --decode``: loads and checks the fit (a failed fit is
-    refused), prints a line per decision (wiping the progress line of ``others`` first).
+    refused unless ``accept_failed``), prints a line per decision (wiping the progress
+    line of ``others`` first).
 
     Raises:
         InputError: an unreadable or failed fit; an earlier decisions.csv without ``force``.
@@ -65,7 +66,7 @@ def decode_observer(fit_dir, run_dir, others=(), *, force: bool = False, seed: i
     out = Path(run_dir) / "decisions.csv"
     if out.exists() and not force:
         raise OverwriteError(out)
-    fit = require_ok(load(fit_dir), what="neuron calibration")
+    fit = require_ok(load(fit_dir), accept_failed=accept_failed, what="neuron calibration")
     live = LiveDecoder(fit, seed=seed, n_draws=n_draws, threshold=threshold)
 
     def wipe():
