@@ -47,7 +47,7 @@ def reliability(conf, hit, n_bins: int = 10):
 def classify_section(inv, spec) -> Section:
     """Confusion matrix (counts and mean confidence), calibration curve and summary table."""
     from feeler.calib.neuron.classify import expected_calibration_error
-    from feeler.calib.neuron.live.table import claims_check, plate_column
+    from feeler.calib.neuron.live.table import claims_check, coverage_note, plate_column
     from feeler.errors import DataFileError
 
     part = spec.parts[0]
@@ -93,6 +93,10 @@ def classify_section(inv, spec) -> Section:
     if claims:
         blocks.insert(0, Note("Warning: " + " Warning: ".join(c[0].upper() + c[1:] + "." for c in claims),
                               sources=src))
+    wide = coverage_note(frame.drop(columns="flagged", errors="ignore")
+                         .rename(columns={c: plate_column(v) for c, v in pcols.items()}), plates)
+    if wide:
+        blocks.insert(len(claims) > 0, Note("Note: " + wide[0].upper() + wide[1:] + ".", sources=src))
     rel_curve = reliability(conf, hit)
     if len(rel_curve) >= MIN_BINS:
         blocks.append(_calibration(conf, hit, ece, src))

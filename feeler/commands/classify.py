@@ -42,7 +42,8 @@ def run(args) -> int:
     from feeler.calib.neuron.classify import classify
     from feeler.calib.neuron.live.envelope import Envelope, readout_noise_mm
     from feeler.calib.neuron.live.scan_csv import read_scan_records
-    from feeler.calib.neuron.live.table import claims_check, labelled_summary, plate_column, unit_mistake
+    from feeler.calib.neuron.live.table import (claims_check, coverage_note, labelled_summary, plate_column,
+                                                unit_mistake)
     from feeler.rundir import prepare_out_dir
 
     from feeler.commands._checks import check_out_dir
@@ -90,6 +91,9 @@ def run(args) -> int:
     print(summary or f"{len(table)} unlabelled scans (no step_mm column): no accuracy to report")
     for line in claims_check(table, c.plates_mm):
         print(f"warning: {line}")
+    wide = coverage_note(table, c.plates_mm)
+    if wide:
+        print(f"note: {wide}")
     if args.out:
         out = prepare_out_dir(args.out, ("classification.csv",), force=args.force)
         table.to_csv(out / "classification.csv", index=False)

@@ -94,6 +94,20 @@ def test_labels_that_contradict_the_fit_are_a_warning_first(copy_run):
                    for b in classify_section(inv, _spec(inv, "classify:classify")).blocks)
 
 
+def test_intervals_far_wider_than_claimed_are_a_note_first(copy_run):
+    """100 of 100 labels inside their 90 % intervals: the section says the intervals are
+    conservative, as `feeler classify` notes, and does not call it a warning."""
+    path = copy_run / "classify" / "classification.csv"
+    head = "scan_id,step_mm,plate_mm,p_0mm,p_0.1mm,height_mm,lo90_mm,hi90_mm,flagged\n"
+    rows = [f"{k},0.1,0.1,0.1,0.9,0.1,0.05,0.15,False" for k in range(90)]
+    rows += [f"{k},0.1,0.0,0.9,0.1,0.1,0.05,0.15,False" for k in range(90, 100)]
+    path.write_text(head + "\n".join(rows) + "\n", encoding="utf-8")
+    inv = discover(copy_run)
+    first = classify_section(inv, _spec(inv, "classify:classify")).blocks[0]
+    assert first.kind == "note" and first.text.startswith("Note: The fit's 90 % intervals are wider than they claim")
+    assert "100 of 100 labels inside" in first.text and "Warning" not in first.text
+
+
 def test_a_one_point_calibration_curve_is_replaced_by_words(run_dir):
     inv = discover(run_dir)
     section = classify_section(inv, _spec(inv, "classify:classify"))

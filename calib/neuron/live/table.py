@@ -12,7 +12,7 @@ import numpy as np
 
 from feeler.errors import DataFileError
 
-__all__ = ["plate_column", "unit_mistake", "labelled_summary", "claims_check"]
+__all__ = ["plate_column", "unit_mistake", "labelled_summary", "claims_check", "coverage_note"]
 
 # a labelled batch contradicts the fit when what it claims is this improbable (one-sided)…
 CLAIM_P = 1e-3
@@ -20,6 +20,9 @@ CLAIM_P = 1e-3
 # accuracy this far below what the probabilities promised (a small shortfall over
 # thousands of scans is significant without mattering)
 CLAIM_COVERAGE_MIN = 0.85
+# coverage above this (the upper end of the band a 90 % interval should keep) and beyond
+# chance is a note, not a warning: the intervals are conservative, not wrong
+CLAIM_COVERAGE_MAX = 0.95
 CLAIM_ACCURACY_SHORT = 0.05
 CLAIM_MIN_SCANS = 20     # fewer usable scans than this: no judgement
 
@@ -107,6 +110,30 @@ def claims_check(table, plates_mm, *, decided: str = "plate_mm", promised: str |
                     "(another probe, press or set of plates?), or labels that are wrong: calibrate with "
                     "scans like them, or check the labels")
     return out
+
+
+def coverage_note(table, plates_mm) -> str | None:
+    """A line when a labelled batch is covered far more often than the 90 % claimed: over
+    the unflagged scans labelled with a trained plate (at least :data:`CLAIM_MIN_SCANS`),
+    k of n inside with the upper tail of Binomial(n, 0.9) below :data:`CLAIM_P` and k/n
+    above :data:`CLAIM_COVERAGE_MAX`; None otherwise. The intervals then say less than
+    they could: touches less noisy than the training ones (not flagged), or plates whose
+    touches are flatter than Gaussian, which a Gaussian band over-covers (README, M2)."""
+    from scipy.special import bdtrc
+
+    usable = _usable_labels(table, plates_mm)
+    if usable is None:
+        return None
+    lab = usable[0][usable[2]]
+    n = len(lab)
+    step = lab["step_mm"].to_numpy(float)
+    k = int(((step >= lab["lo90_mm"].to_numpy(float)) & (step <= lab["hi90_mm"].to_numpy(float))).sum())
+    p_over = float(bdtrc(k - 1, n, 0.9)) if k > 0 else 1.0            # P(X >= k)
+    if n < CLAIM_MIN_SCANS or p_over >= CLAIM_P or k / n <= CLAIM_COVERAGE_MAX:
+        return None
+    return (f"the fit's 90 % intervals are wider than they claim for these scans: {k} of {n} labels inside "
+            f"({k / n * 100:.0f} %; p = {p_over:.1g} for a 90 % interval); touches less noisy than the training "
+            f"scans, or plates whose touches are flatter than Gaussian, make them conservative (README, M2)")
 
 
 def labelled_summary(table, plates_mm) -> str | None:
