@@ -155,9 +155,8 @@ def read_csv_file(path: Path, *, comment: str | None = None):
     repeats = _repeated_header(text, header)
     if repeats:
         raise DataFileError(path, repeated_header_problem(repeats))
-    lines = text.splitlines()
-    remarks = [ln.lstrip()[1:].strip() for ln in lines if ln.lstrip().startswith("#")]
-    data = "\n".join(ln for ln in lines if not ln.lstrip().startswith("#")) if remarks else text
+    remarks = comment_lines(text)
+    data = "\n".join(ln for ln in text.splitlines() if not ln.lstrip().startswith("#")) if remarks else text
     try:
         frame = pd.read_csv(io.StringIO(data), sep=sep, comment=comment,
                             dtype=None if decimal == "." else str)
@@ -179,12 +178,17 @@ def read_csv_file(path: Path, *, comment: str | None = None):
                 frame[col] = values
             elif values.notna().sum() > given.notna().sum() / 2:           # a number column with a bad entry:
                 frame[col] = pointed                                       # its reader names the entry
-    if comment:
+    if comment and comment != "#":
         frame.attrs["comments"] = [ln.lstrip()[len(comment):].strip() for ln in text.splitlines()
                                    if ln.lstrip().startswith(comment)]
-    elif remarks:
+    elif comment or remarks:
         frame.attrs["comments"] = remarks
     return frame
+
+
+def comment_lines(text: str) -> list[str]:
+    """The ``#`` lines of a CSV's ``text``, without the ``#`` and surrounding blanks."""
+    return [ln.lstrip()[1:].strip() for ln in text.splitlines() if ln.lstrip().startswith("#")]
 
 
 _UNIT = re.compile(r"^(?P<base>.*?)\s*[\[(]\s*(?P<unit>[^\])]*?)\s*[\])]\s*$")     # "t [s]", "Uy (mm)"

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from feeler.datasets import (SEPARATORS, csv_dialect, natural_key, read_text, renamed_hint,
+from feeler.datasets import (SEPARATORS, comment_lines, csv_dialect, natural_key, read_text, renamed_hint,
                              repeated_header_problem)
 from feeler.errors import DataFileError, InputError
 
@@ -294,7 +294,7 @@ def read_trials(path: str | Path, *, design: MatrixDesign | None = None, matrix_
         if design is None or design.missing():
             raise DataFileError(path, _matrix_problem(design))
         frame = _read_matrix(path, lines, *matrix, decimal, design.check())
-        frame.attrs["comments"] = _comments(text)
+        frame.attrs["comments"] = comment_lines(text)
         frame.attrs["trial_rows"] = 0
         return frame
     if design is not None:
@@ -343,7 +343,7 @@ def read_trials(path: str | Path, *, design: MatrixDesign | None = None, matrix_
         frame = _aggregate(frame)
     if frame["n_trials"].sum() == 0:
         raise DataFileError(path, "no trials: every row has n_trials = 0")
-    frame.attrs["comments"] = _comments(text)
+    frame.attrs["comments"] = comment_lines(text)
     frame.attrs["trial_rows"] = len(rows) - 1 if layout == "trials" else 0
     return frame
 
@@ -388,10 +388,6 @@ def _read_matrix_directory(directory: Path, design: MatrixDesign | None) -> pd.D
     out.attrs["comments"] = [c for fr in frames for c in fr.attrs.get("comments", [])]
     out.attrs["trial_rows"] = 0
     return out
-
-
-def _comments(text: str) -> list[str]:
-    return [line.lstrip()[1:].strip() for line in text.splitlines() if line.lstrip().startswith("#")]
 
 
 def _frame(data: dict, count: str) -> pd.DataFrame:

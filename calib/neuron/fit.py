@@ -46,13 +46,13 @@ def _check_arguments(data: NeuronData, backend: str, noise: str) -> np.ndarray:
     d = np.asarray(data.step_mm, float)
     if d.size < 4 or not np.all(np.isfinite(d)):
         raise ArgumentError("step_mm", f"{d.size} labels", "at least 4 finite labels")
-    if np.unique(d).size == d.size:
+    _, counts = np.unique(d, return_counts=True)
+    lone = int(np.sum(counts == 1))
+    if lone == counts.size:
         # no plate has two scans: the decoder noise (a plate's spread) has no degree of freedom at all
         raise ArgumentError("step_mm", f"one scan on each of {d.size} plates",
                             "at least 2 scans of a plate (the decoder's noise is the spread of a plate's scans; "
                             "about 10 per plate pin it down)")
-    _, counts = np.unique(d, return_counts=True)
-    lone = int(np.sum(counts == 1))
     if lone >= 3 and 2 * lone >= counts.size:
         # labels that differ touch to touch (a gauge's reading of each touch) make plates of one scan each
         raise ArgumentError("step_mm", f"{counts.size} distinct steps over {d.size} scans, {lone} of them with one "

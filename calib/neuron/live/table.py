@@ -57,6 +57,12 @@ def _usable_labels(table, plates_mm):
     return lab, int(flagged.sum()), known
 
 
+def _inside(lab) -> np.ndarray:
+    """Which labels of the frame ``lab`` lie inside their 90 % interval (ndarray[bool])."""
+    step = lab["step_mm"].to_numpy(float)
+    return (step >= lab["lo90_mm"].to_numpy(float)) & (step <= lab["hi90_mm"].to_numpy(float))
+
+
 def claims_check(table, plates_mm, *, decided: str = "plate_mm", promised: str | None = None) -> list[str]:
     """What a labelled batch says against the fit's claims, one line each; empty when
     nothing (or no labels, or fewer than 20 usable scans).
@@ -86,8 +92,7 @@ def claims_check(table, plates_mm, *, decided: str = "plate_mm", promised: str |
     out = []
     n = len(lab)
     step = lab["step_mm"].to_numpy(float)
-    inside = (step >= lab["lo90_mm"].to_numpy(float)) & (step <= lab["hi90_mm"].to_numpy(float))
-    k = int(inside.sum())
+    k = int(_inside(lab).sum())
     p_cover = float(bdtr(k, n, 0.9))
     if n >= CLAIM_MIN_SCANS and p_cover < CLAIM_P and k / n < CLAIM_COVERAGE_MIN:
         out.append(f"the fit's intervals do not hold for these scans: {k} of {n} labels inside their 90 % "
@@ -125,9 +130,7 @@ def coverage_note(table, plates_mm) -> str | None:
     if usable is None:
         return None
     lab = usable[0][usable[2]]
-    n = len(lab)
-    step = lab["step_mm"].to_numpy(float)
-    k = int(((step >= lab["lo90_mm"].to_numpy(float)) & (step <= lab["hi90_mm"].to_numpy(float))).sum())
+    n, k = len(lab), int(_inside(lab).sum())
     p_over = float(bdtrc(k - 1, n, 0.9)) if k > 0 else 1.0            # P(X >= k)
     if n < CLAIM_MIN_SCANS or p_over >= CLAIM_P or k / n <= CLAIM_COVERAGE_MAX:
         return None
@@ -150,7 +153,7 @@ def labelled_summary(table, plates_mm) -> str | None:
     left_out = f"; {n_flagged} flagged scan(s) left out" if n_flagged else ""
     step = lab["step_mm"].to_numpy(float)
     hit = np.isclose(lab["plate_mm"].to_numpy(float), step)
-    inside = (step >= lab["lo90_mm"].to_numpy(float)) & (step <= lab["hi90_mm"].to_numpy(float))
+    inside = _inside(lab)
     plates = np.asarray(plates_mm, float)
     extra = ""
     if (~known).any():
