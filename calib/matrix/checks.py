@@ -10,7 +10,8 @@ rows b_i of B per output axis (K for the inverse model, C for the forward one).
 - units (:func:`unit_problems`): the least-squares compliance against the nominal C₀
   (a scale ~10³ off, forces and displacements swapped, axes exchanged, an axis of the
   opposite sign);
-  a ratio beyond ×30 is no sensor tolerance but a unit (×10³: µm for mm, mN for N); with
+  a ratio beyond ×30 is no sensor tolerance but a unit (×10³: µm for mm, mN for N); a ratio
+  within ×1.35 of a smaller slip's is named too (:data:`MODERATE_SLIPS`: kgf, lbf, cm, inches); with
   the compliance right, outputs scattering about the least-squares fit ×30 beyond the
   noise prior's scale are forces and displacements both in another unit
   (:func:`noise_unit_problems`: mN and µm leave the compliance as it was);
@@ -45,7 +46,7 @@ from feeler.calib.matrix.data import AXES, weak_directions
 
 __all__ = ["design_problems", "repeat_problems", "unit_problems", "noise_unit_problems", "conflict_problems",
            "sign_problems",
-           "ppc_problems", "ALPHA", "UNIT_FACTOR", "NOISE_FREE"]
+           "ppc_problems", "ALPHA", "UNIT_FACTOR", "NOISE_FREE", "MODERATE_SLIPS"]
 
 ALPHA = 0.01
 UNIT_FACTOR = 30.0
@@ -54,6 +55,16 @@ UNIT_FACTOR = 30.0
 # 0.02 N noise leaves 0.02-0.14
 NOISE_FREE = 1e-5
 GRAMS_FORCE_PER_N = 1000 / 9.80665      # a force gauge's gram-force, per newton
+# The unit slips that move the compliance less than UNIT_FACTOR, as (data's / nominal compliance,
+# what it says). Each is named when the ratio lies within a factor SLIP_WINDOW of it: 1.35, so a
+# true compliance 35 % off the nominal still shows its slip, while every window lies beyond 3.3
+# times the nominal, over 3 sd of the shipped prior (rel_sd 0.5) on a log scale. A force gauge in
+# kgf or lbf passed with verdict ok: the prior on K, linear with sd 0.5 K0, holds K/10 at 1.8 sd.
+MODERATE_SLIPS = ((9.80665, "forces probably in kgf (expected N; 1 kgf = 9.807 N)"),
+                  (4.448222, "forces probably in lbf (expected N; 1 lbf = 4.448 N)"),
+                  (0.1, "displacements probably in cm (expected mm)"),
+                  (1 / 25.4, "displacements probably in inches (expected mm; 1 in = 25.4 mm)"))
+SLIP_WINDOW = 1.35
 
 
 def design_problems(x: np.ndarray, *, matrix: str, what: str, unit: str) -> list[str]:
@@ -98,7 +109,11 @@ def unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool
         k0 = np.linalg.inv(c0)
     except np.linalg.LinAlgError:
         k0 = None
-    if k0 is not None and _rel(c, k0) < 0.5 < _rel(c, c0):
+    slip = next((text for factor, text in MODERATE_SLIPS if abs(np.log(ratio / factor)) < np.log(SLIP_WINDOW)), None)
+    # C0 near 0.2 mm/N puts kgf's C0 x 9.8 near C0^-1: a slip keeps the nominal's pattern, a swap inverts it
+    slip_shaped = slip is not None and (k0 is None or _rel(c / np.linalg.norm(c), c0 / np.linalg.norm(c0))
+                                        < _rel(c / np.linalg.norm(c), k0 / np.linalg.norm(k0)))
+    if k0 is not None and _rel(c, k0) < 0.5 < _rel(c, c0) and not slip_shaped:
         return [f"C: the data's compliance {_flat(c)} mm/N matches the nominal stiffness C0^-1 {_flat(k0)} N/mm, "
                 f"not C0 {_flat(c0)}: forces and displacements probably swapped "
                 f"(ux_mm, uy_mm, uz_mm are the displacements, fx_n, fy_n, fz_n the forces)"]
@@ -112,6 +127,8 @@ def unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool
                     f"(expected N; 1 N = {GRAMS_FORCE_PER_N:.4g} gf, a force gauge's usual unit)"]
         return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: forces probably in mN "
                 f"(expected N) or displacements in m (expected mm)"]
+    if slip is not None:
+        return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: {slip}"]
     exchanged = _exchanged_axes(c, c0)
     if exchanged:
         return [exchanged]

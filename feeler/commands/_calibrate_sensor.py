@@ -14,7 +14,8 @@ steps); --draws N --tune M runs emcee for exactly M + N steps.
 
 The verdict also fails on what the data cannot support: design directions with no
 information (all-zero displacements), a compliance ~10^3 off the nominal C0 (units: um
-for mm, mN for N; both at once: forces scattering over 30x the noise prior's scale), a
+for mm, mN for N; both at once: forces scattering over 30x the noise prior's scale) or
+off by a smaller usual slip (kgf or lbf for N, cm or inches for mm), a
 prior that contradicts the data (prior-data conflict: widen --rel-sd or check C0), a
 compliance C[i,i] whose sign the data do not pin (forces that do not follow the
 displacements), and posterior predictive checks (lack of fit at replicated points,

@@ -56,6 +56,32 @@ def test_units_um_and_mn_are_named():
     assert unit_problems(d.f_n, 1000 * d.u_mm, PRIOR.c0, forward=True)[0].startswith("C: the data's compliance is")
 
 
+@pytest.mark.parametrize("u_scale, f_scale, words", [
+    (1.0, 1 / 9.80665, "forces probably in kgf"), (1.0, 1 / 4.448222, "forces probably in lbf"),
+    (0.1, 1.0, "displacements probably in cm"), (1 / 25.4, 1.0, "displacements probably in inches")])
+def test_smaller_unit_slips_are_named(u_scale, f_scale, words):
+    """A force gauge in kgf or lbf moves the compliance by 9.8 or 4.4, under the x30 of the
+    usual slips: with K's prior linear (sd 0.5 K0, K/10 at 1.8 sd) both passed with verdict
+    ok. Also on a sensor whose true compliance is 30 % above the nominal, and not for a true
+    compliance three times the nominal (no unit slip: the prior-data conflict says it)."""
+    d = _campaign()
+    res = _fit(CalibrationData(u_scale * d.u_mm, f_scale * d.f_n, d.point_id))
+    assert not res.verdict.ok and words in res.verdict.problems[0], res.verdict.problems
+    soft = dataclasses.replace(SCENE, sensor=dataclasses.replace(
+        SCENE.sensor, c_mm_per_n=tuple(tuple(1.3 * v for v in row) for row in PRIOR.c0)))
+    d = _campaign(soft)
+    assert words in unit_problems(u_scale * d.u_mm, f_scale * d.f_n, PRIOR.c0, forward=False)[0]
+    assert words in unit_problems(f_scale * d.f_n, u_scale * d.u_mm, PRIOR.c0, forward=True)[0]
+
+
+def test_a_compliance_a_few_times_the_nominal_is_no_unit_slip():
+    for k in (2.0, 3.0, 1 / 3.0):
+        scene = dataclasses.replace(SCENE, sensor=dataclasses.replace(
+            SCENE.sensor, c_mm_per_n=tuple(tuple(k * v for v in row) for row in PRIOR.c0)))
+        d = _campaign(scene)
+        assert unit_problems(d.u_mm, d.f_n, PRIOR.c0, forward=False) == [], k
+
+
 def test_forces_and_displacements_both_in_another_unit_are_named():
     """mN and µm together leave the compliance as nominal, so the unit check passed; the
     half-normal noise prior (0.1 N) then dragged the force noise from 20 'N' to 3.7 and
