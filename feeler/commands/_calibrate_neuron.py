@@ -11,7 +11,7 @@ height is z = a·P − h on the least-squares line through the plates. Backends:
 autocorrelation times long, or fails at --emcee-steps). The fit records the scene of
 DATASET, which `feeler discriminate` then simulates. The verdict fails when the data
 cannot pin the decoder down (one plate, noise-free scans, a window any value of which
-fits), when units look wrong (µm for mm, ms for s), or when the leave-one-out check
+fits), when units look wrong (µm for mm, steps in cm or inches, ms for s), or when the leave-one-out check
 finds a plate whose 90 % intervals would not cover 85–95 % of its scans.
 """
 from __future__ import annotations

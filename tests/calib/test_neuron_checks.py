@@ -209,6 +209,15 @@ def test_units_micrometres_and_milliseconds(data):
     assert not res.verdict.ok and "U_y probably in um" in res.verdict.problems[0]
 
 
+@pytest.mark.parametrize("per_mm, words", [(0.1, "steps probably in cm"), (1 / 25.4, "steps probably in inches")])
+def test_steps_in_cm_or_inches_are_named(data, per_mm, words):
+    """Labels in cm or inches make U_y rise 10 or 25 times the step, under the x30 of the
+    um check: the fit said verdict ok. A face riding over a step rises by at most the step
+    (0.31-1.09 measured, :data:`MAX_GAIN`)."""
+    res = _quiet_fit(dataclasses.replace(data, step_mm=per_mm * data.step_mm))
+    assert not res.verdict.ok and words in res.verdict.problems[0], res.verdict.problems
+
+
 def test_steps_and_displacements_both_in_another_unit(data):
     """Steps and U_y both in µm (or both in m): their ratio is about 1, so the ratio check
     passed, and the fit said verdict ok on plates of 50-200 mm. The largest step names it."""
