@@ -159,6 +159,31 @@ def test_height_belt_on_a_straight_curve_is_z_plus_minus_1645_sd():
     assert low[1][0] == 0.0 and low[0][0] == 0.0 and low[2][0] > 0
 
 
+def test_draws_whose_top_plates_reverse_do_not_turn_the_belt_back():
+    """With six touches a plate 5-15 % of a fit's draws have two plates' means reversed.
+    Where that was the top segment, the curve ran downwards past the top plate, F turned
+    back up towards the reversed draws' share (15 % here, over the 5 % level) and the
+    bisection returned the edge of its bracket: an upper bound of ~10¹³ mm, which covered
+    every step (measured on hard/six-plates-few: 8·10¹² mm). Each draw's curve is now
+    isotonic ([0, 0.2, 0.1] → [0, 0.15, 0.15]) with its end slopes at least a tenth of its
+    mean slope (here 0.075), so F falls throughout and the bounds solve the belt."""
+    sd, steps = 0.01, (0.0, 0.1, 0.2)
+    means = np.array([[0.0, 0.1, 0.2]] * 85 + [[0.0, 0.2, 0.1]] * 15)
+    dec = _fixed(means, np.full(means.shape, sd), a=1.0, h=0.0, steps=steps)
+    z = np.array([[0.2, 0.21, 0.1]])
+    est, lo, hi = dec.height(z)
+    # the reversed draws' flat top, extrapolated at 0.075: F = 0.05 where their 15 % share
+    # is a third: m = 0.15 + 0.075 (δ − 0.2) = z + Φ⁻¹(2/3)·sd, the others' Φ being ~0
+    expect = 0.2 + (z[0, :2] + stats.norm.ppf(2 / 3) * sd - 0.15) / 0.075
+    np.testing.assert_allclose(hi[:2], expect, rtol=1e-3)
+    grid = np.linspace(-0.5, 3.0, 701)
+    f = dec.predictive_cdf(np.repeat(z, grid.size, axis=1), np.tile(grid, 3))         # a = 1, h = 0: z = P
+    assert np.all(np.diff(f.reshape(3, -1), axis=1) <= 1e-12)                  # non-increasing in δ
+    np.testing.assert_allclose(dec.predictive_cdf(z, hi), 0.05, atol=1e-6)
+    np.testing.assert_allclose(dec.predictive_cdf(z, lo), 0.95, atol=1e-6)
+    assert np.all((lo <= est) & (est <= hi))
+
+
 def test_height_belt_at_the_floor_is_one_sided_and_holds_90_percent_at_every_step():
     """No step lies below 0, so at δ = 0 the band keeps every reading below its 90 %
     quantile (one-sided), turning central over two sds: 0 is inside the interval exactly
