@@ -8,13 +8,16 @@ repeatable; default the pairs of the scene's plates), the difference threshold a
 around --reference (default 0.1 mm) with its Weber fraction, and the PSE of the reference
 step between two scan speeds (--speeds REF TEST). 95 % intervals include the posterior
 and the Monte Carlo error of the --n-scans simulated touches (bootstrap per draw; "MC se"
-is the latter alone). The touches belong to the forward model and are seeded from the
+is the latter alone; "-" when the touches of the two heights never overlap, where the
+interval's far end is the bound from n disjoint pairs all correct, 0.025^(1/n)). The touches belong to the forward model and are seeded from the
 scene's seed, so reruns with another --seed (posterior draws, resamples) agree within
 their intervals; --touch-seed simulates another set of touches. A threshold that many
 draws do not reach within the searched range is printed as a bound ("> 25.00 um") with
 the fraction of draws. A failed posterior is refused unless --accept-failed.
 """
 from __future__ import annotations
+
+import math
 
 from feeler.commands._posterior_use import add_use_arguments, load_checked
 
@@ -128,7 +131,8 @@ def run(args) -> int:
     for lo, hi in progress(pairs, desc="2AFC pairs", enabled=args.progress, lines=True):
         p = disc.pc(lo, hi)
         rows.append({"low_mm": lo, "high_mm": hi, "pc": p.mean, "lo95": p.lo95, "hi95": p.hi95, "mcse": p.mcse})
-        print(f"{lo:8.4g} {hi:8.4g}  {format_estimate(p.mean, p.lo95, p.hi95, 4):28s} {p.mcse:.4f}")
+        mcse = f"{p.mcse:.4f}" if math.isfinite(p.mcse) else "-  (touches never overlap)"
+        print(f"{lo:8.4g} {hi:8.4g}  {format_estimate(p.mean, p.lo95, p.hi95, 4):28s} {mcse}")
     stage(f"difference threshold at 75 % around {args.reference:g} mm", args.progress)
     th = disc.threshold(args.reference)
     w = th.weber

@@ -132,6 +132,23 @@ def test_a_threshold_from_few_touches_is_never_below_zero(fit):
     assert d.lo95 == 0.0 and th.weber.lo95 == 0.0      # the case arose (in resampled touches): crossed at Δ = 0
 
 
+def test_touches_that_never_overlap_keep_the_bound_of_their_number(fit):
+    """0 vs 0.2 mm: every touch of one height lies above every touch of the other, so every
+    resample gives 1 and the interval was "[1.0000, 1.0000]" with MC se 0, from 3 touches a
+    height as from 1000. n disjoint pairs all correct bound P(correct) ≥ 0.025^(1/n)."""
+    for n in (3, 40):
+        p = Discriminator(fit, n_scans=n, n_draws=50, seed=1).pc(0.0, 0.2)
+        assert p.mean == 1.0 and p.hi95 == 1.0 and np.isnan(p.mcse)
+        assert p.lo95 == pytest.approx(0.025 ** (1 / n))                  # 0.292 at 3, 0.912 at 40
+    # the bound holds: with P(correct) = 0.9 the n = 40 interval's end 0.912 would be passed
+    # by all-correct sets at most 0.9 ** 40 = 1.5 % of the time (disjoint pairs alone)
+    rng = np.random.default_rng(0)
+    low, high = rng.normal(0, 1, (20000, 40)), rng.normal(1.8124, 1, (20000, 40))  # P(high > low) = 0.9
+    assert np.mean(low.max(axis=1) < high.min(axis=1)) <= 0.9 ** 40
+    near = Discriminator(fit, n_scans=200, n_draws=50, seed=1).pc(0.1, 0.104)        # overlapping: as before
+    assert np.isfinite(near.mcse) and near.lo95 < near.mean < near.hi95 < 1
+
+
 def test_a_reference_outside_the_trained_plates_is_noted(disc):
     assert disc.outside_note(0.1) is None and disc.outside_note(0.0) is None and disc.outside_note(0.2) is None
     assert disc.outside_note([0.0, 0.05, 0.2], option="--pair") is None
