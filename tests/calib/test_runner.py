@@ -29,14 +29,19 @@ def test_local_cluster_equals_serial():
     job = partial(_seeded_job, n=50)
     seeds = range(100, 112)
     serial = map_seeds(job, seeds, scheduler="serial")
-    before = signal.getsignal(signal.SIGINT)
-    dist = map_seeds(partial(_job_and_sigint, n=50), seeds)     # LocalCluster, 2 processes on 127.0.0.1
+    # Python's own handler, as at a terminal: a suite run in the background of a script ignores
+    # SIGINT already, and the workers would inherit that whatever the runner does
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        dist = map_seeds(partial(_job_and_sigint, n=50), seeds)     # LocalCluster, 2 processes on 127.0.0.1
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler    # ours again once they started
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert len(dist) == 12
     for a, (b, deaf) in zip(serial, dist):
         np.testing.assert_array_equal(a, b)
         assert deaf
     assert not np.array_equal(serial[0], serial[1])
-    assert signal.getsignal(signal.SIGINT) is before             # ours again once the workers started
 
 
 def test_existing_scheduler_by_address():

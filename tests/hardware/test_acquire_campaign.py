@@ -292,8 +292,11 @@ def test_ctrl_c_at_a_terminal_is_one_line_not_the_emulators_traceback(tmp_path):
     run = tmp_path / "stopped"
     cmd = [sys.executable, "-m", "feeler", "acquire", "--emulate", "--plan", str(TINY), "--out", str(run),
            "--no-progress"]
+    # its own group, as a shell's job is, with Ctrl-C's default disposition as a terminal's
+    # foreground job has it: a suite run in the background of a script (`make test &`) ignores
+    # SIGINT, its children inherit that, and the run went on to the end (exit 0)
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)              # its own group, as a shell's job is
+                            start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 60
     while not ((run / "samples.csv").exists() and (run / "samples.csv").read_text().count("\n") >= 3):
         assert proc.poll() is None and time.monotonic() < deadline
