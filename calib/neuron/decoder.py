@@ -13,9 +13,9 @@ s_cs (mm):
   spread s_s(δ) is interpolated the same way and held constant past the ends. A taller
   step never reads lower, so each draw's curve is first made non-decreasing (its plate
   means' isotonic regression) and its end slopes kept at least a tenth of its mean slope
-  (:func:`monotone_curve`): with six touches a plate, 5-15 % of draws have two plates'
-  means reversed, and where that was an end segment the curve ran downwards past it, F
-  turned back up and the bisection found the far crossing (an upper bound of 8·10¹² mm,
+  (:func:`monotone_curve`): with six touches a plate (hard/six-plates-few, ten training
+  sets) 1-28 % of a fit's draws have two plates' means reversed, 0.4-26 % at an end
+  segment; past such an end the curve ran downwards, F turned back up and the bisection found the far crossing (an upper bound of 8·10¹² mm,
   covering every step). The
   predictive CDF of the scan's decoded height at a true step δ is
   F(δ) = mean_s Φ((z_s − m_s(δ)) / s_s(δ)), decreasing in δ. The 90 % interval is

@@ -160,7 +160,8 @@ def test_height_belt_on_a_straight_curve_is_z_plus_minus_1645_sd():
 
 
 def test_draws_whose_top_plates_reverse_do_not_turn_the_belt_back():
-    """With six touches a plate 5-15 % of a fit's draws have two plates' means reversed.
+    """With six touches a plate 1-28 % of a fit's draws have two plates' means reversed
+    (hard/six-plates-few, ten training sets; 0.4-26 % at an end segment).
     Where that was the top segment, the curve ran downwards past the top plate, F turned
     back up towards the reversed draws' share (15 % here, over the 5 % level) and the
     bisection returned the edge of its bracket: an upper bound of ~10¹³ mm, which covered
