@@ -15,8 +15,8 @@ s_cs (mm):
   means' isotonic regression) and its end slopes kept at least a tenth of its mean slope
   (:func:`monotone_curve`): with six touches a plate (hard/six-plates-few, ten training
   sets) 1-28 % of a fit's draws have two plates' means reversed, 0.4-26 % at an end
-  segment; past such an end the curve ran downwards, F turned back up and the bisection found the far crossing (an upper bound of 8·10¹² mm,
-  covering every step). The
+  segment; past such an end the curve ran downwards, F turned back up and the bisection
+  found the far crossing (an upper bound of 8·10¹² mm, covering every step). The
   predictive CDF of the scan's decoded height at a true step δ is
   F(δ) = mean_s Φ((z_s − m_s(δ)) / s_s(δ)), decreasing in δ. The 90 % interval is
   {δ : 0.05 ≤ F(δ) ≤ 0.95} and the estimate F(δ) = 0.5 (inverting the predictive band,
@@ -56,9 +56,8 @@ END_SLOPE_MIN = 0.1
 
 def monotone_curve(steps: np.ndarray, mean: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each row of ``mean (ndarray[S, C])`` made non-decreasing (isotonic regression, equal
-    weights) → (curve ndarray[S, C], slopes past the lower and
-    upper end ndarray[S, 2]: the end segments', at least :data:`END_SLOPE_MIN` of the
-    row's mean slope, and positive)."""
+    weights) → (curve ndarray[S, C], slopes past the lower and upper end ndarray[S, 2]: the
+    end segments', at least :data:`END_SLOPE_MIN` of the row's mean slope, and positive)."""
     curve = np.array(mean, dtype=float, copy=True)
     for i in np.flatnonzero(np.any(np.diff(curve, axis=1) < 0, axis=1)):
         curve[i] = isotonic_regression(curve[i]).x
