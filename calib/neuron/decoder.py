@@ -68,18 +68,15 @@ def monotone_curve(steps: np.ndarray, mean: np.ndarray) -> tuple[np.ndarray, np.
     return curve, np.maximum(ends, END_SLOPE_MIN * overall[:, None])
 
 
-def curve_at(delta: np.ndarray, steps: np.ndarray, mean: np.ndarray, sd: np.ndarray,
-             end_slopes: np.ndarray | None = None):
+def curve_at(delta: np.ndarray, steps: np.ndarray, mean: np.ndarray, sd: np.ndarray, end_slopes: np.ndarray):
     """m_s(δ) and s_s(δ) for ``delta (ndarray[n])`` and per-draw plates ``mean, sd
-    (ndarray[S, C])`` → two ndarray[S, n] (mm); past the ends with ``end_slopes
-    (ndarray[S, 2])`` when given, else the end segments' slopes."""
+    (ndarray[S, C])`` → two ndarray[S, n] (mm); past the ends the lines from the end
+    plates with ``end_slopes (ndarray[S, 2])`` (:func:`monotone_curve`)."""
     seg = np.clip(np.searchsorted(steps, delta) - 1, 0, steps.size - 2)         # (n,)
     c0, dc = steps[seg], steps[seg + 1] - steps[seg]
-    slope = (mean[:, seg + 1] - mean[:, seg]) / dc
-    m = mean[:, seg] + (delta - c0) * slope
-    if end_slopes is not None:              # past an end: the line from that end plate
-        m = np.where(delta < steps[0], mean[:, :1] + (delta - steps[0]) * end_slopes[:, :1], m)
-        m = np.where(delta > steps[-1], mean[:, -1:] + (delta - steps[-1]) * end_slopes[:, 1:], m)
+    m = mean[:, seg] + (delta - c0) * (mean[:, seg + 1] - mean[:, seg]) / dc
+    m = np.where(delta < steps[0], mean[:, :1] + (delta - steps[0]) * end_slopes[:, :1], m)
+    m = np.where(delta > steps[-1], mean[:, -1:] + (delta - steps[-1]) * end_slopes[:, 1:], m)
     frac = np.clip((delta - c0) / dc, 0.0, 1.0)
     s = sd[:, seg] + frac * (sd[:, seg + 1] - sd[:, seg])
     return m, s
