@@ -339,16 +339,7 @@ def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
         raise DataFileError(path, "no rows")
     frame, named = named_scan_ids(frame, path)
     for col in COLUMNS:
-        values = pd.to_numeric(frame[col], errors="coerce")
-        if values.isna().any():
-            row = int(np.flatnonzero(values.isna().to_numpy())[0])
-            raise DataFileError(path, f"column {col}: missing or non-numeric value at data row {row + 1}")
-        infinite = np.isinf(values.to_numpy(dtype=float))
-        if infinite.any():
-            row = int(np.flatnonzero(infinite)[0])
-            raise DataFileError(path, f"column {col}: {values.iloc[row]} at data row {row + 1}; "
-                                      f"values must be finite numbers")
-        frame[col] = values
+        frame[col] = numeric_column(frame, col, path)
     groups = frame.groupby("scan_id", sort=False)
     # starts_again's rule, over every scan at once
     restart = ((groups["t_s"].diff() < 0) & (frame["t_s"] <= groups["t_s"].transform("first"))).to_numpy()
@@ -401,6 +392,30 @@ def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
     return Scans(scan_id=ids.astype(int), step_mm=grid("step_mm")[:, 0], speed_mm_s=grid("speed_mm_s")[:, 0],
                  t_s=t, x_mm=grid("x_mm"), ux_mm=grid("ux_mm"), uy_mm=grid("uy_mm"), uz_mm=grid("uz_mm"),
                  labels=labels)
+
+
+def numeric_column(frame, col: str, path, *, blank_ok: bool = False):
+    """Column ``col`` of ``frame`` as numbers (a pandas Series, float), or DataFileError
+    naming ``path``, the column and the data row of the first value that is not a finite
+    number: text, inf, or a blank cell unless ``blank_ok`` (an optional label left empty
+    reads as NaN; text in it is still an error)."""
+    import pandas as pd
+
+    raw = frame[col]
+    values = pd.to_numeric(raw, errors="coerce").astype(float)
+    missing = values.isna().to_numpy()
+    if blank_ok:
+        text = raw.astype("string").str.strip()
+        missing = missing & ~(raw.isna() | (text == "")).to_numpy(dtype=bool, na_value=True)
+    if missing.any():
+        row = int(np.flatnonzero(missing)[0])
+        raise DataFileError(path, f"column {col}: missing or non-numeric value at data row {row + 1}")
+    infinite = np.isinf(values.to_numpy())
+    if infinite.any():
+        row = int(np.flatnonzero(infinite)[0])
+        raise DataFileError(path, f"column {col}: {values.iloc[row]} at data row {row + 1}; "
+                                  f"values must be finite numbers")
+    return values
 
 
 def named_scan_ids(frame, path: Path):

@@ -37,10 +37,7 @@ def read_table(path: str | Path, columns: tuple[str, ...] = (), numeric: tuple[s
     Returns:
         pandas.DataFrame
     """
-    import numpy as np
-    import pandas as pd
-
-    from feeler.datasets import missing_columns_problem, read_csv_file
+    from feeler.datasets import missing_columns_problem, numeric_column, read_csv_file
 
     path = Path(path)
     frame = read_csv_file(path, comment="#")          # also a user's own file as a spreadsheet exports it
@@ -50,11 +47,7 @@ def read_table(path: str | Path, columns: tuple[str, ...] = (), numeric: tuple[s
     if columns and frame.empty:
         raise DataFileError(path, "no data rows")
     for col in numeric:
-        values = pd.to_numeric(frame[col], errors="coerce").to_numpy(dtype=float)
-        if not np.all(np.isfinite(values)):
-            row = int(np.flatnonzero(~np.isfinite(values))[0]) + 1
-            raise DataFileError(path, f"column {col}: missing or non-numeric value at data row {row}")
-        frame[col] = values
+        frame[col] = numeric_column(frame, col, path).to_numpy()
     return frame
 
 

@@ -177,6 +177,37 @@ def test_scan_ids_that_start_again_on_each_plate_are_named(tmp_path):
                                    "0, 0.05 (if these rows are several scans, give each its own scan_id)")
 
 
+@pytest.mark.parametrize("col, value, words", [
+    (6, "inf", "column uy_mm: inf at data row 6; values must be finite numbers"),
+    (4, "-inf", "column x_mm: -inf at data row 6; values must be finite numbers"),
+    (1, "inf", "column step_mm: inf at data row 6; values must be finite numbers"),
+    (1, "abc", "column step_mm: missing or non-numeric value at data row 6"),
+])
+def test_both_scan_readers_name_a_value_that_is_not_a_finite_number(tmp_path, col, value, words):
+    """The fit's reader and classify's/decode's read the same file to the same one line,
+    naming the file, the column and the row; classify's used to let inf through to the
+    decoder ("argument strain='inf at index (0, 3)'", after "decoding 96 scans ...")."""
+    from feeler.calib.neuron.live.scan_csv import read_scan_records
+
+    rows = good_rows()
+    rows[5][col] = value
+    path = write_csv(tmp_path / "scans.csv", rows)
+    for read in (read_scans, read_scan_records):
+        with pytest.raises(DataFileError) as info:
+            read(path)
+        assert str(info.value) == f"{path}: {words}"
+
+
+def test_classify_reads_blank_labels_as_unlabelled_scans(tmp_path):
+    """A label column left blank (scans nobody labelled) is not an error for classify's
+    reader: those scans carry no step; the labelled one keeps its own."""
+    from feeler.calib.neuron.live.scan_csv import read_scan_records
+
+    rows = [[*r[:1], "" if r[0] == 1 else r[1], *r[2:]] for r in good_rows()]
+    records = read_scan_records(write_csv(tmp_path / "scans.csv", rows))
+    assert [r.step_mm for r in records] == [0.0, None]
+
+
 @pytest.mark.parametrize("names", [["touch-b", "touch-a"], ["1.2", "1.1"]])
 def test_scan_ids_written_as_names_are_numbered_in_order_of_appearance(tmp_path, names):
     """Lab software names its scans ('touch-01', or '2.1' for plate 2's first touch): both

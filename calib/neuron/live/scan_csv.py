@@ -83,10 +83,8 @@ def no_scans_problem(directory: Path) -> str:
 
 def records_from_frame(frame, path) -> list[ScanRecord]:
     """:class:`ScanRecord` s of a long-format frame (``path`` names it in errors)."""
-    import pandas as pd
-
-    from feeler.datasets import (named_scan_ids, scan_id_text, shared_scan_id_problem, starts_again,
-                                 varying_label_problem)
+    from feeler.datasets import (named_scan_ids, numeric_column, scan_id_text, shared_scan_id_problem,
+                                 starts_again, varying_label_problem)
 
     missing = [c for c in REQUIRED if c not in frame.columns]
     if missing:
@@ -101,12 +99,8 @@ def records_from_frame(frame, path) -> list[ScanRecord]:
         raise DataFileError(path, "no rows")
     cols = [c for c in REQUIRED + OPTIONAL + ("attempt",) if c in frame.columns]
     frame, names = named_scan_ids(frame[cols].copy(), path)
-    for col in cols:
-        values = pd.to_numeric(frame[col], errors="coerce")
-        if values.isna().any() and (col in REQUIRED or col == "x_mm"):
-            row = int(np.flatnonzero(values.isna().to_numpy())[0])
-            raise DataFileError(path, f"column {col}: missing or non-numeric value at data row {row + 1}")
-        frame[col] = values
+    for col in cols:              # labels may be left blank (unlabelled scans); times and U_y may not
+        frame[col] = numeric_column(frame, col, path, blank_ok=col not in REQUIRED and col != "x_mm")
     if "attempt" in frame.columns:                   # samples.csv: each scan's last attempt
         last = frame.groupby("scan_id")["attempt"].transform("max")
         frame = frame[frame["attempt"] == last]
