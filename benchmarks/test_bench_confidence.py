@@ -5,6 +5,10 @@ floor, close steps, a noisier read-out, few touches, a tilted face; accuracy 60�
 and four built afterwards and never tuned: six plates from 0.01 mm with 6 touches each,
 three plates under an exponential-kernel neuron, unevenly spaced plates, and a neuron
 window of 0.7 s (near the prior's 0.5 s bound, shorter than the ride over the face).
+One control, ``datasets-synthetic/controls/few-scans-no-snap.toml``: few-scans (same
+seeds) with no touch snapping onto the upper level. Where half the touches snap and half
+ride over the edge, a plate's touches are two modes mixed, flatter than Gaussian, and a
+Gaussian band covers the upper plates above 0.95; without snapping it should not.
 Per scene, ``REPLICATES`` training sets (the scene with seeds seed+1…) are fitted with the
 default backend, and each classifies its own ``FRESH`` fresh touches per plate (seeds
 seed + 10⁶ + r: independent test sets, so the ECE's sampling noise shrinks with every
@@ -48,6 +52,7 @@ from feeler.models import neuron
 REPLICATES = 20 if FULL else 10
 FRESH = 400 if FULL else 100
 SCENES = sorted(Path(HARD_SCENES).glob("*.toml"))
+CONTROLS = sorted((Path(HARD_SCENES).parent / "controls").glob("*.toml"))
 ROWS = []
 
 
@@ -142,7 +147,7 @@ def load_seed(path) -> int:
     return int(load_scene(path).scene.seed)
 
 
-@pytest.mark.parametrize("path", SCENES, ids=[p.stem for p in SCENES])
+@pytest.mark.parametrize("path", SCENES + CONTROLS, ids=[p.stem for p in SCENES + CONTROLS])
 def test_calibrated_confidence(benchmark, path):
     row = benchmark.pedantic(lambda: evaluate(path), rounds=1, iterations=1)
     ROWS.append(row)

@@ -117,3 +117,17 @@ def test_bool_field_and_schema_errors():
         parse_table(Odd, {"thing": {}}, path="x.toml", prefix="")
     with pytest.raises(TypeError, match="tuple"):
         param([1, 2])
+
+
+def test_the_no_snap_control_is_few_scans_without_snapping():
+    """The confidence benchmark's control (datasets-synthetic/controls) differs from
+    hard/few-scans in what its comment says and nothing else: its name and no touch
+    snapping, with the same seed, so the two scenes' replicates are paired."""
+    import dataclasses
+
+    root = Path(__file__).resolve().parents[1] / "datasets-synthetic"
+    base = load_scene(root / "hard" / "few-scans.toml")
+    control = load_scene(root / "controls" / "few-scans-no-snap.toml")
+    assert base.probe.snap_prob == 0.5 and control.probe.snap_prob == 0.0
+    assert control.scene.seed == base.scene.seed
+    assert dataclasses.replace(control, scene=base.scene, probe=dataclasses.replace(control.probe, snap_prob=0.5)) == base
