@@ -330,8 +330,6 @@ def read_scans(path: str | Path) -> Scans:
 def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
     """:func:`read_scans` of a frame (``path`` names it in errors; ``names``: the file of
     each scan id, for a directory of scan files)."""
-    import pandas as pd
-
     problem = missing_columns_problem(frame, COLUMNS)
     if problem:
         raise DataFileError(path, problem)
