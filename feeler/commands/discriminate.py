@@ -97,7 +97,7 @@ def check_arguments(args) -> None:
         if not all(math.isfinite(v) and low <= v <= high for v in (lo, hi)) or lo > hi:
             raise ArgumentError("--pair", f"{lo:g} {hi:g}", f"two step heights within {low:g}..{high:g} mm, the lower "
                                 "first (LOW <= HIGH)")
-    # the threshold searches up to 1.25x the reference and the PSE up to 2x: both within the scenes' heights
+    # the PSE searches up to 2x the reference: within the scenes' heights (the threshold caps its own search)
     if not (math.isfinite(args.reference) and 0 < args.reference <= high / 2):
         raise ArgumentError("--reference", f"{args.reference:g}", f"a step height in (0, {high / 2:g}] mm")
     for v in args.speeds or ():

@@ -17,7 +17,7 @@ import numpy as np
 __all__ = ["write_threshold_curve", "CURVE_FILE", "N_POINTS"]
 
 CURVE_FILE = "threshold_curve.csv"
-N_POINTS = 13          # every other increment of discriminate's 26-point grid (0 … a quarter of the reference)
+N_POINTS = 13          # every other increment of discriminate's 26-point grid (0 … Discriminator.search_top_mm)
 
 
 def _has_curve(disc_dir: Path) -> bool:
@@ -43,7 +43,7 @@ def write_threshold_curve(m2_dir: Path, disc_dir: Path, *, n_scans: int = 400, n
     obj = json.loads((disc_dir / "discrimination.json").read_text(encoding="utf-8"))
     reference = float(obj.get("reference_mm", 0.1))
     disc = Discriminator(load(m2_dir), n_scans=n_scans, n_draws=n_draws, seed=seed)
-    deltas = np.linspace(0.0, 0.25 * reference, n_points)
+    deltas = np.linspace(0.0, disc.search_top_mm(reference), n_points)
     ref = disc.responses(reference, reference=True)
     rows = []
     for d in deltas:

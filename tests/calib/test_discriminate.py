@@ -52,6 +52,23 @@ def test_threshold_weber_and_a_threshold_reported_as_a_bound(disc):
     assert short.is_bound and short.found < 0.5 and text.startswith("> 1.00 um (") and "% of draws" in text
 
 
+def test_a_threshold_around_a_small_reference_is_found(disc):
+    """Around 2 µm the threshold (several µm: it does not shrink with the reference near
+    the noise floor) lies far beyond a quarter of the reference, where the search used to
+    stop, so every draw was a bound ("> 0.50 um (100 % of draws ...)"). The default search
+    reaches four of the decoder's widest plate sds, and the threshold is found."""
+    quarter = disc.threshold(0.002, max_delta_mm=0.0005)
+    assert quarter.found < 0.05
+    th = disc.threshold(0.002)
+    print(f"\naround 2 um: searched to {th.searched_mm * 1e3:.1f} um, delta75 {th.delta75_mm.mean * 1e3:.2f} "
+          f"[{th.delta75_mm.lo95 * 1e3:.2f}, {th.delta75_mm.hi95 * 1e3:.2f}] um, found {th.found:.2f}")
+    assert th.searched_mm == pytest.approx(4 * disc.spread_mm) and th.found == 1.0 and not th.is_bound
+    assert 0.0005 < th.delta75_mm.mean < th.searched_mm
+    assert disc.pc(0.002, 0.002 + th.delta75_mm.mean).mean == pytest.approx(0.75, abs=0.06)
+    assert disc.search_top_mm(0.1) == pytest.approx(max(0.025, 4 * disc.spread_mm))     # the default reference
+    assert disc.search_top_mm(4.99) == pytest.approx(0.01)              # the scene's highest allowed step: 5 mm
+
+
 def test_pse_at_equal_speeds_is_the_reference(disc):
     p = disc.pse(0.1, 0.5, 0.5, span_mm=0.03, n_steps=12)
     print(f"\nPSE at equal speeds: {p.mean:.4f} [{p.lo95:.4f}, {p.hi95:.4f}] mm")
