@@ -183,18 +183,22 @@ class Discriminator:
         point, boot = self._curve(self.responses(lower_mm, reference=True), [self.responses(higher_mm)])
         return _separated(Interval.of(point[:, 0], boot[:, 0]), self.n_scans)
 
+    @staticmethod
+    def _highest_mm() -> float:
+        """The highest step a robot-scan scene allows (mm): comparisons stay below it."""
+        import dataclasses
+
+        from feeler.scenes.robot_scan import Surface
+
+        return float({f.name: f for f in dataclasses.fields(Surface)}["heights_mm"].metadata["hi"])
+
     def search_top_mm(self, reference_mm: float) -> float:
         """The largest increment over ``reference_mm`` that :meth:`threshold` searches by
         default (mm): a quarter of the reference or four of the decoder's widest plate sds,
         whichever is larger, the comparison staying within a scene's allowed heights. A
         quarter alone never reached 75 % around a small reference: around 1 µm it searched
-        to 0.25 µm, where the threshold is ~9 µm."""
-        import dataclasses
-
-        from feeler.scenes.robot_scan import Surface
-
-        highest = float({f.name: f for f in dataclasses.fields(Surface)}["heights_mm"].metadata["hi"])
-        return min(max(0.25 * reference_mm, 4.0 * self.spread_mm), highest - reference_mm)
+        to 0.25 µm, where the threshold is ~15 µm."""
+        return min(max(0.25 * reference_mm, 4.0 * self.spread_mm), self._highest_mm() - reference_mm)
 
     def threshold(self, reference_mm: float = 0.1, *, max_delta_mm: float | None = None, n_steps: int = 25) -> Threshold:
         """Δδ₇₅ around ``reference_mm`` (searched on ``n_steps`` increments up to
@@ -215,14 +219,26 @@ class Discriminator:
         return Threshold(reference_mm=float(reference_mm), delta75_mm=d75, weber=weber, found=d75.found,
                          searched_mm=float(top))
 
+    def pse_range_mm(self, reference_mm: float) -> tuple[float, float]:
+        """The heights :meth:`pse` searches by default (mm): the reference ± the reference
+        or four of the decoder's widest plate sds, whichever is larger, within 0 and a
+        scene's highest allowed step (around 1 µm, 0–2 µm alone held no PSE)."""
+        span = max(reference_mm, 4.0 * self.spread_mm)
+        return max(reference_mm - span, 0.0), min(reference_mm + span, self._highest_mm())
+
     def pse(self, reference_mm: float, speed_ref_mm_s: float, speed_test_mm_s: float, *, span_mm: float | None = None,
             n_steps: int = 16) -> Interval:
-        """Step at ``speed_test_mm_s`` judged larger than ``reference_mm`` at ``speed_ref_mm_s`` half the time (mm)."""
-        span = reference_mm if span_mm is None else span_mm
-        heights = np.linspace(max(reference_mm - span, 0.0), reference_mm + span, n_steps + 1)
+        """Step at ``speed_test_mm_s`` judged larger than ``reference_mm`` at ``speed_ref_mm_s``
+        half the time (mm), searched over :meth:`pse_range_mm` (or the reference ± ``span_mm``)."""
+        lo, hi = (self.pse_range_mm(reference_mm) if span_mm is None
+                  else (max(reference_mm - span_mm, 0.0), reference_mm + span_mm))
+        heights = np.linspace(lo, hi, n_steps + 1)
         ref = self.responses(reference_mm, speed_mm_s=speed_ref_mm_s, reference=True)
         point, boot = self._curve(ref, [self.responses(x, speed_mm_s=speed_test_mm_s) for x in heights])
-        return Interval.of(_crossing(heights, point, 0.5), _crossing(heights, boot, 0.5))
+        # near the floor a curve can be at ½ already at height 0 (both touches mostly decode to
+        # 0, a tie each): it crosses at 0, not −inf ("1.91 [-inf, 3.71] um" around 2 µm)
+        floor = 0.0 if lo == 0.0 else -np.inf
+        return Interval.of(*(np.maximum(_crossing(heights, c, 0.5), floor) for c in (point, boot)))
 
     # kept for callers of the earlier static method
     proportion_correct = staticmethod(proportion_correct)

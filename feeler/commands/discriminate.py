@@ -97,7 +97,7 @@ def check_arguments(args) -> None:
         if not all(math.isfinite(v) and low <= v <= high for v in (lo, hi)) or lo > hi:
             raise ArgumentError("--pair", f"{lo:g} {hi:g}", f"two step heights within {low:g}..{high:g} mm, the lower "
                                 "first (LOW <= HIGH)")
-    # the PSE searches up to 2x the reference: within the scenes' heights (the threshold caps its own search)
+    # the threshold and the PSE keep their comparison heights within the scenes' (Discriminator.search_top_mm)
     if not (math.isfinite(args.reference) and 0 < args.reference <= high / 2):
         raise ArgumentError("--reference", f"{args.reference:g}", f"a step height in (0, {high / 2:g}] mm")
     for v in args.speeds or ():
@@ -145,7 +145,8 @@ def run(args) -> int:
     pse = disc.pse(args.reference, v_ref, v_test)
     print(f"PSE of {args.reference:g} mm at {v_ref:g} mm/s when scanned at {v_test:g} mm/s: "
           + (f"{format_estimate(pse.mean, pse.lo95, pse.hi95, 4)} mm" if pse.found == 1 else
-             f"outside the searched 0-{2 * args.reference:g} mm for {100 * (1 - pse.found):.0f} % of draws"))
+             "outside the searched {:g}-{:g} mm for {:.0f} % of draws".format(*disc.pse_range_mm(args.reference),
+                                                                              100 * (1 - pse.found))))
     if args.out:
         out = prepare_out_dir(args.out, ("discrimination.json",), force=args.force)
         d = th.delta75_mm

@@ -67,6 +67,14 @@ def test_a_threshold_around_a_small_reference_is_found(disc):
     assert disc.pc(0.002, 0.002 + th.delta75_mm.mean).mean == pytest.approx(0.75, abs=0.06)
     assert disc.search_top_mm(0.1) == pytest.approx(max(0.025, 4 * disc.spread_mm))     # the default reference
     assert disc.search_top_mm(4.99) == pytest.approx(0.01)              # the scene's highest allowed step: 5 mm
+    # the PSE likewise: 0-4 um around 2 um held none at another speed; at the same speed it is the reference
+    lo, hi = disc.pse_range_mm(0.002)
+    assert lo == 0.0 and hi == pytest.approx(0.002 + 4 * disc.spread_mm)
+    assert disc.pse_range_mm(0.1) == pytest.approx((0.0, 0.2))         # the default reference: ± itself
+    p = disc.pse(0.002, 0.5, 0.5, n_steps=12)
+    print(f"PSE around 2 um at equal speeds: {p.mean * 1e3:.2f} [{p.lo95 * 1e3:.2f}, {p.hi95 * 1e3:.2f}] um")
+    assert p.found == 1.0 and abs(p.mean - 0.002) < 3 * p.mcse + 0.001
+    assert 0.0 <= p.lo95 <= p.mean <= p.hi95     # a resample at ½ already at 0 crosses at 0 (was -inf)
 
 
 def test_pse_at_equal_speeds_is_the_reference(disc):
