@@ -4,8 +4,8 @@
 it comes from: P(correct) that reference + Δ gives the larger peak z, per Δ, with its 95 %
 band over the posterior draws. When the discriminate output does not carry the curve,
 this stage computes it with the command's defaults (same seed, touches, draws and
-reference, every other increment of its grid: the same responses, so the curve crosses
-75 % where the command's threshold lies) and writes ``discriminate/threshold_curve.csv``.
+reference, 13 points over the range its 26-point grid spans: the same responses, so the
+curve crosses 75 % where the command's threshold lies) and writes ``discriminate/threshold_curve.csv``.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import numpy as np
 __all__ = ["write_threshold_curve", "CURVE_FILE", "N_POINTS"]
 
 CURVE_FILE = "threshold_curve.csv"
-N_POINTS = 13          # every other increment of discriminate's 26-point grid (0 … Discriminator.search_top_mm)
+N_POINTS = 13          # over discriminate's search range (0 … Discriminator.search_top_mm; its grid has 26)
 
 
 def _has_curve(disc_dir: Path) -> bool:
