@@ -29,7 +29,7 @@ from typing import Any
 
 from feeler.errors import SceneError
 
-__all__ = ["param", "load_scene", "parse_table", "scene_kinds", "scene_as_dict", "SceneError"]
+__all__ = ["param", "param_bounds", "load_scene", "parse_table", "scene_kinds", "scene_as_dict", "SceneError"]
 
 _MISSING = dataclasses.MISSING
 
@@ -52,6 +52,12 @@ def param(default: Any = _MISSING, *, lo: float | None = None, hi: float | None 
     if isinstance(default, (list, dict)):
         raise TypeError("use a tuple for a default sequence")
     return dataclasses.field(default=default, metadata=meta)
+
+
+def param_bounds(table: type, name: str) -> tuple[float, float]:
+    """The (lo, hi) a scene schema table allows for its field ``name`` (its :func:`param`)."""
+    meta = {f.name: f for f in dataclasses.fields(table)}[name].metadata
+    return float(meta["lo"]), float(meta["hi"])
 
 
 def scene_kinds() -> list[str]:

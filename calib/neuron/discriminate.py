@@ -186,11 +186,10 @@ class Discriminator:
     @staticmethod
     def _highest_mm() -> float:
         """The highest step a robot-scan scene allows (mm): comparisons stay below it."""
-        import dataclasses
-
+        from feeler.scene import param_bounds
         from feeler.scenes.robot_scan import Surface
 
-        return float({f.name: f for f in dataclasses.fields(Surface)}["heights_mm"].metadata["hi"])
+        return param_bounds(Surface, "heights_mm")[1]
 
     def search_top_mm(self, reference_mm: float) -> float:
         """The largest increment over ``reference_mm`` that :meth:`threshold` searches by

@@ -72,14 +72,6 @@ def threshold_text(th, scale: float = 1e3, unit: str = "um") -> str:
     return f"{est * scale:.2f} [{d.lo95 * scale:.2f}, > {top:.2f}] {unit}{missing}"
 
 
-def _scene_bounds(table, name: str) -> tuple[float, float]:
-    """The (lo, hi) a robot-scan scene allows for ``name`` of ``table`` (its ``param``)."""
-    import dataclasses
-
-    meta = {f.name: f for f in dataclasses.fields(table)}[name].metadata
-    return float(meta["lo"]), float(meta["hi"])
-
-
 def check_arguments(args) -> None:
     """One-line errors for heights, speeds and counts the forward model cannot simulate
     (outside a robot-scan scene's heights and speed), before the posterior is loaded or a
@@ -87,10 +79,11 @@ def check_arguments(args) -> None:
     import math
 
     from feeler.errors import ArgumentError
+    from feeler.scene import param_bounds
     from feeler.scenes.robot_scan import MotionTable, Surface
 
-    low, high = _scene_bounds(Surface, "heights_mm")
-    top_speed = _scene_bounds(MotionTable, "speed_mm_s")[1]
+    low, high = param_bounds(Surface, "heights_mm")
+    top_speed = param_bounds(MotionTable, "speed_mm_s")[1]
     if args.n_scans < 2:
         raise ArgumentError("--n-scans", args.n_scans, ">= 2")
     for lo, hi in args.pair or ():
