@@ -140,6 +140,8 @@ def diagnose(posterior, summary: pd.DataFrame | None = None, *, backend: str,
     for row in summary.itertuples(index=False):
         if not np.isfinite(row.mean):
             continue
+        if row.sd == 0 and np.ptp(draws[row.name][np.isfinite(draws[row.name])]) == 0:
+            continue            # fixed by the model at every draw (two-mode's snap offset on a plate of step 0)
         if not np.isfinite(row.r_hat) or row.r_hat > t.r_hat_max:
             problems.append(f"{row.name}: R-hat {row.r_hat:.4f} > {t.r_hat_max}")
         if not np.isfinite(row.ess_bulk) or row.ess_bulk < t.ess_bulk_min:

@@ -35,6 +35,7 @@ from feeler.calib.diagnostics import Thresholds, bound_problems, repeated_rows
 from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
 from feeler.calib.neuron.live.envelope import UNIT_FACTOR, stage_units
 from feeler.calib.neuron.model import PeakTable, PlatePrior, Plates, plate_stats
+from feeler.calib.neuron.modes import Cells, within_noise
 
 __all__ = ["data_problems", "unit_problems", "posterior_problems", "loo_pit", "ALPHA", "UNIT_FACTOR"]
 
@@ -190,7 +191,12 @@ def loo_pit(table: PeakTable, plates: Plates, noise: str, log_w: np.ndarray, *, 
             max_nodes: int = 48) -> np.ndarray:
     """Leave-one-out PIT of every training scan under its own plate (Student-t
     predictive of the plates fitted without it: means, spreads and, for ``growing``,
-    the growth), mixed over the heaviest τ nodes: ndarray[n_scans] in [0, 1]."""
+    the growth), mixed over the heaviest τ nodes: ndarray[n_scans] in [0, 1]. Under
+    ``two-mode`` noise, under its own (plate, mode) cell: the modes of training scans are
+    known."""
+    if within_noise(noise):
+        return loo_pit(table, Cells(plates, plates.snap).as_plates, within_noise(noise), log_w,
+                       growth_max=growth_max, max_nodes=max_nodes)
     w = np.exp(log_w - np.max(log_w))
     nodes = np.argsort(w)[::-1][:max_nodes]
     nodes = nodes[w[nodes] > 1e-6 * w.max()]
@@ -265,7 +271,7 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
         info.update(loo_coverage90=cover, loo_mean_pit=bias, p_min=float(min(pvals)))
         out += _odd_scans(table, plates, pit, log_w, scan_names,
                           refit=lambda keep: loo_pit(PeakTable(log_tau=table.log_tau, peak=table.peak[keep]),
-                                                     Plates.of(plates.steps_mm[plates.group[keep]]), noise, log_w,
+                                                     plates.subset(keep), noise, log_w,
                                                      growth_max=growth_max))
     sd = np.median(np.asarray(post["plate_sd_mm"]).reshape(-1, C), axis=0)
     flat = sd < 1e-6 * (plates.steps_mm[-1] - plates.steps_mm[0])

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from feeler.calib.neuron.decoder import DecoderDraws
+from feeler.calib.neuron.modes import snap_flags
 
 __all__ = ["Classification", "classify", "peaks_at", "peaks_of", "expected_calibration_error", "log_loss"]
 
@@ -97,6 +98,15 @@ def peaks_of(strain, t_s, log_tau_grid, tau_s, *, kernel: str = "boxcar") -> np.
     return out
 
 
+def scan_modes(strain) -> np.ndarray:
+    """Which scans snapped onto the upper level (:func:`~feeler.calib.neuron.modes.snap_flags`,
+    the plate unknown: on a plate of step 0 both modes read alike), ndarray[n_scans] bool;
+    ``strain`` one array or a list of scans of different lengths."""
+    if isinstance(strain, np.ndarray) and strain.ndim == 2:
+        return snap_flags(strain, np.ones(strain.shape[0]))
+    return np.array([bool(snap_flags(np.asarray(s, float)[None, :], np.ones(1))[0]) for s in strain], bool)
+
+
 #: scans decoded at a time, bounding the (draws × scans × plates) temporaries: classify of
 #: 20 160 scans peaked at 1.86 GB decoded at once, 0.59 GB in blocks
 BLOCK = 2048
@@ -119,6 +129,7 @@ def classify(result, strain, t_s, *, rng: np.random.Generator, n_draws: int = 40
     grid = np.asarray(result.posterior["observed_data"]["log_tau_grid"].values, float)
     kernel = str(result.posterior["posterior"].attrs.get("kernel", "boxcar"))
     p = peaks_of(strain, t_s, grid, dec.tau_s, kernel=kernel)
+    snap = scan_modes(strain) if dec.snap_mm is not None else None
     from feeler.calib.progress import progress as shown
 
     parts = []
@@ -126,7 +137,8 @@ def classify(result, strain, t_s, *, rng: np.random.Generator, n_draws: int = 40
     for i in shown(starts, desc=f"decoding {p.shape[1]} scans", enabled=progress if len(starts) > 1 else False,
                    lines=True):                    # the (draws × scans × plates) temporaries, a block at a time
         block = p[:, i:i + BLOCK]
-        parts.append((*dec.height(block), *dec.plate_distance(block), dec.class_log_prob(block)))
+        mode = None if snap is None else snap[i:i + BLOCK]
+        parts.append((*dec.height(block, mode), *dec.plate_distance(block), dec.class_log_prob(block, mode)))
     height, lo, hi, distance, nearest, log_prob = (np.concatenate(v) for v in zip(*parts))
     return Classification(plates_mm=dec.steps_mm, log_prob=log_prob, height_mm=height,
                           lo90_mm=lo, hi90_mm=hi, p_at_tau=p, tau_s=dec.tau_s, note=dec.note,

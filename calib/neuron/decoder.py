@@ -26,6 +26,12 @@ s_cs (mm):
   be negative the band at δ = 0 is one-sided, turning central within two sds
   (:meth:`DecoderDraws.belt_targets`), so the floor plate is covered at 90 %, not 95 %.
 
+Under a two-mode noise model (:mod:`.modes`) each plate has a ride and a snap
+component (means m − πd and m + (1 − π)d, one within-mode sd): a scan whose mode is given
+(``snap``, read from the scan) is decoded by its mode's components alone, one without by
+the mixture with weights 1 − π and π; the calibration curve, its spread and the belt are
+then each component's, F the weighted sum.
+
 A streaming decoder that keeps P(τ_s) of a scan for every draw reproduces both at the end
 of the scan by calling these two methods.
 """
@@ -54,15 +60,19 @@ MAX_UNDECODABLE = Thresholds.nonfinite_max
 END_SLOPE_MIN = 0.1
 
 
-def monotone_curve(steps: np.ndarray, mean: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def monotone_curve(steps: np.ndarray, mean: np.ndarray, reference: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """Each row of ``mean (ndarray[S, C])`` made non-decreasing (isotonic regression, equal
     weights) → (curve ndarray[S, C], slopes past the lower and upper end ndarray[S, 2]: the
-    end segments', at least :data:`END_SLOPE_MIN` of the row's mean slope, and positive)."""
+    end segments', at least :data:`END_SLOPE_MIN` of the row's mean slope, and positive).
+    ``reference (ndarray[S, C])``: the curve whose mean slope bounds the end slopes instead
+    (a mode's curve, from a few touches a plate, can come out flat where the plates' is not)."""
     curve = np.array(mean, dtype=float, copy=True)
     for i in np.flatnonzero(np.any(np.diff(curve, axis=1) < 0, axis=1)):
         curve[i] = isotonic_regression(curve[i]).x
     span = steps[-1] - steps[0]
-    overall = np.maximum((curve[:, -1] - curve[:, 0]) / span, np.finfo(float).tiny)
+    ref = curve if reference is None else monotone_curve(steps, reference)[0]
+    overall = np.maximum((ref[:, -1] - ref[:, 0]) / span, np.finfo(float).tiny)
     ends = np.column_stack([(curve[:, 1] - curve[:, 0]) / (steps[1] - steps[0]),
                             (curve[:, -1] - curve[:, -2]) / (steps[-1] - steps[-2])])
     return curve, np.maximum(ends, END_SLOPE_MIN * overall[:, None])
@@ -93,6 +103,10 @@ class DecoderDraws:
         sharpness, floor (float): γ and ε of the plate probabilities (:mod:`.recalibrate`).
         undecodable, n_posterior (int): draws of the posterior left out because their line
             has no positive slope (the plates are not ordered at their τ: a = NaN), of all.
+        snap_mm (ndarray[S, C]), snap_share (ndarray[S]): ``two-mode`` noise: snap mean −
+            ride mean and the share of snapping touches (zeros otherwise). A plate then
+            reads as the mixture (1 − π)·N(m − πd, s_w) + π·N(m + (1 − π)d, s_w) with
+            mean m and sd ``sd_mm``, s_w² = sd² − π(1 − π)d² (:meth:`components`).
     """
     steps_mm: np.ndarray
     tau_s: np.ndarray
@@ -104,6 +118,8 @@ class DecoderDraws:
     floor: float = 0.0
     undecodable: int = 0
     n_posterior: int = 0
+    snap_mm: np.ndarray | None = None
+    snap_share: np.ndarray | None = None
 
     @classmethod
     def from_result(cls, result, *, rng: np.random.Generator | None = None, n_draws: int | None = None):
@@ -120,9 +136,11 @@ class DecoderDraws:
             v = np.asarray(post[name].transpose("chain", "draw", ...).values, float)
             return v.reshape((-1,) + v.shape[2:])
 
+        two = "plate_snap_mm" in post.data_vars and "snap_share" in post.data_vars
         out = cls(steps_mm=np.asarray(obs["plate_steps_mm"].values, float), tau_s=flat("tau_s"), a=flat("a"),
                   h=flat("h"), mean_mm=flat("plate_mean_mm"), sd_mm=flat("plate_sd_mm"),
-                  sharpness=float(post.attrs.get("prob_sharpness", 1.0)), floor=float(post.attrs.get("prob_floor", 0.0)))
+                  sharpness=float(post.attrs.get("prob_sharpness", 1.0)), floor=float(post.attrs.get("prob_floor", 0.0)),
+                  snap_mm=flat("plate_snap_mm") if two else None, snap_share=flat("snap_share") if two else None)
         if out.steps_mm.size < 2:
             raise ArgumentError("posterior labels", f"{out.steps_mm.size} plate", ">= 2 plates to decode")
         bad = ~np.isfinite(np.column_stack([out.tau_s, out.a, out.h, out.mean_mm, out.sd_mm])).all(axis=1)
@@ -148,8 +166,22 @@ class DecoderDraws:
                 f"do not rise with the step at their window, so no height can be decoded from them")
 
     def take(self, idx) -> "DecoderDraws":
+        two = self.snap_mm is not None
         return dataclasses.replace(self, tau_s=self.tau_s[idx], a=self.a[idx], h=self.h[idx],
-                                   mean_mm=self.mean_mm[idx], sd_mm=self.sd_mm[idx])
+                                   mean_mm=self.mean_mm[idx], sd_mm=self.sd_mm[idx],
+                                   snap_mm=self.snap_mm[idx] if two else None,
+                                   snap_share=self.snap_share[idx] if two else None)
+
+    @cached_property
+    def components(self) -> tuple[tuple[np.ndarray, ...], ...]:
+        """The plates' readings as mixtures: ((weight ndarray[S, 1], mean ndarray[S, C], sd
+        ndarray[S, C]), ...): one component (weight 1, the plate's mean and sd) unless the
+        noise is ``two-mode``, then the ride and the snap component."""
+        if self.snap_mm is None:
+            return ((np.ones((self.size, 1)), self.mean_mm, self.sd_mm),)
+        pi, d = self.snap_share[:, None], self.snap_mm
+        within = np.sqrt(np.maximum(self.sd_mm ** 2 - pi * (1 - pi) * d ** 2, (1e-6 * self.sd_mm) ** 2))
+        return ((1 - pi, self.mean_mm - pi * d, within), (pi, self.mean_mm + (1 - pi) * d, within))
 
     @property
     def size(self) -> int:
@@ -159,11 +191,28 @@ class DecoderDraws:
         """z = a_s·P − h_s (mm) for ``p_at_tau (ndarray[S, n])``, P at each draw's τ."""
         return self.a[:, None] * np.asarray(p_at_tau, float) - self.h[:, None]
 
-    def class_log_prob(self, p_at_tau: np.ndarray) -> np.ndarray:
-        """log P(plate | scan), ndarray[n, C], from ``p_at_tau (ndarray[S, n])``."""
+    def weights(self, snap: np.ndarray | None, n: int) -> list[np.ndarray]:
+        """Each component's weight for ``n`` scans, ndarray[S or 1, n]: the snap share π
+        (``two-mode`` noise, mode unknown) or the scans' own modes ``snap (ndarray[n] bool)``
+        (:func:`~feeler.calib.neuron.modes.snap_flags`); [1] with one component."""
+        if self.snap_mm is None:
+            return [np.ones((1, n))]
+        if snap is None:
+            pi = np.broadcast_to(self.snap_share[:, None], (self.size, n))
+            return [1.0 - pi, pi]
+        f = np.asarray(snap, float).reshape(1, n)
+        return [1.0 - f, f]
+
+    def class_log_prob(self, p_at_tau: np.ndarray, snap: np.ndarray | None = None) -> np.ndarray:
+        """log P(plate | scan), ndarray[n, C], from ``p_at_tau (ndarray[S, n])`` (and the
+        scans' modes, ``two-mode`` noise: :meth:`weights`)."""
         z = self.decoded(p_at_tau)[..., None]                                 # (S, n, 1)
-        m, s = self.mean_mm[:, None, :], self.sd_mm[:, None, :]
-        ll = -0.5 * ((z - m) / s) ** 2 - np.log(s)
+        parts = []
+        for w, (_, m, s) in zip(self.weights(snap, z.shape[1]), self.components):
+            m, s = m[:, None, :], s[:, None, :]
+            with np.errstate(divide="ignore"):
+                parts.append(np.log(w)[..., None] - 0.5 * ((z - m) / s) ** 2 - np.log(s))
+        ll = parts[0] if len(parts) == 1 else log_sum_exp(np.stack(parts), axis=0)
         cond = ll - log_sum_exp(ll, axis=2, keepdims=True)
         return recalibrated(log_sum_exp(cond, axis=0) - np.log(self.size), self.sharpness, self.floor)
 
@@ -179,18 +228,24 @@ class DecoderDraws:
         k = np.argmin(d, axis=1)
         return d[np.arange(d.shape[0]), k], k
 
-    def predictive_cdf(self, z: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    def predictive_cdf(self, z: np.ndarray, delta: np.ndarray, snap: np.ndarray | None = None) -> np.ndarray:
         """F(δ) = mean_s Φ((z_s − m_s(δ))/s_s(δ)) for ``z (ndarray[S, n])``, ``delta (ndarray[n])``
         (each draw's curve monotone: :func:`monotone_curve`); non-increasing in δ."""
-        curve, ends = self._monotone
-        m, s = curve_at(delta, self.steps_mm, curve, self.sd_mm, ends)
-        return ndtr((z - m) / s).mean(axis=0)
+        f = 0.0
+        for w, (_, _, s), (curve, ends) in zip(self.weights(snap, z.shape[1]), self.components, self._monotone):
+            m, s = curve_at(delta, self.steps_mm, curve, s, ends)
+            f = f + w * ndtr((z - m) / s)
+        return f.mean(axis=0)
 
     @cached_property
-    def _monotone(self) -> tuple[np.ndarray, np.ndarray]:
-        return monotone_curve(self.steps_mm, self.mean_mm)
+    def _monotone(self) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+        """Each component's curve made monotone (:func:`monotone_curve`)."""
+        if self.snap_mm is None:
+            return (monotone_curve(self.steps_mm, self.mean_mm),)
+        return tuple(monotone_curve(self.steps_mm, m, self.mean_mm) for _, m, _ in self.components)
 
-    def height(self, p_at_tau: np.ndarray, *, prob: float = 0.9, iterations: int = 60):
+    def height(self, p_at_tau: np.ndarray, snap: np.ndarray | None = None, *, prob: float = 0.9,
+               iterations: int = 60):
         """Decoded step (F = ½) and its central ``prob`` interval, three ndarray[n] (mm).
 
         Found by bisection on the monotone F, until every bracket is narrower than 10⁻⁹
@@ -200,14 +255,15 @@ class DecoderDraws:
         z = self.decoded(p_at_tau)
         n = z.shape[1]
         span = self.steps_mm[-1] - self.steps_mm[0]
-        curve, ends = self._monotone
         # past its ends each draw's curve is a line of positive slope: 12 sds beyond where it
         # meets z, F is 1 (below) or 0 (above) to 10⁻³², so the crossings lie inside
-        reach = 12 * np.max(self.sd_mm, axis=1) / np.min(ends, axis=1)                         # mm
-        below = self.steps_mm[0] - np.maximum(curve[:, :1] - z, 0.0) / ends[:, :1]
-        above = self.steps_mm[-1] + np.maximum(z - curve[:, -1:], 0.0) / ends[:, 1:]
-        lo0 = np.min(below - reach[:, None] - span, axis=0)
-        hi0 = np.max(above + reach[:, None] + span, axis=0)
+        lo0, hi0 = np.full(n, np.inf), np.full(n, -np.inf)
+        for curve, ends in self._monotone:
+            reach = 12 * np.max(self.sd_mm, axis=1) / np.min(ends, axis=1)                     # mm
+            below = self.steps_mm[0] - np.maximum(curve[:, :1] - z, 0.0) / ends[:, :1]
+            above = self.steps_mm[-1] + np.maximum(z - curve[:, -1:], 0.0) / ends[:, 1:]
+            lo0 = np.minimum(lo0, np.min(below - reach[:, None] - span, axis=0))
+            hi0 = np.maximum(hi0, np.max(above + reach[:, None] + span, axis=0))
         lo = np.repeat(lo0[:, None], 3, axis=1)
         hi = np.repeat(hi0[:, None], 3, axis=1)
         tol = 1e-9 * (span if span > 0 else 1.0)
@@ -215,7 +271,8 @@ class DecoderDraws:
             if np.max(hi - lo, initial=0.0) <= tol:
                 break
             mid = 0.5 * (lo + hi)
-            f = self.predictive_cdf(np.repeat(z, 3, axis=1), mid.reshape(-1)).reshape(n, 3)
+            f = self.predictive_cdf(np.repeat(z, 3, axis=1), mid.reshape(-1),
+                                    None if snap is None else np.repeat(snap, 3)).reshape(n, 3)
             above = f > self.belt_targets(mid, prob)            # F decreases: the crossing lies right of mid
             lo = np.where(above, mid, lo)
             hi = np.where(above, hi, mid)

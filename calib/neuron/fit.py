@@ -22,6 +22,7 @@ from feeler.calib.neuron.checks import data_problems, posterior_problems, unit_p
 from feeler.calib.neuron.data import NeuronData, data_from_scans, shared_times
 from feeler.calib.neuron.grid import sample_grid
 from feeler.calib.neuron.model import NOISE_MODELS, Plates, Priors, make_priors
+from feeler.calib.neuron.modes import snap_flags, within_noise
 from feeler.calib.neuron.recalibrate import FLOOR, LOG_GAMMA_SD, fit_sharpness
 from feeler.calib.neuron.window import (choose_noise, loo_class_log_prob, loo_elpd, tau_log_weights,
                                         usable_noise_models)
@@ -43,6 +44,9 @@ def _check_arguments(data: NeuronData, backend: str, noise: str) -> np.ndarray:
         raise ArgumentError("backend", backend, ", ".join(BACKENDS))
     if noise not in NOISE_CHOICES:
         raise ArgumentError("noise", noise, ", ".join(NOISE_CHOICES))
+    if backend != "grid" and within_noise(noise):
+        raise ArgumentError("noise", noise, f"constant, growing or per-plate with the {backend} backend (the two-mode "
+                            "models are drawn exactly, by the grid backend)")
     d = np.asarray(data.step_mm, float)
     if d.size < 4 or not np.all(np.isfinite(d)):
         raise ArgumentError("step_mm", f"{d.size} labels", "at least 4 finite labels")
@@ -117,13 +121,15 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
     d = _check_arguments(data, backend, noise)
     start = time.perf_counter()
     table = data.table()
-    plates = Plates.of(d)
+    plates = Plates.of(d, snap_flags(data.strain, d))
     pri = priors or make_priors(table)
     rng = np.random.default_rng(seed)
     names = data.scan_names if data.scan_names is not None and len(data.scan_names) == d.size else None
     problems = data_problems(table, plates, data.strain, data.length_mm, names) + unit_problems(
         table, plates, length_mm=data.length_mm, t_s=data.t_s, x_mm=data.x_mm, speed_mm_s=data.speed_mm_s)
     usable = usable_noise_models(plates)
+    if backend != "grid":                   # the two-mode models: exact draws only
+        usable = tuple(m for m in usable if not within_noise(m))
     scores: dict[str, float] = {}
     if noise == "auto":
         if usable:
@@ -173,7 +179,7 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
                                       "readout_noise_mm": ["scan"], "log_tau_grid": ["tau_grid"],
                                       "tau_log_weight": ["tau_grid"],
                                       "plate_steps_mm": ["plate"], "plate_mean_mm": ["plate"],
-                                      "plate_sd_mm": ["plate"]},
+                                      "plate_sd_mm": ["plate"], "plate_snap_mm": ["plate"]},
                                 attrs=attrs)
     seconds = time.perf_counter() - start
     if fit_problems:

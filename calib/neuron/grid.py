@@ -8,12 +8,15 @@ same diagnostics as MCMC draws (R-hat ≈ 1, bulk ESS ≈ the number of draws).
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from feeler.calib.neuron.conjugate import draw_plate_parameters
 from feeler.calib.neuron.model import PeakTable, Plates, Priors, decoder_line, plate_stats
+from feeler.calib.neuron.modes import Cells, within_noise
 
-__all__ = ["sample_grid", "draw_tau", "named_draws"]
+__all__ = ["sample_grid", "draw_tau", "named_draws", "two_mode_draws"]
 
 
 def draw_tau(log_tau_nodes: np.ndarray, log_w: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -51,7 +54,37 @@ def sample_grid(table: PeakTable, plates: Plates, priors: Priors, noise: str, lo
     """
     n = chains * draws
     tau = draw_tau(table.log_tau, log_w, n, rng)
-    mean, ss = plate_stats(table.at(tau), plates)
-    par = draw_plate_parameters(rng, mean, ss, plates, noise, priors.plate, priors.growth_max)
-    out = named_draws(tau, par["mu"], par["sigma"], par["growth"], plates, noise)
+    if within_noise(noise):
+        out = two_mode_draws(rng, tau, table.at(tau), plates, priors, within_noise(noise))
+    else:
+        mean, ss = plate_stats(table.at(tau), plates)
+        par = draw_plate_parameters(rng, mean, ss, plates, noise, priors.plate, priors.growth_max)
+        out = named_draws(tau, par["mu"], par["sigma"], par["growth"], plates, noise)
     return {k: v.reshape((chains, draws) + v.shape[1:]) for k, v in out.items()}
+
+
+def two_mode_draws(rng: np.random.Generator, tau_s: np.ndarray, peaks: np.ndarray, plates: Plates,
+                   priors: Priors, within: str = "constant") -> dict:
+    """Named draws of the ``two-mode`` model from ``peaks (ndarray[S, n_scans])`` at ``tau_s``:
+    each (plate, mode) cell's mean and σ exactly as the ``within`` (constant or growing)
+    model's plates (:mod:`.conjugate`, the cells as plates), the snap share
+    π ~ Beta(1 + snaps, 1 + rides).
+
+    Named as the other models' (a plate's mean and sd are those of its mixture of modes,
+    mm), plus ``plate_snap_mm`` (ndarray[N, C]: snap mean − ride mean, mm) and
+    ``snap_share`` (ndarray[N])."""
+    cells = Cells(plates, plates.snap)
+    mean, ss = plate_stats(peaks, cells.as_plates)
+    prior = priors.plate
+    if prior.kappa0 > 0:                    # a proper prior: m0 per (plate, mode), 2C of them; the cells' own
+        prior = dataclasses.replace(prior, m0=tuple(np.asarray(prior.m0, float)[cells.present]))
+    par = draw_plate_parameters(rng, mean, ss, cells.as_plates, within, prior, priors.growth_max)
+    ride, snap = par["mu"][:, cells.index[:, 0]], par["mu"][:, cells.index[:, 1]]
+    share = rng.beta(1.0 + cells.snaps, 1.0 + cells.rides, size=tau_s.size)
+    gap = snap - ride
+    mu = ride + share[:, None] * gap
+    sd = np.sqrt(par["sigma"][:, cells.index[:, 0]] ** 2 + (share * (1 - share))[:, None] * gap ** 2)
+    out = named_draws(tau_s, mu, sd, par["growth"], plates, "growing" if within == "growing" else "two-mode")
+    out["plate_snap_mm"] = out["a"][:, None] * gap
+    out["snap_share"] = share
+    return out

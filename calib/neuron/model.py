@@ -13,7 +13,13 @@ with the decoder noise σ_c following one of :data:`NOISE_MODELS`:
 
 - ``constant``:  σ_c = σ;
 - ``growing``:   σ_c = σ₀·exp(g·x_c), x_c = (c − c_min)/(c_max − c_min), g ~ Uniform(±g_max);
-- ``per-plate``: σ_c free.
+- ``per-plate``: σ_c free;
+- ``two-mode``:  a touch snaps onto the upper level (share π) or rides over the edge
+  (:mod:`.modes`): P_k | plate c, mode m ~ Normal(μ_cm, σ), one σ, π ~ Beta(1, 1) from
+  the training touches' modes. Every touch's mode is read from its scan, so the decoder
+  reads a new scan by its own mode's plates; without one (a live scan's first samples)
+  by the mixture (1 − π)·N(μ_c0, σ) + π·N(μ_c1, σ);
+- ``two-mode-growing``: the same with σ_c = σ₀·exp(g·x_c) (both modes of a plate alike).
 
 Priors (:class:`PlatePrior`): σ² (or σ₀²) ~ scaled-inv-χ²(ν₀, s₀²) and μ_c | σ_c ~
 Normal(m₀_c, σ_c²/κ₀); ν₀ = κ₀ = 0 (the default) is the scale-free reference prior
@@ -48,7 +54,7 @@ __all__ = ["PeakTable", "Plates", "PlatePrior", "Priors", "peak_table", "make_pr
            "decoder_line", "PARAMS", "NOISE_MODELS"]
 
 PARAMS = ("a", "tau_s", "h", "sigma_mm")
-NOISE_MODELS = ("constant", "growing", "per-plate")
+NOISE_MODELS = ("constant", "growing", "per-plate", "two-mode", "two-mode-growing")
 
 
 @dataclass(frozen=True)
@@ -104,15 +110,23 @@ class Plates:
         steps_mm (ndarray[C]): distinct steps, increasing, mm.
         group (ndarray[n_scans] int): plate index of each scan.
         counts (ndarray[C] int): scans per plate.
+        snap (ndarray[n_scans] bool | None): which scans snapped onto the upper level
+            (:mod:`.modes`; the ``two-mode`` noise model's cells), None when not read.
     """
     steps_mm: np.ndarray
     group: np.ndarray
     counts: np.ndarray
+    snap: np.ndarray | None = None
 
     @classmethod
-    def of(cls, step_mm) -> "Plates":
+    def of(cls, step_mm, snap=None) -> "Plates":
         steps, group = np.unique(np.asarray(step_mm, float), return_inverse=True)
-        return cls(steps_mm=steps, group=group, counts=np.bincount(group, minlength=steps.size))
+        return cls(steps_mm=steps, group=group, counts=np.bincount(group, minlength=steps.size),
+                   snap=None if snap is None else np.asarray(snap, bool))
+
+    def subset(self, keep) -> "Plates":
+        """The plates of the scans ``keep`` (bool or index array), their modes kept."""
+        return Plates.of(self.steps_mm[self.group[keep]], None if self.snap is None else self.snap[keep])
 
     @property
     def x(self) -> np.ndarray:
@@ -178,8 +192,12 @@ class Priors:
                         f"leave-one-out predictive of the labels (pseudo-BMA)",
                "plates": f"peak window sum of plate c ~ Normal(mu_c, sigma_c), noise {noise}; {sd}",
                "a, h": "least-squares line mu_c = (c + h)/a through the plate means (derived)"}
-        if noise == "growing":
+        if noise in ("growing", "two-mode-growing"):
             out["growth"] = f"sigma_c = sigma_0 exp(g x_c), g ~ Uniform(-{self.growth_max:g}, {self.growth_max:g})"
+        if noise in ("two-mode", "two-mode-growing"):
+            out["modes"] = ("each touch snaps onto the upper level or rides over the edge (read from its scan: its "
+                            "largest one-frame rise against its whole rise); plate c, mode m ~ Normal(mu_cm, sigma_c); "
+                            "snap share pi ~ Beta(1, 1)")
         return out
 
     def bounds(self) -> dict[str, tuple[float, float]]:

@@ -7,20 +7,23 @@ simulator draws exactly from the prior the fit uses. The window is known (the τ
 are a model-averaging device over decoders, not a parameter with a likelihood — see
 :mod:`.model`), so the fit reads the simulated peaks at that window and draws the plate
 parameters with the exact backend. Ranks are checked for every plate mean and sd, the
-growth of the spread (``growing``), and for the derived line (a, h), the decoded-height
+growth of the spread (``growing``), the snap share and offsets (two-mode models: the
+touches' modes are drawn with the rest), and for the derived line (a, h), the decoded-height
 means and sds and ``sigma_mm`` (functions of the parameters are rank-uniform too).
 """
 from __future__ import annotations
 
+import dataclasses
 from functools import partial
 
 import numpy as np
 
 from feeler.calib.neuron.grid import named_draws, sample_grid
 from feeler.calib.neuron.model import PlatePrior, Plates, Priors, plate_stats
+from feeler.calib.neuron.modes import Cells, snap_flags, within_noise
 from feeler.calib.neuron.synth import FOUR_PLATES, Truth, scene_scans, simulate_peaks, single_window_table
 
-__all__ = ["neuron_sbc_problem", "sbc_priors", "simulate_neuron", "fit_neuron_draws"]
+__all__ = ["neuron_sbc_problem", "sbc_priors", "simulate_neuron", "simulate_two_mode", "fit_neuron_draws"]
 
 
 def sbc_priors(peaks: np.ndarray, plates: Plates, tau_s: float, *, nu0: float = 6.0, kappa0: float = 1.0,
@@ -61,9 +64,41 @@ def simulate_neuron(rng: np.random.Generator, *, plates: Plates, priors: Priors,
     return _named_truth(mu, sigma, growth, plates, noise, tau_s), peaks
 
 
+def simulate_two_mode(rng: np.random.Generator, *, plates: Plates, priors: Priors, noise: str, tau_s: float):
+    """One (truth, (peaks, snap flags)) pair from the prior predictive of a two-mode model:
+    π ~ Beta(1, 1); each touch of a plate with a riser snaps with probability π; σ (and
+    the growth) as the one-mode model's; each (plate, mode) cell's mean ~ Normal(m0, σ²/κ₀)
+    (``priors.plate.m0``: 2C values, ride then snap per plate). A mode no touch of a plate
+    shows has no mean of its own: the model reads that plate by its one mode, in the truth
+    as in the fit (:class:`~feeler.calib.neuron.modes.Cells`)."""
+    p = priors.plate
+    C = plates.steps_mm.size
+    within = within_noise(noise)
+    share = float(rng.beta(1.0, 1.0))
+    snap = (rng.random(plates.group.size) < share) & (plates.steps_mm[plates.group] > 0)
+    growth = float(rng.uniform(-priors.growth_max, priors.growth_max)) if within == "growing" else 0.0
+    sigma = np.sqrt(p.nu0 * p.s0_sq / rng.chisquare(p.nu0)) * np.exp(growth * plates.x)         # (C,)
+    mu = np.asarray(p.m0, float) + np.repeat(sigma, 2) / np.sqrt(p.kappa0) * rng.standard_normal(2 * C)
+    cells = Cells(Plates.of(plates.steps_mm[plates.group], snap), snap)
+    mu_cells = mu[cells.present]
+    ride, snapped = mu_cells[cells.index[:, 0]], mu_cells[cells.index[:, 1]]
+    peaks = np.where(snap, snapped[plates.group], ride[plates.group]) + sigma[plates.group] * rng.standard_normal(
+        plates.group.size)
+    gap = snapped - ride
+    truth = _named_truth(ride + share * gap, np.sqrt(sigma ** 2 + share * (1 - share) * gap ** 2), growth, plates,
+                         "growing" if within == "growing" else noise, tau_s)
+    a = truth["a"]
+    truth.update({f"plate_snap_mm[{c}]": float(a * g) for c, g in enumerate(gap)}, snap_share=share)
+    return truth, (peaks, snap)
+
+
 def fit_neuron_draws(peaks, rng: np.random.Generator, *, plates: Plates, priors: Priors, noise: str, tau_s: float,
                      n_draws: int = 999) -> dict:
-    """Independent exact draws ``name -> ndarray[n_draws]`` at the known window."""
+    """Independent exact draws ``name -> ndarray[n_draws]`` at the known window (``peaks``
+    a pair (peaks, snap flags) for a two-mode model)."""
+    if within_noise(noise):
+        peaks, snap = peaks
+        plates = Plates.of(plates.steps_mm[plates.group], snap)
     table = single_window_table(peaks, tau_s)
     post = sample_grid(table, plates, priors, noise, np.zeros(2), chains=1, draws=n_draws, rng=rng)
     out = {}
@@ -88,5 +123,11 @@ def neuron_sbc_problem(scene_path=FOUR_PLATES, *, noise: str = "growing", per_pl
     plates = Plates.of(data.step_mm)
     peaks = neuron.peak_window_sum(data.strain, data.t_s, tau=tau, kernel=data.kernel)
     priors = sbc_priors(peaks, plates, tau)
+    if within_noise(noise):             # m0 per (plate, mode): the scene's own cell means (a missing mode: the other's)
+        cells = Cells(plates, snap_flags(data.strain, data.step_mm))
+        mean, _ = plate_stats(peaks, cells.as_plates)
+        priors = dataclasses.replace(priors, plate=dataclasses.replace(
+            priors.plate, m0=tuple(float(v) for v in mean[cells.index].reshape(-1))))
     kw = dict(plates=plates, priors=priors, noise=noise, tau_s=tau)
-    return partial(simulate_neuron, **kw), partial(fit_neuron_draws, **kw)
+    simulate = simulate_two_mode if within_noise(noise) else simulate_neuron
+    return partial(simulate, **kw), partial(fit_neuron_draws, **kw)

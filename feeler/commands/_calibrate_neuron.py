@@ -31,8 +31,12 @@ def register(parser) -> None:
                         help="grid (exact, default), PyMC NUTS, or emcee")
     parser.add_argument("--length-mm", type=float, default=None,
                         help="representative length for strain = U_y / length, mm (default: the scene's)")
-    parser.add_argument("--noise", choices=("auto", "constant", "growing", "per-plate"), default="auto",
-                        help="decoder noise model (default auto: chosen by leave-one-out prediction)")
+    parser.add_argument("--noise", choices=("auto", "constant", "growing", "per-plate", "two-mode", "two-mode-growing"),
+                        default="auto",
+                        help="decoder noise model (default auto: chosen by leave-one-out prediction). two-mode: "
+                             "touches that snap onto the upper level and touches that ride over the edge (read "
+                             "from each scan) get their own mean, one sd; two-mode-growing: that sd grows with the "
+                             "step. Grid backend only")
     parser.add_argument("--emcee-steps", type=int, default=None,
                         help="emcee: cap on steps per walker (default: run until 50 autocorrelation times, "
                              "at most 200000 steps)")

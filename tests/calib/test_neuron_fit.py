@@ -8,7 +8,7 @@ import pytest
 
 from feeler.calib.neuron import fit_neuron, peak_table
 from feeler.calib.neuron.grid import sample_grid
-from feeler.calib.neuron.model import Plates, make_priors
+from feeler.calib.neuron.model import NOISE_MODELS, Plates, make_priors
 from feeler.calib.neuron.synth import Truth, scene_scans, simulate_peaks, single_window_table
 from feeler.errors import ArgumentError
 from feeler.models import neuron
@@ -44,7 +44,7 @@ def test_shipped_four_plates_fit_passes_every_check(shipped):
     attrs = shipped.posterior["posterior"].attrs
     checks = json.loads(attrs["checks"])
     print("\nnoise", attrs["noise"], json.loads(attrs["noise_scores"]), checks)
-    assert attrs["noise"] in ("constant", "growing", "per-plate")
+    assert attrs["noise"] in NOISE_MODELS
     assert all(0.75 <= c <= 1.0 for c in checks["loo_coverage90"]) and min(checks["p_ordered"]) == 1.0
     assert checks["tau_spread_of_prior"] < 0.3                     # the window is pinned
     s = shipped.summary.set_index("name")
@@ -69,7 +69,7 @@ def test_recovery_of_plate_parameters_at_a_known_window():
     assert hits.min() >= 9                                  # P(≥ 9 of 12 | 0.95) = 0.998 each
 
 
-@pytest.mark.parametrize("noise", ["constant", "growing", "per-plate"])
+@pytest.mark.parametrize("noise", ["constant", "growing", "per-plate", "two-mode", "two-mode-growing"])
 def test_sbc_ranks_uniform(noise):
     from feeler.calib.neuron.sbc import neuron_sbc_problem
     from feeler.calib.sbc import run_sbc
@@ -191,7 +191,7 @@ def test_a_fit_with_a_few_undecodable_draws_is_summarised_and_judged_without_the
     _, _, data = scene_scans(path, seed=seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = fit_neuron(data, seed=10)
+        res = fit_neuron(data, seed=10, noise="growing")     # the model these draws were found with
     a = res.posterior["posterior"]["a"].values
     assert int(np.sum(~np.isfinite(a))) == 2
     s = res.summary.set_index("name")
@@ -202,6 +202,6 @@ def test_a_fit_with_a_few_undecodable_draws_is_summarised_and_judged_without_the
     run = tmp_path / "run"
     assert main(["simulate", str(path), "--seed", str(seed), "--out", str(run), "--no-progress"]) == 0
     capsys.readouterr()
-    assert main(["calibrate", "neuron", str(run), "--seed", "10", "--no-progress"]) == 1
+    assert main(["calibrate", "neuron", str(run), "--seed", "10", "--noise", "growing", "--no-progress"]) == 1
     out = capsys.readouterr().out
     assert "note: 2 of 4000 posterior draws left out" in out and "no finite" not in out

@@ -83,6 +83,7 @@ def test_loo_class_log_prob_equals_refitting_without_each_scan(noise):
 def test_fit_records_the_sharpness_and_classify_applies_it():
     """The fit stores γ and ε; classify's probabilities are the unsharpened pool of the
     same draws, recalibrated with them (and an older posterior without them is unchanged)."""
+    from feeler.calib.neuron.classify import scan_modes
     from feeler.calib.neuron.synth import scene_scans
 
     _, _, train = scene_scans(seed=11, per_plate=8)
@@ -94,7 +95,9 @@ def test_fit_records_the_sharpness_and_classify_applies_it():
     c = classify(res, train.strain[:6], train.t_s, rng=np.random.default_rng(0))
     dec = DecoderDraws.from_result(res, rng=np.random.default_rng(0), n_draws=400)
     assert (dec.sharpness, dec.floor) == (gamma, floor)
-    raw = DecoderDraws(dec.steps_mm, dec.tau_s, dec.a, dec.h, dec.mean_mm, dec.sd_mm).class_log_prob(c.p_at_tau)
+    raw = DecoderDraws(dec.steps_mm, dec.tau_s, dec.a, dec.h, dec.mean_mm, dec.sd_mm, snap_mm=dec.snap_mm,
+                       snap_share=dec.snap_share).class_log_prob(c.p_at_tau, scan_modes(train.strain[:6])
+                                                                 if dec.snap_mm is not None else None)
     np.testing.assert_allclose(c.log_prob, recalibrated(raw, gamma, floor), rtol=1e-12, atol=1e-12)
 
 

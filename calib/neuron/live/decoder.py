@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from feeler.calib.neuron.classify import scan_modes
 from feeler.calib.neuron.live.envelope import early_spike, median_of, readout_noise_mm, spike_problem
 from feeler.errors import ArgumentError
 
@@ -100,12 +101,12 @@ class LiveState:
 class _Height:
     """The decoded height of one P (ndarray[S]), computed once, when first asked."""
 
-    def __init__(self, dec, p_at_tau):
-        self.dec, self.p, self.value = dec, p_at_tau, None
+    def __init__(self, dec, p_at_tau, mode=None):
+        self.dec, self.p, self.mode, self.value = dec, p_at_tau, mode, None
 
     def get(self) -> tuple[float, float, float]:
         if self.value is None:
-            self.value = tuple(float(v[0]) for v in self.dec.height(self.p[:, None]))
+            self.value = tuple(float(v[0]) for v in self.dec.height(self.p[:, None], self.mode))
         return self.value
 
 
@@ -185,11 +186,22 @@ class LiveDecoder:
         self._decision = None
         self._answer = self._answer_of(np.zeros(self.dec.size))
 
-    def _answer_of(self, p: np.ndarray):
+    def _mode(self) -> np.ndarray | None:
+        """The scan's mode so far (``two-mode`` fits: did it snap onto the upper level,
+        :func:`~feeler.calib.neuron.classify.scan_modes`, read on the samples so far; at
+        the end of the scan the mode ``classify`` reads), ndarray[1] bool; None otherwise."""
+        if self.dec.snap_mm is None:
+            return None
+        if len(self._uy) < 3:
+            return np.zeros(1, bool)
+        return scan_modes(np.asarray(self._uy, float)[None, :])
+
+    def _answer_of(self, p: np.ndarray, mode: np.ndarray | None = None):
         col = p[:, None]
-        prob = np.exp(self.dec.class_log_prob(col)[0])
+        prob = np.exp(self.dec.class_log_prob(col, mode)[0])
         distance, nearest = self.dec.plate_distance(col)
-        return prob, _Height(self.dec, p), median_of(self.dec.decoded(col)), (float(distance[0]), int(nearest[0]))
+        return (prob, _Height(self.dec, p, mode), median_of(self.dec.decoded(col)), (float(distance[0]), int(nearest[0])),
+                mode)
 
     @property
     def p_at_tau(self) -> np.ndarray:
@@ -216,8 +228,8 @@ class LiveDecoder:
             self._t0, self._x0 = t, (np.nan if x_mm is None else float(x_mm))
         self._x1 = np.nan if x_mm is None else float(x_mm)
         if grew:
-            self._answer = self._answer_of(self.p_at_tau)
-        prob, height, z, _ = self._answer
+            self._answer = self._answer_of(self.p_at_tau, self._mode())
+        prob, height, z, _, _ = self._answer
         now = median_of(self.at_draws(self.sums.u))
         peak = median_of(self.p_at_tau)
         peaked = bool(peak > self._floor and now < (1.0 - self.drop) * peak)
@@ -265,7 +277,7 @@ class LiveDecoder:
         if peaked or final:                     # the reading is the scan's once its response has peaked
             if spike:
                 out.append(spike)
-            _, height, _, (distance, k) = self._answer
+            _, height, _, (distance, k), _ = self._answer
             if distance > self.env.plate_sds:   # the height (a bisection) only for the message
                 out.append(self.env.plates(distance, float(self.plates_mm[k]), height.get()[0]))
         return out
@@ -287,6 +299,11 @@ class LiveDecoder:
         if self._state is None:
             raise ArgumentError("scan", "no samples", "at least one sample before finish()")
         s = self._state
+        mode = self._mode()
+        if mode is not None and bool(mode[0]) != bool(self._answer[4][0]):     # the whole scan's mode, as classify
+            self._answer = self._answer_of(self.p_at_tau, mode)
+            s = LiveState(s.n, s.t_s, self._answer[0], self._answer[1], s.z_mm, s.peaked, s.decision, s.new_decision,
+                          s.flags)
         flags = tuple(self._flags(s.t_s, final=True))
         new = False
         k = int(np.argmax(s.prob))

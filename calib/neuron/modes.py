@@ -1,0 +1,94 @@
+"""Two ways over a riser: a touch snaps onto the upper level or rides over the edge.
+
+On a fraction of touches the tip sticks at the riser and snaps up in one frame; on the
+others it rides over as the face passes the edge (:mod:`feeler.models.probe`). The peak
+window sum P of a snapping touch is higher: with the touches' true mode, P's sd within a
+mode is about the same on every plate (hard/few-scans at τ = 4 s: 0.0037–0.0047) and the
+snap − ride offset grows with the step (0.0071, 0.0102, 0.0102). A plate's touches are
+then two modes mixed: their spread grows with the step and is flatter than Gaussian, and a
+Gaussian band with the right mean and sd holds more than 90 % of them (0.935 on
+few-scans' top plate). The ``two-mode`` noise models (:func:`.grid.two_mode_draws`)
+describe each plate by a ride mean and a snap mean, an sd (constant, or growing with the
+step) and the share of snapping touches; a scan is decoded by its own mode's curve.
+
+The mode of a touch, training or new, is read from its scan: a snap takes most of the rise in one
+frame, a ride spreads it over the frames the pad needs to pass the edge. :func:`snap_flags`
+calls a touch a snap when its largest one-frame rise of U_y is more than
+:data:`SNAP_SHARE` of its whole rise. On the hard scenes (60 touches a plate, truth flags
+from the simulator) the ratio is 0.75–1.2 for snaps (5–95 %) and 0.2–0.6 for rides on
+steps of 30 um and more; on 10–20 um steps the read-out noise blurs it (rides up to 0.94).
+On a plate of step 0 there is no riser: its touches count as rides.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from feeler.calib.neuron.model import Plates
+
+__all__ = ["SNAP_SHARE", "snap_flags", "Cells", "TWO_MODE", "within_noise"]
+
+#: the two-mode noise models and the noise of P within a (plate, mode) cell
+TWO_MODE = {"two-mode": "constant", "two-mode-growing": "growing"}
+
+
+def within_noise(noise: str) -> str | None:
+    """The noise within a cell of a two-mode model (``constant`` or ``growing``); None for
+    the one-mode models."""
+    return TWO_MODE.get(noise)
+
+#: a touch snaps when its largest one-frame rise exceeds this share of its whole rise
+SNAP_SHARE = 2.0 / 3.0
+
+
+def snap_flags(strain: np.ndarray, step_mm: np.ndarray) -> np.ndarray:
+    """Snapping touches, ndarray[n_scans] bool, of ``strain (ndarray[n_scans, n_time])``
+    labelled ``step_mm``: the largest one-frame rise over the whole rise (the medians of
+    the last and first tenth of the scan) above :data:`SNAP_SHARE`; never on a plate of
+    step ≤ 0 or a scan that does not rise."""
+    s = np.atleast_2d(np.asarray(strain, float))
+    if s.shape[1] < 3:                                          # no rise to tell apart
+        return np.zeros(s.shape[0], bool)
+    k = max(2, s.shape[1] // 10)
+    total = np.median(s[:, -k:], axis=1) - np.median(s[:, :k], axis=1)
+    jump = np.max(np.diff(s, axis=1), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        snap = (total > 0) & (jump > SNAP_SHARE * total)
+    return snap & (np.asarray(step_mm, float) > 0)
+
+
+class Cells:
+    """The (plate, mode) cells of a training set.
+
+    Attributes:
+        plates (Plates): the plates.
+        snap (ndarray[n_scans] bool): each scan's mode.
+        present (ndarray[2C] bool): which (plate, mode) cells hold scans, ride then snap
+            per plate.
+        index (ndarray[C, 2] int): the cell of (plate, ride) and (plate, snap), counting
+            only cells that hold scans; a mode no scan of a plate shows takes the other
+            mode's cell (its mean is the plate's only mean).
+        as_plates (Plates): the cells as plates (one mean each, at their plate's step: a
+            growing noise grows with the plate), for the pooled noise models.
+        snaps, rides (int): touches of each mode on plates with a riser (step > 0).
+    """
+
+    def __init__(self, plates: Plates, snap: np.ndarray):
+        self.plates = plates
+        self.snap = np.asarray(snap, bool)
+        raw = 2 * plates.group + self.snap                                     # (n,)
+        present = np.bincount(raw, minlength=2 * plates.steps_mm.size) > 0
+        self.present = present                                                 # (2C,) ride, snap per plate
+        compact = np.cumsum(present) - 1
+        idx = np.where(present, compact, -1).reshape(-1, 2)
+        idx = np.where(idx < 0, idx[:, ::-1], idx)                             # empty mode: the other one's
+        self.index = idx
+        group = compact[raw]
+        self.as_plates = Plates(steps_mm=np.repeat(plates.steps_mm, 2)[present], group=group,
+                                counts=np.bincount(group, minlength=int(present.sum())))
+        riser = plates.steps_mm[plates.group] > 0
+        self.snaps = int(np.sum(self.snap & riser))
+        self.rides = int(np.sum(~self.snap & riser))
+
+    @property
+    def size(self) -> int:
+        return int(self.as_plates.steps_mm.size)
