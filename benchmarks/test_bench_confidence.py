@@ -8,7 +8,9 @@ window of 0.7 s (near the prior's 0.5 s bound, shorter than the ride over the fa
 One control, ``datasets-synthetic/controls/few-scans-no-snap.toml``: few-scans (same
 seeds) with no touch snapping onto the upper level. Where half the touches snap and half
 ride over the edge, a plate's touches are two modes mixed, flatter than Gaussian, and a
-Gaussian band covers the upper plates above 0.95; without snapping it should not.
+Gaussian band covered the upper plates above 0.95; the two-mode models read each touch's
+mode from its scan (:mod:`feeler.calib.neuron.modes`). Without snapping the one-mode
+models describe the touches; the control shows the default choice does no harm there.
 Per scene, ``REPLICATES`` training sets (the scene with seeds seed+1…) are fitted with the
 default backend, and each classifies its own ``FRESH`` fresh touches per plate (seeds
 seed + 10⁶ + r: independent test sets, so the ECE's sampling noise shrinks with every
