@@ -103,8 +103,8 @@ class DecoderDraws:
         sharpness, floor (float): γ and ε of the plate probabilities (:mod:`.recalibrate`).
         undecodable, n_posterior (int): draws of the posterior left out because their line
             has no positive slope (the plates are not ordered at their τ: a = NaN), of all.
-        snap_mm (ndarray[S, C]), snap_share (ndarray[S]): ``two-mode`` noise: snap mean −
-            ride mean and the share of snapping touches (zeros otherwise). A plate then
+        snap_mm (ndarray[S, C]), snap_share (ndarray[S]): two-mode noise: snap mean −
+            ride mean and the share of snapping touches (None otherwise). A plate then
             reads as the mixture (1 − π)·N(m − πd, s_w) + π·N(m + (1 − π)d, s_w) with
             mean m and sd ``sd_mm``, s_w² = sd² − π(1 − π)d² (:meth:`components`).
     """
@@ -173,15 +173,15 @@ class DecoderDraws:
                                    snap_share=self.snap_share[idx] if two else None)
 
     @cached_property
-    def components(self) -> tuple[tuple[np.ndarray, ...], ...]:
-        """The plates' readings as mixtures: ((weight ndarray[S, 1], mean ndarray[S, C], sd
-        ndarray[S, C]), ...): one component (weight 1, the plate's mean and sd) unless the
-        noise is ``two-mode``, then the ride and the snap component."""
+    def components(self) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+        """The plates' readings as components ((mean ndarray[S, C], sd ndarray[S, C]), ...):
+        one (the plate's mean and sd) unless the noise is two-mode, then the ride and the
+        snap component (their weights: :meth:`weights`)."""
         if self.snap_mm is None:
-            return ((np.ones((self.size, 1)), self.mean_mm, self.sd_mm),)
+            return ((self.mean_mm, self.sd_mm),)
         pi, d = self.snap_share[:, None], self.snap_mm
         within = np.sqrt(np.maximum(self.sd_mm ** 2 - pi * (1 - pi) * d ** 2, (1e-6 * self.sd_mm) ** 2))
-        return ((1 - pi, self.mean_mm - pi * d, within), (pi, self.mean_mm + (1 - pi) * d, within))
+        return ((self.mean_mm - pi * d, within), (self.mean_mm + (1 - pi) * d, within))
 
     @property
     def size(self) -> int:
@@ -208,7 +208,7 @@ class DecoderDraws:
         scans' modes, ``two-mode`` noise: :meth:`weights`)."""
         z = self.decoded(p_at_tau)[..., None]                                 # (S, n, 1)
         parts = []
-        for w, (_, m, s) in zip(self.weights(snap, z.shape[1]), self.components):
+        for w, (m, s) in zip(self.weights(snap, z.shape[1]), self.components):
             m, s = m[:, None, :], s[:, None, :]
             with np.errstate(divide="ignore"):
                 parts.append(np.log(w)[..., None] - 0.5 * ((z - m) / s) ** 2 - np.log(s))
@@ -230,9 +230,10 @@ class DecoderDraws:
 
     def predictive_cdf(self, z: np.ndarray, delta: np.ndarray, snap: np.ndarray | None = None) -> np.ndarray:
         """F(δ) = mean_s Φ((z_s − m_s(δ))/s_s(δ)) for ``z (ndarray[S, n])``, ``delta (ndarray[n])``
-        (each draw's curve monotone: :func:`monotone_curve`); non-increasing in δ."""
+        (each draw's curve monotone: :func:`monotone_curve`); non-increasing in δ. Two-mode
+        noise: Σ_m w_m Φ over the components' curves (:meth:`weights` of ``snap``)."""
         f = 0.0
-        for w, (_, _, s), (curve, ends) in zip(self.weights(snap, z.shape[1]), self.components, self._monotone):
+        for w, (_, s), (curve, ends) in zip(self.weights(snap, z.shape[1]), self.components, self._monotone):
             m, s = curve_at(delta, self.steps_mm, curve, s, ends)
             f = f + w * ndtr((z - m) / s)
         return f.mean(axis=0)
@@ -242,7 +243,7 @@ class DecoderDraws:
         """Each component's curve made monotone (:func:`monotone_curve`)."""
         if self.snap_mm is None:
             return (monotone_curve(self.steps_mm, self.mean_mm),)
-        return tuple(monotone_curve(self.steps_mm, m, self.mean_mm) for _, m, _ in self.components)
+        return tuple(monotone_curve(self.steps_mm, m, self.mean_mm) for m, _ in self.components)
 
     def height(self, p_at_tau: np.ndarray, snap: np.ndarray | None = None, *, prob: float = 0.9,
                iterations: int = 60):
