@@ -1,7 +1,7 @@
 """The live decoder (issue 13): per-sample cost against the sample period, idle and under
 load, and the decision latency / accuracy trade over decision thresholds.
 
-Scene: ``datasets-synthetic/hard/close-steps.toml`` (steps 0.05–0.08 mm, 0.5 s frames;
+Scene: ``datasets-synthetic/hard/close-steps.toml`` (steps 0.05–0.0725 mm, 0.5 s frames;
 plates not trivially separable: batch accuracy well below 100 %). One fit on the scene's
 training touches (the default grid backend); ``FRESH`` fresh touches per plate (seed + 10⁶)
 streamed sample by sample through :class:`~feeler.calib.neuron.live.LiveDecoder` at the
