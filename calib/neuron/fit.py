@@ -22,7 +22,7 @@ from feeler.calib.neuron.checks import data_problems, posterior_problems, unit_p
 from feeler.calib.neuron.data import NeuronData, data_from_scans, shared_times
 from feeler.calib.neuron.grid import sample_grid
 from feeler.calib.neuron.model import NOISE_MODELS, Plates, Priors, make_priors
-from feeler.calib.neuron.modes import snap_flags, within_noise
+from feeler.calib.neuron.modes import Cells, snap_flags, within_noise
 from feeler.calib.neuron.recalibrate import FLOOR, LOG_GAMMA_SD, fit_sharpness
 from feeler.calib.neuron.window import (choose_noise, loo_class_log_prob, loo_elpd, tau_log_weights,
                                         usable_noise_models)
@@ -163,6 +163,8 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
     info["window_edge"] = window_edge_notes(post["tau_s"], pri)
     attrs = {"model": "neuron", "length_mm": data.length_mm, "kernel": data.kernel, "noise": noise,
              "noise_scores": json.dumps(scores), "checks": json.dumps(info),
+             "touch_modes": json.dumps({"snaps": Cells(plates, plates.snap).snaps,
+                                        "rides": Cells(plates, plates.snap).rides}),
              "prob_sharpness": sharpness, "prob_floor": FLOOR}
     if "loo_coverage90" in info:                      # overall, kept for readers of the earlier attribute
         cover = np.asarray(info["loo_coverage90"], float)

@@ -4,7 +4,10 @@ DATASET is a run directory of a robot-scan scene (scans.csv + scene.toml, as wri
 `feeler simulate` or `feeler acquire`), or a scans.csv with --length-mm. Each scan's
 label is its plate's step (mm). P_k(τ) is the peak window sum of strain = U_y / length;
 per plate, P ~ Normal(μ_c, σ_c) with the noise σ_c constant, growing with the step, or
-free per plate (--noise; auto picks by leave-one-out prediction of the labels). The
+free per plate; or per plate and mode (two-mode, two-mode-growing): a touch snaps onto
+the upper level or rides over the edge, read from its scan, and each has its own mean
+(--noise; auto picks by leave-one-out prediction of the labels, a two-mode model when the
+touches show both modes unless a one-mode one predicts clearly better). The
 window τ is weighted by how well the decoder predicts each left-out label; the decoded
 height is z = a·P − h on the least-squares line through the plates. Backends: grid
 (exact, default, fastest), nuts (PyMC), emcee (runs until its chains are 50
@@ -83,8 +86,14 @@ def run(args) -> int:
     scores = json.loads(attrs.get("noise_scores", "{}"))
     checks = json.loads(attrs.get("checks", "{}"))
     steps = result.posterior["observed_data"]["plate_steps_mm"].values
+    modes = json.loads(attrs.get("touch_modes", "{}"))
+    why = ""
+    if str(attrs["noise"]).startswith("two-mode") and modes:
+        why = (f"; {modes['snaps']} of {modes['snaps'] + modes['rides']} touches of plates with a riser snapped onto "
+               f"the upper level, the others rode over the edge, and each is read by its mode (chosen unless a "
+               f"one-mode model scores better by two standard errors: left out, a touch takes its cell's mean with it)")
     print(f"decoder noise: {attrs['noise']}" + (" (leave-one-out log score per scan: " + ", ".join(
-        f"{k} {v / scans.step_mm.size:+.3f}" for k, v in scores.items()) + ")" if scores else ""))
+        f"{k} {v / scans.step_mm.size:+.3f}" for k, v in scores.items()) + ")" if scores else "") + why)
     if "loo_coverage90" in checks:
         print("posterior predictive check (leave-one-out): labels inside their 90 % interval per plate: " + ", ".join(
             f"{s + 0.0:g} mm " + (f"{100 * c:.0f} %" if c == c else "- (one scan)")

@@ -183,3 +183,17 @@ def test_the_two_mode_models_are_the_grid_backends(backend):
     _, _, data = scene_scans(per_plate=4)
     with pytest.raises(ArgumentError, match="two-mode models are drawn exactly"):
         fit_neuron(data, backend=backend, noise="two-mode")
+
+
+def test_the_cli_says_why_a_two_mode_model_was_chosen(capsys, tmp_path):
+    """Its leave-one-out score can be below a one-mode model's; the line says what the
+    touches showed and why it was chosen anyway."""
+    from feeler.cli import main
+
+    run = tmp_path / "run"
+    assert main(["simulate", str(HARD_SCENES / "few-scans.toml"), "--out", str(run), "--no-progress"]) == 0
+    capsys.readouterr()
+    main(["calibrate", "neuron", str(run), "--no-progress"])
+    line = next(s for s in capsys.readouterr().out.splitlines() if s.startswith("decoder noise:"))
+    assert line.startswith("decoder noise: two-mode") and "touches of plates with a riser snapped onto the upper" in line
+    assert "two standard errors" in line
