@@ -232,11 +232,21 @@ class DecoderDraws:
         """F(δ) = mean_s Φ((z_s − m_s(δ))/s_s(δ)) for ``z (ndarray[S, n])``, ``delta (ndarray[n])``
         (each draw's curve monotone: :func:`monotone_curve`); non-increasing in δ. Two-mode
         noise: Σ_m w_m Φ over the components' curves (:meth:`weights` of ``snap``)."""
-        f = 0.0
-        for w, (_, s), (curve, ends) in zip(self.weights(snap, z.shape[1]), self.components, self._monotone):
-            m, s = curve_at(delta, self.steps_mm, curve, s, ends)
-            f = f + w * ndtr((z - m) / s)
-        return f.mean(axis=0)
+        if self.snap_mm is not None and snap is not None:      # each scan by its own mode's component alone
+            snap = np.asarray(snap, bool)
+            f = np.empty(z.shape[1])
+            for k, sel in ((0, ~snap), (1, snap)):
+                if sel.any():
+                    f[sel] = self._component_cdf(k, z[:, sel], delta[sel]).mean(axis=0)
+            return f
+        return sum(w * self._component_cdf(k, z, delta)
+                   for k, w in enumerate(self.weights(snap, z.shape[1]))).mean(axis=0)
+
+    def _component_cdf(self, k: int, z: np.ndarray, delta: np.ndarray) -> np.ndarray:
+        """Φ((z_s − m_s(δ))/s_s(δ)) of component ``k`` (:attr:`components`), ndarray[S, n]."""
+        curve, ends = self._monotone[k]
+        m, s = curve_at(delta, self.steps_mm, curve, self.components[k][1], ends)
+        return ndtr((z - m) / s)
 
     @cached_property
     def _monotone(self) -> tuple[tuple[np.ndarray, np.ndarray], ...]:

@@ -161,10 +161,10 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
                                             scan_names=names)
     problems += fit_problems
     info["window_edge"] = window_edge_notes(post["tau_s"], pri)
+    cells = Cells(plates, plates.snap)
     attrs = {"model": "neuron", "length_mm": data.length_mm, "kernel": data.kernel, "noise": noise,
              "noise_scores": json.dumps(scores), "checks": json.dumps(info),
-             "touch_modes": json.dumps({"snaps": Cells(plates, plates.snap).snaps,
-                                        "rides": Cells(plates, plates.snap).rides}),
+             "touch_modes": json.dumps({"snaps": cells.snaps, "rides": cells.rides}),
              "prob_sharpness": sharpness, "prob_floor": FLOOR}
     if "loo_coverage90" in info:                      # overall, kept for readers of the earlier attribute
         cover = np.asarray(info["loo_coverage90"], float)

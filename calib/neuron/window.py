@@ -28,7 +28,7 @@ from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
 from feeler.calib.neuron.model import NOISE_MODELS, PeakTable, PlatePrior, Plates, plate_stats
 from feeler.calib.neuron.modes import Cells, within_noise
 
-__all__ = ["alone", "loo_plates", "loo_class_log_prob", "loo_elpd", "choose_noise", "tau_log_weights", "continuous_log_density", "mixture_log_density",
+__all__ = ["alone", "loo_plates", "loo_class_log_prob", "loo_elpd", "choose_noise", "tau_log_weights", "continuous_log_density",
            "loo_two_mode", "usable_noise_models"]
 
 
@@ -69,25 +69,6 @@ def continuous_log_density(p, c_index, mu, s, steps) -> np.ndarray:
     the integral ∫ N(p; u, s(u)) du equals ∫ φ(t)/(1 − κt) dt, κ = ds/du: a smooth
     integrand, done by Gauss–Legendre; past the end plates the spread is constant and the
     integral is a difference of Φ."""
-    num, z = _density_parts(p, c_index, mu, s, steps)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        out = num - np.log(z)
-    return np.where(np.isfinite(out), out, -np.inf)
-
-
-def mixture_log_density(p, c_index, curves, weights, steps) -> np.ndarray:
-    """:func:`continuous_log_density` of a mixture of calibration curves: ``curves`` a list
-    of (mu, s) pairs, ``weights`` a list of ndarray[...] (summing to 1):
-    log Σ_m w_m N(p; μ_m,c, s_m,c) − log Σ_m w_m ∫ N(p; μ_m(δ), s_m(δ)) dδ."""
-    nums, zs = zip(*(_density_parts(p, c_index, mu, s, steps) for mu, s in curves))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        num = logsumexp(np.stack(nums), axis=0, b=np.stack(weights))
-        out = num - np.log(sum(w * z for w, z in zip(weights, zs)))
-    return np.where(np.isfinite(out), out, -np.inf)
-
-
-def _density_parts(p, c_index, mu, s, steps):
-    """(log N(p; μ_c, s_c), ∫ N(p; μ(δ), s(δ)) dδ) of :func:`continuous_log_density`."""
     steps = np.asarray(steps, float)
     dc = np.diff(steps)
     dm = np.diff(mu, axis=-1)
@@ -103,7 +84,8 @@ def _density_parts(p, c_index, mu, s, steps):
         m_c = np.take_along_axis(mu, c_index[..., None], axis=-1)[..., 0]
         s_c = np.take_along_axis(s, c_index[..., None], axis=-1)[..., 0]
         num = -0.5 * ((p - m_c) / s_c) ** 2 - np.log(s_c) - 0.5 * np.log(2 * np.pi)
-    return num, z
+        out = num - np.log(z)
+    return np.where(np.isfinite(out), out, -np.inf)
 
 
 def _growth_hat(q, r, x, prior: PlatePrior, growth_max: float) -> np.ndarray:
@@ -115,7 +97,10 @@ def _growth_hat(q, r, x, prior: PlatePrior, growth_max: float) -> np.ndarray:
 def loo_plates(table: PeakTable, plates: Plates, noise: str, *, growth_max: float = 3.0):
     """Every scan's view of the plates fitted without it, per τ node: the plate means and
     predictive spreads s·√(1 + 1/n_c) of the plug-in fit of one noise model, two
-    ndarray[n_grid, n_scans, C] (units of P)."""
+    ndarray[n_grid, n_scans, C] (units of P). Under a two-mode model, the plates of the
+    scan's own mode (:func:`loo_two_mode`)."""
+    if within_noise(noise):
+        return loo_two_mode(table, plates, within_noise(noise), growth_max=growth_max)
     p = table.peak.T                                                        # (G, n)
     mean, ss = plate_stats(p, plates)                                       # (G, C)
     n_c = plates.counts.astype(float)
@@ -152,10 +137,11 @@ def loo_plates(table: PeakTable, plates: Plates, noise: str, *, growth_max: floa
 
 
 def loo_two_mode(table: PeakTable, plates: Plates, within: str = "constant", *, growth_max: float = 3.0):
-    """Every scan's view of the ``two-mode`` plates fitted without it, per τ node: the ride
-    and snap means and their predictive spreads (each a (plate, mode) cell of the pooled
-    ``within`` fit, :func:`loo_plates`), four ndarray[n_grid, n_scans, C]. A mode left
-    without scans takes the other mode's mean and spread."""
+    """Every scan's view of the two-mode plates fitted without it, per τ node, in the
+    scan's own mode (as classify reads a new scan): the plates' means and predictive
+    spreads in that mode (each a (plate, mode) cell of the pooled ``within`` fit,
+    :func:`loo_plates`), two ndarray[n_grid, n_scans, C]. A mode left without scans takes
+    the other mode's mean and spread."""
     cells = Cells(plates, plates.snap)
     mu, s = loo_plates(table, cells.as_plates, within, growth_max=growth_max)  # (G, n, K)
     ride, snap = mu[..., cells.index[:, 0]], mu[..., cells.index[:, 1]]
@@ -163,21 +149,16 @@ def loo_two_mode(table: PeakTable, plates: Plates, within: str = "constant", *, 
     empty_r, empty_s = ~np.isfinite(ride), ~np.isfinite(snap)
     ride, s_ride = np.where(empty_r, snap, ride), np.where(empty_r, s_snap, s_ride)
     snap, s_snap = np.where(empty_s, ride, snap), np.where(empty_s, s_ride, s_snap)
-    return ride, snap, s_ride, s_snap
+    own = plates.snap[None, :, None]
+    return np.where(own, snap, ride), np.where(own, s_snap, s_ride)
 
 
 def loo_elpd(table: PeakTable, plates: Plates, noise: str, *, growth_max: float = 3.0,
              pointwise: bool = False) -> np.ndarray:
     """Leave-one-out elpd of the labels per τ node (ndarray[n_grid]) for one noise model
     (``pointwise``: per node and scan, ndarray[n_grid, n_scans])."""
-    if within_noise(noise):
-        ride, snap, s_ride, s_snap = loo_two_mode(table, plates, within_noise(noise), growth_max=growth_max)
-        share = plates.snap.astype(float)                  # each scan read with its own mode, as classify reads
-        curves, weights = [(ride, s_ride), (snap, s_snap)], [1.0 - share, share]
-    else:
-        mu, s = loo_plates(table, plates, noise, growth_max=growth_max)
-        curves, weights = [(mu, s)], [np.ones(mu.shape[1])]
-    G, n, C = curves[0][0].shape
+    mu, s = loo_plates(table, plates, noise, growth_max=growth_max)
+    G, n, C = mu.shape
     p = table.peak.T
     dens = np.empty((G, n))
     # scans a block at a time: the quadrature holds G × scans × (C − 1) × 24 nodes in several
@@ -185,9 +166,8 @@ def loo_elpd(table: PeakTable, plates: Plates, noise: str, *, growth_max: float 
     block = max(1, int(_QUADRATURE_BLOCK // (G * max(C - 1, 1) * _GL_T.size)))
     for a in range(0, n, block):
         sl = slice(a, min(a + block, n))
-        dens[:, sl] = mixture_log_density(p[:, sl], np.broadcast_to(plates.group[sl], (G, sl.stop - a)),
-                                          [(m[:, sl], sd[:, sl]) for m, sd in curves],
-                                          [np.broadcast_to(w[sl], (G, sl.stop - a)) for w in weights], plates.steps_mm)
+        dens[:, sl] = continuous_log_density(p[:, sl], np.broadcast_to(plates.group[sl], (G, sl.stop - a)),
+                                             mu[:, sl], s[:, sl], plates.steps_mm)
     dens = np.where(alone(plates), 0.0, dens)
     return dens if pointwise else np.sum(dens, axis=1)
 
@@ -206,22 +186,14 @@ def loo_class_log_prob(table: PeakTable, plates: Plates, noise: str, log_w: np.n
     pools its draws (equal plate priors): ndarray[n_scans, C]."""
     from scipy.stats import t as student_t          # here: scipy.stats costs `classify` 0.4 s of imports
 
+    mu, s = loo_plates(table, plates, noise, growth_max=growth_max)
     p = table.peak.T[..., None]                                             # (G, n, 1)
-    if within_noise(noise):
-        ride, snap, s_ride, s_snap = loo_two_mode(table, plates, within_noise(noise), growth_max=growth_max)
-        share = plates.snap.astype(float)                  # each scan read with its own mode, as classify reads
-        mu = ride
-        dof = p.shape[1] - 1.0 - Cells(plates, plates.snap).size
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ll = np.logaddexp(np.log1p(-share)[:, None] + student_t.logpdf(p, dof, loc=ride, scale=s_ride),
-                              np.log(share)[:, None] + student_t.logpdf(p, dof, loc=snap, scale=s_snap))
-    else:
-        mu, s = loo_plates(table, plates, noise, growth_max=growth_max)
-        nk = np.repeat(plates.counts[None, :].astype(float), p.shape[1], axis=0)
-        nk[np.arange(p.shape[1]), plates.group] -= 1
-        dof = nk - 1 if noise == "per-plate" else np.full(nk.shape, p.shape[1] - 1.0 - nk.shape[1])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ll = student_t.logpdf(p, dof, loc=mu, scale=s)
+    nk = np.repeat(plates.counts[None, :].astype(float), p.shape[1], axis=0)
+    nk[np.arange(p.shape[1]), plates.group] -= 1
+    pooled = Cells(plates, plates.snap).size if within_noise(noise) else nk.shape[1]     # means fitted
+    dof = nk - 1 if noise == "per-plate" else np.full(nk.shape, p.shape[1] - 1.0 - pooled)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ll = student_t.logpdf(p, dof, loc=mu, scale=s)
     ll = np.where(np.isfinite(ll), ll, -np.inf)
     ll[:, alone(plates), :] = 0.0                                          # no prediction: even odds
     cond = ll - logsumexp(ll, axis=2, keepdims=True)                        # per node
@@ -258,7 +230,7 @@ def choose_noise(table: PeakTable, plates: Plates, *, growth_max: float = 3.0,
     The better of the two-mode models when the touches show both modes, unless the better
     of the one-mode pooled models (constant, growing) beats it by more than two standard
     errors: left out, a touch takes its (plate, mode) cell's mean with it, and cells hold
-    2-6 touches on the hard scenes, so leave-one-out understates the two-mode models (on
+    1-6 touches on the hard scenes, so leave-one-out understates the two-mode models (on
     the nine hard scenes, ten training sets each, choosing by the score alone gave ECE
     0.039 on short-window, the two-mode model 0.020-0.023). Else the better of the pooled
     one-mode models. ``per-plate`` only when it beats the choice by more than two standard

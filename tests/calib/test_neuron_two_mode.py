@@ -12,7 +12,6 @@ from feeler.calib.neuron.grid import two_mode_draws
 from feeler.calib.neuron.model import Plates, make_priors
 from feeler.calib.neuron.modes import Cells, snap_flags
 from feeler.calib.neuron.synth import FOUR_PLATES, HARD_SCENES, single_window_table
-from feeler.calib.neuron.window import continuous_log_density, mixture_log_density
 from feeler.errors import ArgumentError
 
 
@@ -119,28 +118,6 @@ def test_a_known_mode_reads_its_own_component():
         np.testing.assert_allclose(two.class_log_prob(p, np.full(7, flag)), ref.class_log_prob(p), atol=1e-10)
         for x, y in zip(two.height(p, np.full(7, flag)), ref.height(p)):
             np.testing.assert_allclose(x, y, atol=1e-8)
-
-
-def test_the_mixture_density_reduces_to_its_components():
-    rng = np.random.default_rng(2)
-    steps = np.array([0.0, 0.1, 0.2])
-    mu1 = np.array([1.0, 1.4, 1.9]) + 0.01 * rng.standard_normal((5, 3))
-    mu2 = mu1 + np.array([0.0, 0.2, 0.3])
-    s = np.full((5, 3), 0.1)
-    p, c = 1.0 + rng.random(5), np.array([0, 1, 2, 1, 0])
-    one = continuous_log_density(p, c, mu1, s, steps)
-    np.testing.assert_allclose(mixture_log_density(p, c, [(mu1, s), (mu2, s)], [np.ones(5), np.zeros(5)], steps),
-                               one, atol=1e-12)
-    np.testing.assert_allclose(mixture_log_density(p, c, [(mu1, s), (mu1, s)], [np.full(5, 0.3), np.full(5, 0.7)],
-                                                   steps), one, atol=1e-12)
-    # a proper mixture: Σ w N / Σ w Z, the components' parts combined
-    w = 0.25
-    mixed = mixture_log_density(p, c, [(mu1, s), (mu2, s)], [np.full(5, 1 - w), np.full(5, w)], steps)
-    from feeler.calib.neuron.window import _density_parts
-    n1, z1 = _density_parts(p, c, mu1, s, steps)
-    n2, z2 = _density_parts(p, c, mu2, s, steps)
-    np.testing.assert_allclose(mixed, np.log((1 - w) * np.exp(n1) + w * np.exp(n2)) - np.log((1 - w) * z1 + w * z2),
-                               rtol=1e-10)
 
 
 def test_a_two_mode_fit_decodes_fresh_touches_and_live_ends_as_classify():
