@@ -76,6 +76,28 @@ def test_continuous_density_equals_numerical_integral():
     assert continuous_log_density(np.array(2.0), np.array(1), np.array([1.0, 3.0, 2.0, 4.0]), s, steps) == -np.inf
 
 
+@pytest.mark.parametrize("p, c", [(1.7, 1), (2.1, 2), (2.0, 1), (5.0, 3), (0.2, 0), (7.0, 3)])
+def test_continuous_density_of_a_monotone_curve_with_a_flat_segment_and_end_slopes(p, c):
+    """A monotone curve (isotonic regression pools plates: a flat segment) with its own
+    slopes past the ends, as the two-mode leave-one-out reads a mode's curve: the density
+    equals the flat-prior posterior density of δ on a fine grid."""
+    steps = np.array([0.0, 0.05, 0.1, 0.2])
+    mu = np.array([1.0, 2.0, 2.0, 5.5])
+    s = np.array([0.4, 0.5, 0.7, 0.8])
+    ends = np.array([25.0, 3.0])
+    got = continuous_log_density(np.array(p), np.array(c), mu, s, steps, ends)
+    grid = np.linspace(-4.0, 6.0, 1000001)
+    seg = np.clip(np.searchsorted(steps, grid) - 1, 0, 2)
+    m = mu[seg] + (grid - steps[seg]) * (mu[seg + 1] - mu[seg]) / (steps[seg + 1] - steps[seg])
+    m = np.where(grid < steps[0], mu[0] + (grid - steps[0]) * ends[0], m)
+    m = np.where(grid > steps[-1], mu[-1] + (grid - steps[-1]) * ends[1], m)
+    frac = np.clip((grid - steps[seg]) / (steps[seg + 1] - steps[seg]), 0, 1)
+    sd = s[seg] + frac * (s[seg + 1] - s[seg])
+    ref = np.log(stats.norm.pdf(p, mu[c], s[c]) / np.trapezoid(stats.norm.pdf(p, m, sd), grid))
+    assert got == pytest.approx(ref, abs=1e-6)
+    assert continuous_log_density(np.array(p), np.array(c), mu, s, steps, np.array([25.0, 0.0])) == -np.inf
+
+
 def test_loo_elpd_equals_refitting_without_each_scan():
     rng = np.random.default_rng(2)
     plates, p = _design(rng, n=5)

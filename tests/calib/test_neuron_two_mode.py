@@ -7,11 +7,12 @@ import pytest
 
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.classify import classify, scan_modes
-from feeler.calib.neuron.decoder import DecoderDraws
+from feeler.calib.neuron.decoder import DecoderDraws, isotonic_rows, monotone_curve
 from feeler.calib.neuron.grid import two_mode_draws
-from feeler.calib.neuron.model import Plates, make_priors
+from feeler.calib.neuron.model import PeakTable, Plates, make_priors, plate_stats
 from feeler.calib.neuron.modes import Cells, snap_flags
-from feeler.calib.neuron.synth import FOUR_PLATES, HARD_SCENES, single_window_table
+from feeler.calib.neuron.synth import FOUR_PLATES, HARD_SCENES, scene_scans, single_window_table
+from feeler.calib.neuron.window import continuous_log_density, loo_elpd
 from feeler.errors import ArgumentError
 
 
@@ -174,3 +175,54 @@ def test_the_cli_says_why_a_two_mode_model_was_chosen(capsys, tmp_path):
     line = next(s for s in capsys.readouterr().out.splitlines() if s.startswith("decoder noise:"))
     assert line.startswith("decoder noise: two-mode") and "touches of plates with a riser snapped onto the upper" in line
     assert "two standard errors" in line
+
+
+@pytest.mark.parametrize("C", [2, 3, 4, 6, 8])
+def test_isotonic_rows_equal_scipys_isotonic_regression(C):
+    """The vectorised min–max formula against scipy's pool-adjacent-violators, row by row
+    (ties included), and the defining properties: non-decreasing, the mean kept, and
+    rows already in order left as they are."""
+    from scipy.optimize import isotonic_regression
+
+    rng = np.random.default_rng(C)
+    x = rng.normal(size=(500, C)) + np.linspace(0.0, 1.0, C)
+    x[::5] = np.round(x[::5], 1)
+    got = isotonic_rows(x)
+    np.testing.assert_allclose(got, [isotonic_regression(r).x for r in x], atol=1e-12)
+    assert np.all(np.diff(got, axis=1) >= -1e-12)
+    np.testing.assert_allclose(got.mean(axis=1), x.mean(axis=1), atol=1e-12)
+    ordered = np.sort(x, axis=1)
+    np.testing.assert_array_equal(monotone_curve(np.linspace(0, 1, C), ordered)[0], ordered)
+
+
+def test_two_mode_leave_one_out_reads_a_scan_by_its_modes_monotone_curve():
+    """Each scan left out in turn, its plates refitted from the others by hand: the cells'
+    means, the pooled spread s·√(1 + 1/n_cell), the scan's own mode's curve made monotone
+    as the decoder makes it, its end slopes bounded by the plates' (mixture) curve. The
+    ride means are built to turn down (plate 2's rides lie below plate 1's), which the
+    leave-one-out used to score −∞ at every window, ruling the model out."""
+    rng = np.random.default_rng(4)
+    steps = np.repeat([0.0, 0.05, 0.1, 0.2], 6)
+    snap = np.tile([False, False, False, True, True, True], 4) & (steps > 0)
+    ride = np.array([1.0, 2.4, 2.0, 5.0])[np.searchsorted([0.0, 0.05, 0.1, 0.2], steps)]
+    p = ride + 1.5 * snap * (steps > 0) + 0.25 * rng.standard_normal(steps.size)
+    plates = Plates.of(steps, snap)
+    table = PeakTable(log_tau=np.log([1.0, 2.0]), peak=np.column_stack([p, 1.2 * p + 0.3]))
+    got = loo_elpd(table, plates, "two-mode")
+    assert np.all(np.isfinite(got))
+    share = snap[steps > 0].mean()
+    for j in range(2):
+        ref = 0.0
+        for k in range(p.size):
+            keep = np.arange(p.size) != k
+            cells = Cells(plates.subset(keep), snap[keep])
+            mean, ss = plate_stats(table.peak[keep, j], cells.as_plates)
+            var = ss.sum() / (keep.sum() - cells.size)
+            sd = np.sqrt(var * (1 + 1 / cells.as_plates.counts))
+            mode = int(snap[k])
+            own, own_sd = mean[cells.index[:, mode]], sd[cells.index[:, mode]]
+            mix = (1 - share) * mean[cells.index[:, 0]] + share * mean[cells.index[:, 1]]
+            curve, ends = monotone_curve(plates.steps_mm, own, mix)
+            ref += continuous_log_density(np.array(table.peak[k, j]), np.array(plates.group[k]), curve, own_sd,
+                                          plates.steps_mm, ends)
+        assert got[j] == pytest.approx(ref, rel=1e-10)
