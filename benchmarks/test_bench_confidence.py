@@ -2,9 +2,12 @@
 
 Scenes: ``datasets-synthetic/hard/*.toml`` (plates hard to tell apart: at the noise
 floor, close steps, a noisier read-out, few touches, a tilted face; accuracy 60–95 %),
-and four built afterwards and never tuned: six plates from 0.01 mm with 6 touches each,
-three plates under an exponential-kernel neuron, unevenly spaced plates, and a neuron
-window of 0.7 s (near the prior's 0.5 s bound, shorter than the ride over the face).
+and six built afterwards and never tuned: six plates from 0.01 mm with 6 touches each,
+three plates under an exponential-kernel neuron, unevenly spaced plates, a neuron
+window of 0.7 s (near the prior's 0.5 s bound, shorter than the ride over the face),
+and two from session 36: five plates under a 5 s window with a 3 deg tilt, a firmer
+press and a 3 um read-out, and four plates from 0.005 mm under an exponential-kernel
+neuron with 0.25 s frames.
 One control, ``datasets-synthetic/controls/few-scans-no-snap.toml``: few-scans (same
 seeds) with no touch snapping onto the upper level. Where half the touches snap and half
 ride over the edge, a plate's touches are two modes mixed, flatter than Gaussian, and a
