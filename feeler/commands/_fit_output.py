@@ -69,7 +69,9 @@ def add_fit_arguments(parser, *, draws: int | None = 1000, tune: int | None = 10
 
 
 def print_summary(result, *, skip_prefixes: tuple[str, ...] = ()) -> None:
-    """The summary table, the priors and the verdict on stdout."""
+    """The summary table, the priors and the verdict on stdout. A quantity the model fixes
+    at every draw (two-mode's snap offset on a plate of step 0) shows R-hat "fixed": its
+    R-hat is 0/0, and the verdict does not check it."""
     import pandas as pd
 
     table = result.summary[~result.summary["name"].str.startswith(skip_prefixes)] if skip_prefixes \
@@ -79,8 +81,11 @@ def print_summary(result, *, skip_prefixes: tuple[str, ...] = ()) -> None:
     for i, row in table[cols].iterrows():          # mean, interval: same rounding, mean inside
         shown.loc[i, ["mean", "eti95_lb", "eti95_ub"]] = _estimate_columns(row)
         shown.loc[i, "sd"] = f"{row['sd']:.3g}"
-        shown.loc[i, ["r_hat", "ess_bulk", "ess_tail"]] = (f"{row['r_hat']:.4f}", f"{row['ess_bulk']:.0f}",
-                                                           f"{row['ess_tail']:.0f}")
+        if row["sd"] == 0 and not math.isfinite(row["r_hat"]):      # the same at every draw: nothing to mix
+            shown.loc[i, ["r_hat", "ess_bulk", "ess_tail"]] = ("fixed", "-", "-")
+        else:
+            shown.loc[i, ["r_hat", "ess_bulk", "ess_tail"]] = (f"{row['r_hat']:.4f}", f"{row['ess_bulk']:.0f}",
+                                                               f"{row['ess_tail']:.0f}")
     with pd.option_context("display.width", 120, "display.max_rows", 200):
         print(shown.to_string(index=False))
     print("priors:")

@@ -172,9 +172,13 @@ def test_the_cli_says_why_a_two_mode_model_was_chosen(capsys, tmp_path):
     assert main(["simulate", str(HARD_SCENES / "few-scans.toml"), "--out", str(run), "--no-progress"]) == 0
     capsys.readouterr()
     main(["calibrate", "neuron", str(run), "--no-progress"])
-    line = next(s for s in capsys.readouterr().out.splitlines() if s.startswith("decoder noise:"))
+    out = capsys.readouterr().out.splitlines()
+    line = next(s for s in out if s.startswith("decoder noise:"))
     assert line.startswith("decoder noise: two-mode") and "touches of plates with a riser snapped onto the upper" in line
     assert "two standard errors" in line
+    # the floor plate's snap offset is 0 at every draw: shown as fixed, not as R-hat nan
+    floor = next(s for s in out if s.strip().startswith("plate_snap_mm[0]")).split()
+    assert floor[-3:] == ["fixed", "-", "-"] and not any("nan" in s.split() for s in out)
 
 
 @pytest.mark.parametrize("C", [2, 3, 4, 6, 8])
