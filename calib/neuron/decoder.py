@@ -76,6 +76,17 @@ def isotonic_rows(x: np.ndarray) -> np.ndarray:
     return out
 
 
+def _in_order(x) -> np.ndarray:
+    """``x (ndarray[..., C])`` with only its rows out of order through :func:`isotonic_rows`."""
+    x = np.asarray(x, float)
+    bad = np.any(np.diff(x, axis=-1) < 0, axis=-1)
+    if not bad.any():
+        return x
+    out = x.copy()
+    out[bad] = isotonic_rows(x[bad])
+    return out
+
+
 def monotone_curve(steps: np.ndarray, mean: np.ndarray, reference: np.ndarray | None = None
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Each row of ``mean (ndarray[..., C])`` made non-decreasing (:func:`isotonic_rows`)
@@ -83,10 +94,9 @@ def monotone_curve(steps: np.ndarray, mean: np.ndarray, reference: np.ndarray | 
     end segments', at least :data:`END_SLOPE_MIN` of the row's mean slope, and positive).
     ``reference (ndarray[..., C])``: the curve whose mean slope bounds the end slopes instead
     (a mode's curve, from a few touches a plate, can come out flat where the plates' is not)."""
-    mean = np.asarray(mean, float)
-    curve = np.where(np.all(np.diff(mean, axis=-1) >= 0, axis=-1)[..., None], mean, isotonic_rows(mean))
+    curve = _in_order(mean)
     span = steps[-1] - steps[0]
-    ref = curve if reference is None else monotone_curve(steps, reference)[0]
+    ref = curve if reference is None else _in_order(reference)
     overall = np.maximum((ref[..., -1] - ref[..., 0]) / span, np.finfo(float).tiny)
     ends = np.stack([(curve[..., 1] - curve[..., 0]) / (steps[1] - steps[0]),
                      (curve[..., -1] - curve[..., -2]) / (steps[-1] - steps[-2])], axis=-1)

@@ -266,7 +266,7 @@ def choose_noise(table: PeakTable, plates: Plates, *, growth_max: float = 3.0,
     errors: left out, a touch takes its (plate, mode) cell's mean with it, and cells hold
     1-6 touches on the hard scenes, so leave-one-out understates the two-mode models (on
     the eleven hard scenes, ten training sets each, choosing by the score alone picked a
-    one-mode model in 1-7 of 10 sets and gave ECE 0.034 on short-window and on
+    one-mode model in 0-7 of 10 sets and gave ECE 0.034 on short-window and on
     five-plates-long-window and accuracy 0.71 on three-exponential, against 0.027, 0.023
     and 0.76 with this rule). Else the better of the pooled
     one-mode models. ``per-plate`` only when it beats the choice by more than two standard
