@@ -51,12 +51,12 @@ class _SRows:
         shift, w = log_shift[self.keep][ok], self.w[ok]
         rows = self.rows if ok.all() else FineCdf(self.s, self.lm[ok])
 
-        def cdf(t):
-            y = np.log(t)[None, :]
-            f = rows(y - shift[:, None] if increasing else shift[:, None] - y)
-            return w @ (f if increasing else 1.0 - f)
-        ends = np.exp(shift[:, None] + (self.s[[0, -1]] if increasing else -self.s[[0, -1]]))
-        return _summary(mean, quantiles(cdf, PROBS, ends.min() * 0.999, ends.max() * 1.001))
+        def cdf(y):                      # of ln g: the quantiles searched in log space, where the
+            y = y[None, :]               # grid is uniform (σ's spans 10⁻³-10⁶ µm: searched linearly, the
+            f = rows(y - shift[:, None] if increasing else shift[:, None] - y)     # 3 rounds left 19 µm
+            return w @ (f if increasing else 1.0 - f)                              # brackets)
+        ends = shift[:, None] + (self.s[[0, -1]] if increasing else -self.s[[0, -1]])
+        return _summary(mean, np.exp(quantiles(cdf, PROBS, ends.min() - 1e-3, ends.max() + 1e-3)))
 
 
 def grid_row_stats(grid: ObserverGrid, c: int, pc: float) -> dict[str, dict]:
