@@ -14,7 +14,10 @@ from pathlib import Path
 
 from feeler.errors import ArgumentError
 
-__all__ = ["fit_scene_path", "check_scene_matches"]
+__all__ = ["fit_scene_path", "check_scene_matches", "scene_note"]
+
+#: what ``discriminate`` sets itself, or names the scene: not a difference in the touches
+_OWN = ("scene.", "repeats.", "surface.heights_mm", "neuron.")
 
 
 def fit_scene_path(result, override=None):
@@ -52,3 +55,43 @@ def check_scene_matches(path: Path, attrs) -> None:
                                                   f"the fit (it has {scene.neuron.length_mm:g})")
     if kernel is not None and scene.neuron.kernel != kernel:
         raise ArgumentError("--scene", str(path), f"a scene with neuron.kernel = {kernel!r} like the fit")
+
+
+def _fields(obj, prefix: str = "") -> dict:
+    """A scene's parameters flattened to ``section.name -> value``."""
+    import dataclasses
+
+    out = {}
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        if dataclasses.is_dataclass(value):
+            out.update(_fields(value, f"{prefix}{f.name}."))
+        else:
+            out[f"{prefix}{f.name}"] = value
+    return out
+
+
+def scene_note(result, override) -> str | None:
+    """One line when ``override`` (``--scene``) describes touches other than those the fit
+    was trained on (stage speed, probe, read-out noise, sensor …: every parameter but the
+    heights, the repeats, the seed and the scene's name), else None. ``classify`` flags a
+    scan outside the training envelope (speed beyond ×1.25, read-out noise beyond ×1.5);
+    ``discriminate`` simulates whole experiments, so it names what changed."""
+    from feeler.scene import load_scene
+
+    if override is None or not result.posterior["posterior"].attrs.get("scene_toml"):
+        return None
+    path, keep = fit_scene_path(result)          # the recorded scene (its own file while it holds the text)
+    try:
+        trained = _fields(load_scene(path))
+    finally:
+        if keep is not None:
+            keep.cleanup()
+    given = _fields(load_scene(Path(override)))
+    changed = [f"{k} {trained[k]!r} -> {given[k]!r}" for k in given
+               if k in trained and not k.startswith(_OWN) and trained[k] != given[k]]
+    if not changed:
+        return None
+    return (f"note: --scene {override} differs from the scene the fit was trained on in {', '.join(changed)}: "
+            f"its touches are not the kind the decoder learned, so P(correct), the threshold and the PSE "
+            f"describe it reading touches it was not trained on")

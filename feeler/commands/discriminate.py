@@ -102,6 +102,7 @@ def run(args) -> int:
     from itertools import combinations
 
     from feeler.calib.neuron.discriminate import Discriminator
+    from feeler.calib.neuron.scene_record import scene_note
     from feeler.calib.progress import progress, stage
     from feeler.commands._fit_output import format_estimate
     from feeler.rundir import prepare_out_dir, write_json
@@ -115,7 +116,7 @@ def run(args) -> int:
     print(f"forward model: {args.scene or 'the scene recorded in the fit'} ({scene.surface.heights_mm} mm plates), "
           f"{args.n_scans} touches per height, {disc.a.size} posterior draws")
     pairs = args.pair or list(combinations(sorted(scene.surface.heights_mm), 2))
-    for note in (disc.note, disc.outside_note(args.reference),
+    for note in (disc.note, scene_note(result, args.scene), disc.outside_note(args.reference),
                  disc.outside_note([v for pair in pairs for v in pair], option="--pair")):
         if note:
             print(note)
@@ -154,7 +155,8 @@ def run(args) -> int:
                              "hi95": th.searched_mm if bound else _num(d.hi95), "found": th.found,
                              "median": _num(d.median), "mcse": _num(d.mcse), "searched_mm": th.searched_mm,
                              "hi95_is_bound": bound, "estimate_is_bound": d.median == float("inf")},
-            "weber": interval_json(w, median=_num(w.median), hi95_is_bound=bound),
+            "weber": interval_json(w, median=_num(w.median), hi95_is_bound=bound)
+            | ({} if th.found == 1 else {"mean": _num(w.median)}),         # as the threshold: the median
             "pse": {"speed_ref_mm_s": v_ref, "speed_test_mm_s": v_test, "mean_mm": _num(pse.mean),
                     "lo95": _num(pse.lo95), "hi95": _num(pse.hi95), "mcse": _num(pse.mcse), "found": pse.found}})
         print(f"wrote {out / 'discrimination.json'}")

@@ -52,6 +52,22 @@ def test_threshold_weber_and_a_threshold_reported_as_a_bound(disc):
     assert short.is_bound and short.found < 0.5 and text.startswith("> 1.00 um (") and "% of draws" in text
 
 
+def test_more_than_a_fortieth_of_draws_unreached_makes_the_upper_end_a_bound():
+    """3 of 100 draws never reach 75 % within the searched 0.08 mm while the resamples all
+    do: the 97.5 % point of the posterior lies past the search, so the upper end prints
+    as a bound; 2 of 100 keep a finite one."""
+    from feeler.calib.neuron.discriminate import Threshold
+    from feeler.commands.discriminate import threshold_text
+
+    def th(unreached):
+        v = np.r_[np.linspace(0.01, 0.02, 100 - unreached), np.full(unreached, np.inf)]
+        d = Interval.of(v, np.linspace(0.01, 0.07, 100))
+        return Threshold(reference_mm=0.1, delta75_mm=d, weber=d, found=d.found, searched_mm=0.08)
+    assert np.isfinite(th(3).delta75_mm.hi95)
+    assert th(3).is_bound and ", > 80.00] um (3 % of draws" in threshold_text(th(3))
+    assert not th(2).is_bound and "> 80" not in threshold_text(th(2))
+
+
 def test_a_threshold_around_a_small_reference_is_found(disc):
     """Around 2 µm the threshold (several µm: it does not shrink with the reference near
     the noise floor) lies far beyond a quarter of the reference, where the search used to
@@ -183,3 +199,22 @@ def test_a_reference_outside_the_trained_plates_is_noted(disc):
     assert disc.outside_note([0.3, -0.01, 0.3], option="--pair").startswith("note: pair heights -0.01, 0.3 mm lie")
     note = disc.outside_note(0.3)
     assert note.startswith("note: reference 0.3 mm lies outside the plates the fit was trained on (0-0.2 mm)")
+
+
+def test_a_forward_scene_of_other_touches_is_named(fit, tmp_path):
+    """--scene at 4x the trained stage speed and 5x its read-out noise: the note names both
+    changes; other heights, repeats or seed are discriminate's own business (no note)."""
+    from feeler.calib.neuron.scene_record import scene_note
+
+    text = FOUR_PLATES.read_text()
+    assert "speed_mm_s = 0.5" in text and "uy_sd_mm = 0.001" in text
+    fast = tmp_path / "fast.toml"
+    fast.write_text(text.replace("speed_mm_s = 0.5", "speed_mm_s = 2.0")
+                    .replace("uy_sd_mm = 0.001", "uy_sd_mm = 0.005"))
+    note = scene_note(fit, fast)
+    assert note.startswith(f"note: --scene {fast} differs") and "motion.speed_mm_s 0.5 -> 2.0" in note
+    assert "noise.uy_sd_mm 0.001 -> 0.005" in note and note.count("->") == 2
+    same = tmp_path / "same.toml"
+    same.write_text(text.replace("scans_per_plate = 24", "scans_per_plate = 5").replace("seed = 20040501", "seed = 7")
+                    .replace("heights_mm = [0.0, 0.05, 0.1, 0.2]", "heights_mm = [0.0, 0.3]"))
+    assert same.read_text() != text and scene_note(fit, same) is None and scene_note(fit, None) is None
