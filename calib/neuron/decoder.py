@@ -32,6 +32,11 @@ component (means m − πd and m + (1 − π)d, one within-mode sd): a scan whos
 the mixture with weights 1 − π and π; the calibration curve, its spread and the belt are
 then each component's, F the weighted sum.
 
+With a decoder per mode (:func:`~feeler.calib.neuron.fit.mode_decoders`: the ride and the
+snap draws each weighted for the windows that tell their own touches apart, each with
+its own γ) a scan whose mode is given is read by its mode's draws alone; its plate
+probabilities, F and interval are those of that half of the draws.
+
 A streaming decoder that keeps P(τ_s) of a scan for every draw reproduces both at the end
 of the scan by calling these two methods.
 """
@@ -132,6 +137,12 @@ class DecoderDraws:
             ride mean and the share of snapping touches (None otherwise). A plate then
             reads as the mixture (1 − π)·N(m − πd, s_w) + π·N(m + (1 − π)d, s_w) with
             mean m and sd ``sd_mm``, s_w² = sd² − π(1 − π)d² (:meth:`components`).
+        draw_mode (ndarray[S] int | None): two-mode fits with a decoder per mode
+            (:func:`~feeler.calib.neuron.fit.mode_decoders`): the mode (0 ride, 1 snap)
+            whose windows each draw was weighted for; a scan whose mode is given is read
+            by its mode's draws alone, with that mode's γ (``mode_sharpness``). None: every
+            draw reads every scan.
+        mode_sharpness (tuple[float, float] | None): γ of the ride and of the snap draws.
     """
     steps_mm: np.ndarray
     tau_s: np.ndarray
@@ -145,10 +156,18 @@ class DecoderDraws:
     n_posterior: int = 0
     snap_mm: np.ndarray | None = None
     snap_share: np.ndarray | None = None
+    draw_mode: np.ndarray | None = None
+    mode_sharpness: tuple | None = None
+    ride_sd_mm: np.ndarray | None = None
+    snap_sd_mm: np.ndarray | None = None
 
     @classmethod
-    def from_result(cls, result, *, rng: np.random.Generator | None = None, n_draws: int | None = None):
-        """The decoder of an M2 :class:`FitResult` (a seeded subsample of ``n_draws``)."""
+    def from_result(cls, result, *, rng: np.random.Generator | None = None, n_draws: int | None = None,
+                    by_mode: bool = True):
+        """The decoder of an M2 :class:`FitResult` (a seeded subsample of ``n_draws``).
+        ``by_mode``: a two-mode fit's decoder per mode (groups ``ride_decoder`` and
+        ``snap_decoder``, half the draws each) where the fit has them; False: the
+        posterior's own draws (what ``discriminate`` simulates with)."""
         tree = result.posterior
         post = tree["posterior"]
         need = ("a", "tau_s", "h", "plate_mean_mm", "plate_sd_mm")
@@ -156,20 +175,42 @@ class DecoderDraws:
         if any(k not in post.data_vars for k in need) or obs is None or "plate_steps_mm" not in obs.data_vars:
             raise ArgumentError("posterior", "no plate_mean_mm/plate_sd_mm/plate_steps_mm",
                                 "a posterior written by this version's neuron fit (refit older ones)")
+        steps = np.asarray(obs["plate_steps_mm"].values, float)
+        groups = ("ride_decoder", "snap_decoder")
+        if by_mode and all(g in tree.children for g in groups):
+            parts = [cls._of_group(tree[g], steps, None if n_draws is None else (n_draws + k) // 2, rng)
+                     for k, g in enumerate(groups)]
+            names = ("tau_s", "a", "h", "mean_mm", "sd_mm", "snap_mm", "snap_share", "ride_sd_mm", "snap_sd_mm")
+            joined = {k: np.concatenate([getattr(p, k) for p in parts]) for k in names
+                      if getattr(parts[0], k) is not None}
+            return dataclasses.replace(
+                parts[0], **joined, draw_mode=np.repeat([0, 1], [p.size for p in parts]),
+                mode_sharpness=(parts[0].sharpness, parts[1].sharpness),
+                sharpness=float(post.attrs.get("prob_sharpness", 1.0)),
+                undecodable=sum(p.undecodable for p in parts), n_posterior=sum(p.n_posterior for p in parts))
+        return cls._of_group(post, steps, n_draws, rng)
 
+    @classmethod
+    def _of_group(cls, post, steps, n_draws, rng) -> "DecoderDraws":
+        """The decoder of one group of draws (the posterior, or a mode's decoder group)."""
         def flat(name):
             v = np.asarray(post[name].transpose("chain", "draw", ...).values, float)
             return v.reshape((-1,) + v.shape[2:])
 
         two = "plate_snap_mm" in post.data_vars and "snap_share" in post.data_vars
-        out = cls(steps_mm=np.asarray(obs["plate_steps_mm"].values, float), tau_s=flat("tau_s"), a=flat("a"),
+        own = two and "plate_ride_sd_mm" in post.data_vars and "plate_snap_sd_mm" in post.data_vars
+        out = cls(steps_mm=steps, tau_s=flat("tau_s"), a=flat("a"),
                   h=flat("h"), mean_mm=flat("plate_mean_mm"), sd_mm=flat("plate_sd_mm"),
                   sharpness=float(post.attrs.get("prob_sharpness", 1.0)), floor=float(post.attrs.get("prob_floor", 0.0)),
-                  snap_mm=flat("plate_snap_mm") if two else None, snap_share=flat("snap_share") if two else None)
+                  snap_mm=flat("plate_snap_mm") if two else None, snap_share=flat("snap_share") if two else None,
+                  ride_sd_mm=flat("plate_ride_sd_mm") if own else None,
+                  snap_sd_mm=flat("plate_snap_sd_mm") if own else None)
         if out.steps_mm.size < 2:
             raise ArgumentError("posterior labels", f"{out.steps_mm.size} plate", ">= 2 plates to decode")
         bad = ~np.isfinite(np.column_stack([out.tau_s, out.a, out.h, out.mean_mm, out.sd_mm])).all(axis=1)
         bad |= ~np.all(out.sd_mm > 0, axis=1)                     # NaN compares False: bad too
+        if own:
+            bad |= ~np.all((out.ride_sd_mm > 0) & (out.snap_sd_mm > 0), axis=1)
         if bad.mean() > MAX_UNDECODABLE:
             raise ArgumentError("posterior", f"{int(bad.sum())} of {bad.size} draws with a non-finite or zero-spread "
                                 f"decoder", f"a fit whose plates can be decoded (at most {MAX_UNDECODABLE:.0%} such "
@@ -195,7 +236,32 @@ class DecoderDraws:
         return dataclasses.replace(self, tau_s=self.tau_s[idx], a=self.a[idx], h=self.h[idx],
                                    mean_mm=self.mean_mm[idx], sd_mm=self.sd_mm[idx],
                                    snap_mm=self.snap_mm[idx] if two else None,
-                                   snap_share=self.snap_share[idx] if two else None)
+                                   snap_share=self.snap_share[idx] if two else None,
+                                   draw_mode=None if self.draw_mode is None else self.draw_mode[idx],
+                                   ride_sd_mm=None if self.ride_sd_mm is None else self.ride_sd_mm[idx],
+                                   snap_sd_mm=None if self.snap_sd_mm is None else self.snap_sd_mm[idx])
+
+    @cached_property
+    def _mode_parts(self) -> tuple["DecoderDraws", "DecoderDraws"]:
+        """The ride and the snap draws as decoders of their own (γ their mode's)."""
+        return tuple(dataclasses.replace(self.take(np.flatnonzero(self.draw_mode == k)), draw_mode=None,
+                                         mode_sharpness=None, sharpness=self.mode_sharpness[k]) for k in (0, 1))
+
+    def _by_mode(self, method: str, p_or_z: np.ndarray, snap: np.ndarray, *rest) -> np.ndarray:
+        """``method`` of each mode's draws on the scans of that mode (columns of
+        ``p_or_z (ndarray[S, n])`` and of the per-scan arrays ``rest``), put back in order."""
+        snap = np.asarray(snap, bool)
+        out = None
+        for k, sel in ((0, ~snap), (1, snap)):
+            if not sel.any() and (k or snap.size):          # no scans at all: the rides' empty answer
+                continue
+            part = self._mode_parts[k]
+            rows = self.draw_mode == k
+            res = getattr(part, method)(p_or_z[rows][:, sel], *(r[sel] for r in rest), snap[sel])
+            if out is None:
+                out = np.empty((snap.size,) + res.shape[1:])
+            out[sel] = res
+        return out
 
     @cached_property
     def components(self) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
@@ -205,6 +271,8 @@ class DecoderDraws:
         if self.snap_mm is None:
             return ((self.mean_mm, self.sd_mm),)
         pi, d = self.snap_share[:, None], self.snap_mm
+        if self.ride_sd_mm is not None:                 # each mode's own spread
+            return ((self.mean_mm - pi * d, self.ride_sd_mm), (self.mean_mm + (1 - pi) * d, self.snap_sd_mm))
         within = np.sqrt(np.maximum(self.sd_mm ** 2 - pi * (1 - pi) * d ** 2, (1e-6 * self.sd_mm) ** 2))
         return ((self.mean_mm - pi * d, within), (self.mean_mm + (1 - pi) * d, within))
 
@@ -230,7 +298,10 @@ class DecoderDraws:
 
     def class_log_prob(self, p_at_tau: np.ndarray, snap: np.ndarray | None = None) -> np.ndarray:
         """log P(plate | scan), ndarray[n, C], from ``p_at_tau (ndarray[S, n])`` (and the
-        scans' modes, ``two-mode`` noise: :meth:`weights`)."""
+        scans' modes, ``two-mode`` noise: :meth:`weights`; with a decoder per mode each
+        scan by its mode's draws)."""
+        if self.draw_mode is not None and snap is not None:
+            return self._by_mode("class_log_prob", np.asarray(p_at_tau, float), snap)
         z = self.decoded(p_at_tau)[..., None]                                 # (S, n, 1)
         parts = []
         for w, (m, s) in zip(self.weights(snap, z.shape[1]), self.components):
@@ -247,7 +318,14 @@ class DecoderDraws:
         plates → (distance ndarray[n], nearest plate's index ndarray[n] int). Scans of the
         training plates lie within 4 sds (8200 fresh touches of the nine hard scenes and
         four-plates, two fits each: largest 3.9); a step the fit was not trained on lies
-        further (:mod:`.live.envelope`)."""
+        further (:mod:`.live.envelope`). With a decoder per mode, the larger of the two
+        modes' distances: at the snaps' short window a step between or beyond the plates
+        can read like a plate (a 0.15 mm scan on plates 0-0.2 mm: 0.1-0.8 sds there, 12 at
+        the rides' window)."""
+        if self.draw_mode is not None:
+            (d0, k0), (d1, k1) = (part.plate_distance(np.asarray(p_at_tau, float)[self.draw_mode == k])
+                                  for k, part in enumerate(self._mode_parts))
+            return np.maximum(d0, d1), np.where(d1 > d0, k1, k0)
         z = self.decoded(p_at_tau)[..., None]                                 # (S, n, 1)
         d = np.median(np.abs(z - self.mean_mm[:, None, :]) / self.sd_mm[:, None, :], axis=0)    # (n, C)
         k = np.argmin(d, axis=1)
@@ -256,7 +334,10 @@ class DecoderDraws:
     def predictive_cdf(self, z: np.ndarray, delta: np.ndarray, snap: np.ndarray | None = None) -> np.ndarray:
         """F(δ) = mean_s Φ((z_s − m_s(δ))/s_s(δ)) for ``z (ndarray[S, n])``, ``delta (ndarray[n])``
         (each draw's curve monotone: :func:`monotone_curve`); non-increasing in δ. Two-mode
-        noise: Σ_m w_m Φ over the components' curves (:meth:`weights` of ``snap``)."""
+        noise: Σ_m w_m Φ over the components' curves (:meth:`weights` of ``snap``); with a
+        decoder per mode each scan's own mode's draws."""
+        if self.draw_mode is not None and snap is not None:
+            return self._by_mode("predictive_cdf", z, snap, np.asarray(delta, float))
         if self.snap_mm is not None and snap is not None:      # each scan by its own mode's component alone
             snap = np.asarray(snap, bool)
             f = np.empty(z.shape[1])
@@ -294,8 +375,8 @@ class DecoderDraws:
         # past its ends each draw's curve is a line of positive slope: 12 sds beyond where it
         # meets z, F is 1 (below) or 0 (above) to 10⁻³², so the crossings lie inside
         lo0, hi0 = np.full(n, np.inf), np.full(n, -np.inf)
-        for curve, ends in self._monotone:
-            reach = 12 * np.max(self.sd_mm, axis=1) / np.min(ends, axis=1)                     # mm
+        for (curve, ends), (_, sd) in zip(self._monotone, self.components):
+            reach = 12 * np.max(np.maximum(sd, self.sd_mm), axis=1) / np.min(ends, axis=1)      # mm
             below = self.steps_mm[0] - np.maximum(curve[:, :1] - z, 0.0) / ends[:, :1]
             above = self.steps_mm[-1] + np.maximum(z - curve[:, -1:], 0.0) / ends[:, 1:]
             lo0 = np.minimum(lo0, np.min(below - reach[:, None] - span, axis=0))

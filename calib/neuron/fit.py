@@ -4,7 +4,8 @@ Pipeline: strain = U_y / length → peak-u₁ table over ln τ → plates → ch
 data can pin down and of their units → noise model and τ weights by leave-one-out
 prediction of the labels (:mod:`.window`) → the sharpness of the pooled plate
 probabilities, by leave-one-out too (:mod:`.recalibrate`) → backend (``grid`` default and exact,
-``nuts``, ``emcee``) → the decoder's predictive checks (:mod:`.checks`) → DataTree with
+``nuts``, ``emcee``; a two-mode model is also drawn at each mode's own windows,
+:func:`mode_decoders`) → the decoder's predictive checks (:mod:`.checks`) → DataTree with
 the posterior, the observed labels and plates, the peak table (so a saved posterior can
 classify new scans), the scene the scans came from (so ``discriminate`` simulates the
 same experiment) and every check. See :mod:`.model` for the model.
@@ -29,7 +30,7 @@ from feeler.calib.neuron.window import (choose_noise, loo_class_log_prob, loo_el
 from feeler.errors import ArgumentError
 
 __all__ = ["NeuronData", "data_from_scans", "shared_times", "fit_neuron", "BACKENDS", "NOISE_CHOICES",
-           "DecoderMisfitWarning"]
+           "DecoderMisfitWarning", "mode_decoders", "MODE_DECODER_MIN"]
 
 BACKENDS = ("grid", "nuts", "emcee")
 NOISE_CHOICES = ("auto",) + NOISE_MODELS
@@ -100,6 +101,41 @@ def _readout_noise(data: NeuronData) -> np.ndarray:
     return np.array([readout_noise_mm(row * data.length_mm) for row in strain])
 
 
+#: scans of each mode a training set needs for the modes to be decoded at their own windows
+MODE_DECODER_MIN = 8
+
+
+def mode_decoders(table, plates: Plates, priors: Priors, noise: str, elpd: np.ndarray, *, chains: int, draws: int,
+                  rng: np.random.Generator) -> dict:
+    """Draws of a two-mode model weighted for each mode's own decoding, ``{"ride": …,
+    "snap": …}`` (each ``{"draws": name -> ndarray (chains, draws[, C]), "sharpness": γ,
+    "scans": n}``), or {} when a mode has fewer than :data:`MODE_DECODER_MIN` scans.
+
+    A ride and a snap are different readings of a riser: a snap takes the step in one
+    frame, a ride spreads it over the frames the pad needs to pass the edge, so the window
+    τ that best tells the plates apart differs (on the hard scenes about 0.3-1 s for snaps,
+    2-8 s for rides). One set of τ weights for both modes leans to the snaps' (they score
+    the sharper leave-one-out densities), and rides are then read at a window that blurs
+    them: on hard/exponential-fast-frames rides decoded at accuracy 0.33 with confidence
+    0.42. Here each mode's τ weights are the pseudo-BMA+ weights of its own scans'
+    leave-one-out densities (:func:`.window.tau_log_weights` on those columns of
+    ``elpd``), the sharpness γ is fitted on its own scans' leave-one-out plate
+    probabilities, and the whole model is drawn at those windows; :mod:`.decoder` reads a
+    scan of each mode with its mode's draws. The posterior itself (summary, verdict,
+    discriminate) keeps the joint weights."""
+    from feeler.calib.neuron.grid import sample_grid
+
+    out = {}
+    for name, mask in (("ride", ~plates.snap), ("snap", plates.snap)):
+        if int(mask.sum()) < MODE_DECODER_MIN:
+            return {}
+        log_w = tau_log_weights(elpd[:, mask], rng)
+        lp = loo_class_log_prob(table, plates, noise, log_w, growth_max=priors.growth_max)
+        out[name] = {"draws": sample_grid(table, plates, priors, noise, log_w, chains=chains, draws=draws, rng=rng),
+                     "sharpness": fit_sharpness(lp[mask], plates.group[mask]), "scans": int(mask.sum())}
+    return out
+
+
 def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", seed: int = 0, chains: int = 4,
                draws: int = 1000, tune: int = 1000, emcee_steps: int | None = None, walkers: int = 32,
                priors: Priors | None = None, progress: bool | None = None, scene_toml: str | None = None,
@@ -146,8 +182,11 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
     sharpness = (fit_sharpness(loo_class_log_prob(table, plates, noise, log_w, growth_max=pri.growth_max),
                                plates.group) if noise in usable else 1.0)
     stats = None
+    by_mode = {}
     if backend == "grid":
         post = sample_grid(table, plates, pri, noise, log_w, chains=chains, draws=draws, rng=rng)
+        if within_noise(noise) and noise in usable:
+            by_mode = mode_decoders(table, plates, pri, noise, elpd, chains=chains, draws=draws, rng=rng)
     elif backend == "nuts":
         from feeler.calib.neuron.mcmc import sample_nuts
         post, stats = sample_nuts(table, plates, pri, noise, log_w, chains=chains, draws=draws, tune=tune,
@@ -173,6 +212,10 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
         attrs["ppc_p_value"] = info["p_min"]          # smallest p of the per-plate checks (fails below 0.01/C)
     if scene_toml is not None:
         attrs.update(scene_toml=scene_toml, scene_path=str(scene_path or ""))
+    if by_mode:
+        attrs["mode_decoders"] = json.dumps({k: {"sharpness": v["sharpness"], "scans": v["scans"],
+                                                 "tau_s": float(np.median(v["draws"]["tau_s"]))}
+                                             for k, v in by_mode.items()})
     tree = posterior_from_draws(post, sample_stats=stats,
                                 observed={"step_mm": d, "peak_u1": table.peak, "log_tau_grid": table.log_tau,
                                           "readout_noise_mm": _readout_noise(data),
@@ -181,8 +224,12 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
                                       "readout_noise_mm": ["scan"], "log_tau_grid": ["tau_grid"],
                                       "tau_log_weight": ["tau_grid"],
                                       "plate_steps_mm": ["plate"], "plate_mean_mm": ["plate"],
-                                      "plate_sd_mm": ["plate"], "plate_snap_mm": ["plate"]},
+                                      "plate_sd_mm": ["plate"], "plate_snap_mm": ["plate"],
+                                      "plate_ride_sd_mm": ["plate"], "plate_snap_sd_mm": ["plate"]},
+                                extra_groups={f"{k}_decoder": v["draws"] for k, v in by_mode.items()},
                                 attrs=attrs)
+    for k, v in by_mode.items():
+        tree[f"{k}_decoder"].attrs.update(prob_sharpness=v["sharpness"], prob_floor=FLOOR, scans=v["scans"])
     seconds = time.perf_counter() - start
     if fit_problems:
         warnings.warn("decoder misfit: " + "; ".join(fit_problems), DecoderMisfitWarning, stacklevel=2)

@@ -64,27 +64,44 @@ def sample_grid(table: PeakTable, plates: Plates, priors: Priors, noise: str, lo
 
 
 def two_mode_draws(rng: np.random.Generator, tau_s: np.ndarray, peaks: np.ndarray, plates: Plates,
-                   priors: Priors, within: str = "constant") -> dict:
+                   priors: Priors, within: str = "constant", *, shared_spread: bool = False) -> dict:
     """Named draws of the ``two-mode`` model from ``peaks (ndarray[S, n_scans])`` at ``tau_s``:
     each (plate, mode) cell's mean and σ exactly as the ``within`` (constant or growing)
     model's plates (:mod:`.conjugate`, the cells as plates), the snap share
-    π ~ Beta(1 + snaps, 1 + rides).
+    π ~ Beta(1 + snaps, 1 + rides). The ride cells and the snap cells each have a spread
+    curve of their own (σ₀ and, growing, g) when both modes have the scans for it
+    (:attr:`.modes.Cells.own_spreads`), else (or ``shared_spread``) one for both.
 
     Named as the other models' (a plate's mean and sd are those of its mixture of modes,
-    mm), plus ``plate_snap_mm`` (ndarray[N, C]: snap mean − ride mean, mm) and
-    ``snap_share`` (ndarray[N])."""
+    mm), plus ``plate_snap_mm`` (ndarray[N, C]: snap mean − ride mean, mm),
+    ``plate_ride_sd_mm`` and ``plate_snap_sd_mm`` (ndarray[N, C]: the sd within each mode,
+    mm), ``snap_share`` (ndarray[N]) and, growing, ``snap_growth`` (the snaps' g;
+    ``growth`` is then the rides'; the two are equal when one curve serves both)."""
     cells = Cells(plates, plates.snap)
     mean, ss = plate_stats(peaks, cells.as_plates)
     prior = priors.plate
     if prior.kappa0 > 0:                    # a proper prior: m0 per (plate, mode), 2C of them; the cells' own
         prior = dataclasses.replace(prior, m0=tuple(np.asarray(prior.m0, float)[cells.present]))
-    par = draw_plate_parameters(rng, mean, ss, cells.as_plates, within, prior, priors.growth_max)
-    ride, snap = par["mu"][:, cells.index[:, 0]], par["mu"][:, cells.index[:, 1]]
-    share = rng.beta(1.0 + cells.snaps, 1.0 + cells.rides, size=tau_s.size)
+    if cells.own_spreads and not shared_spread:
+        mu, sigma, growth = np.empty(mean.shape), np.empty(mean.shape), []
+        for k in (0, 1):
+            keep, _, sub = cells.of_mode(k)
+            pri = dataclasses.replace(prior, m0=tuple(np.asarray(prior.m0, float)[keep])) if prior.kappa0 > 0 else prior
+            par = draw_plate_parameters(rng, mean[:, keep], ss[:, keep], sub, within, pri, priors.growth_max)
+            mu[:, keep], sigma[:, keep] = par["mu"], par["sigma"]
+            growth.append(par["growth"])
+    else:
+        par = draw_plate_parameters(rng, mean, ss, cells.as_plates, within, prior, priors.growth_max)
+        mu, sigma, growth = par["mu"], par["sigma"], [par["growth"]]
+    ride, snap = mu[:, cells.index[:, 0]], mu[:, cells.index[:, 1]]
+    s_ride, s_snap = sigma[:, cells.index[:, 0]], sigma[:, cells.index[:, 1]]
+    share = rng.beta(1.0 + cells.snaps, 1.0 + cells.rides, size=tau_s.size)[:, None]
     gap = snap - ride
-    mu = ride + share[:, None] * gap
-    sd = np.sqrt(par["sigma"][:, cells.index[:, 0]] ** 2 + (share * (1 - share))[:, None] * gap ** 2)
-    out = named_draws(tau_s, mu, sd, par["growth"], plates, "growing" if within == "growing" else "two-mode")
-    out["plate_snap_mm"] = out["a"][:, None] * gap
-    out["snap_share"] = share
+    sd = np.sqrt((1 - share) * s_ride ** 2 + share * s_snap ** 2 + share * (1 - share) * gap ** 2)
+    out = named_draws(tau_s, ride + share * gap, sd, growth[0], plates,
+                      "growing" if within == "growing" else "two-mode")
+    a = out["a"][:, None]
+    out.update(plate_snap_mm=a * gap, plate_ride_sd_mm=a * s_ride, plate_snap_sd_mm=a * s_snap, snap_share=share[:, 0])
+    if within == "growing":                 # the snaps' g (the rides' when one curve serves both)
+        out["snap_growth"] = growth[-1]
     return out

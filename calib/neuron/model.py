@@ -19,7 +19,16 @@ with the decoder noise σ_c following one of :data:`NOISE_MODELS`:
   the training touches' modes. Every touch's mode is read from its scan, so the decoder
   reads a new scan by its own mode's plates; without one (a live scan's first samples)
   by the mixture (1 − π)·N(μ_c0, σ) + π·N(μ_c1, σ);
-- ``two-mode-growing``: the same with σ_c = σ₀·exp(g·x_c) (both modes of a plate alike).
+- ``two-mode-growing``: the same with σ_c = σ₀·exp(g·x_c).
+
+  In both two-mode models the ride cells and the snap cells each have a spread of their
+  own (σ, or σ₀ and g along their own steps) when each mode has at least 3 scans more
+  than cells (:attr:`.modes.Cells.own_spreads`), else one serves both: a snap's peak is
+  the step taken in one frame, a ride's spreads it over the pad's passage, and at the
+  snaps' short windows the two spread apart (a training set of hard/close-steps at
+  0.5 s: snaps 0.0010-0.0038 mm, rides 0.011-0.013). One spread for both had covered the top plates of
+  near-floor and five-plates-long-window 0.97-0.98 once each mode was read at its own
+  window (:func:`.fit.mode_decoders`).
 
 Priors (:class:`PlatePrior`): σ² (or σ₀²) ~ scaled-inv-χ²(ν₀, s₀²) and μ_c | σ_c ~
 Normal(m₀_c, σ_c²/κ₀); ν₀ = κ₀ = 0 (the default) is the scale-free reference prior

@@ -8,8 +8,10 @@ snap − ride offset grows with the step (0.0071, 0.0102, 0.0102). A plate's tou
 then two modes mixed: their spread grows with the step and is flatter than Gaussian, and a
 Gaussian band with the right mean and sd holds more than 90 % of them (0.935 on
 few-scans' top plate). The ``two-mode`` noise models (:func:`.grid.two_mode_draws`)
-describe each plate by a ride mean and a snap mean, an sd (constant, or growing with the
-step) and the share of snapping touches; a scan is decoded by its own mode's curve.
+describe each plate by a ride mean and a snap mean, an sd for each mode (constant, or
+growing with the step; one for both when a mode has too few scans) and the share of
+snapping touches; a scan is decoded by its own mode's curve, at its own mode's windows
+(:func:`.fit.mode_decoders`).
 
 The mode of a touch, training or new, is read from its scan: a snap takes most of the
 rise in one frame, a ride spreads it over the frames the pad needs to pass the edge.
@@ -28,7 +30,7 @@ import numpy as np
 
 from feeler.calib.neuron.model import Plates
 
-__all__ = ["SNAP_SHARE", "snap_flags", "Cells", "TWO_MODE", "within_noise"]
+__all__ = ["SNAP_SHARE", "snap_flags", "Cells", "TWO_MODE", "within_noise", "OWN_SPREAD_DOF"]
 
 #: the two-mode noise models and the noise of P within a (plate, mode) cell
 TWO_MODE = {"two-mode": "constant", "two-mode-growing": "growing"}
@@ -38,6 +40,9 @@ def within_noise(noise: str) -> str | None:
     """The noise within a cell of a two-mode model (``constant`` or ``growing``); None for
     the one-mode models."""
     return TWO_MODE.get(noise)
+
+#: degrees of freedom (scans − cells) each mode needs for a spread curve of its own
+OWN_SPREAD_DOF = 3
 
 #: a touch snaps when its largest one-frame rise exceeds this share of its whole rise
 SNAP_SHARE = 2.0 / 3.0
@@ -73,6 +78,9 @@ class Cells:
         as_plates (Plates): the cells as plates (one mean each, at their plate's step: a
             growing noise grows with the plate), for the pooled noise models.
         snaps, rides (int): touches of each mode on plates with a riser (step > 0).
+        mode (ndarray[K] int): each cell's mode, 0 ride, 1 snap.
+        own_spreads (bool): each mode has scans enough for a spread curve of its own
+            (:meth:`of_mode`; at least :data:`OWN_SPREAD_DOF` scans more than cells).
     """
 
     def __init__(self, plates: Plates, snap: np.ndarray):
@@ -91,6 +99,23 @@ class Cells:
         riser = plates.steps_mm[plates.group] > 0
         self.snaps = int(np.sum(self.snap & riser))
         self.rides = int(np.sum(~self.snap & riser))
+        self.mode = (np.arange(present.size) % 2)[present]
+        counts = self.as_plates.counts
+        self.own_spreads = all(int(counts[self.mode == k].sum()) - int(np.sum(self.mode == k)) >= OWN_SPREAD_DOF
+                               for k in (0, 1))
+
+    def of_mode(self, k: int) -> tuple[np.ndarray, np.ndarray, Plates]:
+        """The cells of mode ``k`` (0 ride, 1 snap) as plates of their own: (their indices
+        among the cells ndarray[K_k] int, their scans ndarray[n_scans] bool, Plates). A
+        spread growing with the step grows along these cells' own steps (the snaps' start
+        at the lowest riser)."""
+        keep = np.flatnonzero(self.mode == k)
+        scans = self.snap == bool(k)
+        remap = np.full(self.mode.size, -1)
+        remap[keep] = np.arange(keep.size)
+        group = remap[self.as_plates.group[scans]]
+        return keep, scans, Plates(steps_mm=self.as_plates.steps_mm[keep], group=group,
+                                   counts=np.bincount(group, minlength=keep.size))
 
     @property
     def size(self) -> int:

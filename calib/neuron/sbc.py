@@ -67,28 +67,38 @@ def simulate_neuron(rng: np.random.Generator, *, plates: Plates, priors: Priors,
 def simulate_two_mode(rng: np.random.Generator, *, plates: Plates, priors: Priors, noise: str, tau_s: float):
     """One (truth, (peaks, snap flags)) pair from the prior predictive of a two-mode model:
     π ~ Beta(1, 1); each touch of a plate with a riser snaps with probability π; σ (and
-    the growth) as the one-mode model's; each (plate, mode) cell's mean ~ Normal(m0, σ²/κ₀)
-    (``priors.plate.m0``: 2C values, ride then snap per plate). A mode no touch of a plate
-    shows has no mean of its own: the model reads that plate by its one mode, in the truth
-    as in the fit (:class:`~feeler.calib.neuron.modes.Cells`)."""
+    the growth) as the one-mode model's, drawn for the ride cells and the snap cells apart
+    when the touches give each mode a spread curve of its own (as the fit does:
+    :attr:`~feeler.calib.neuron.modes.Cells.own_spreads`); each (plate, mode) cell's mean
+    ~ Normal(m0, σ²/κ₀) (``priors.plate.m0``: 2C values, ride then snap per plate). A mode
+    no touch of a plate shows has no mean of its own: the model reads that plate by its
+    one mode, in the truth as in the fit (:class:`~feeler.calib.neuron.modes.Cells`)."""
     p = priors.plate
-    C = plates.steps_mm.size
     within = within_noise(noise)
     share = float(rng.beta(1.0, 1.0))
     snap = (rng.random(plates.group.size) < share) & (plates.steps_mm[plates.group] > 0)
-    growth = float(rng.uniform(-priors.growth_max, priors.growth_max)) if within == "growing" else 0.0
-    sigma = np.sqrt(p.nu0 * p.s0_sq / rng.chisquare(p.nu0)) * np.exp(growth * plates.x)         # (C,)
-    mu = np.asarray(p.m0, float) + np.repeat(sigma, 2) / np.sqrt(p.kappa0) * rng.standard_normal(2 * C)
     cells = Cells(Plates.of(plates.steps_mm[plates.group], snap), snap)
-    mu_cells = mu[cells.present]
-    ride, snapped = mu_cells[cells.index[:, 0]], mu_cells[cells.index[:, 1]]
-    peaks = np.where(snap, snapped[plates.group], ride[plates.group]) + sigma[plates.group] * rng.standard_normal(
-        plates.group.size)
+    groups = ([cells.of_mode(k)[::2] for k in (0, 1)] if cells.own_spreads
+              else [(np.arange(cells.size), cells.as_plates)])
+    cell_sd, growth = np.empty(cells.size), []
+    for keep, sub in groups:
+        g = float(rng.uniform(-priors.growth_max, priors.growth_max)) if within == "growing" else 0.0
+        cell_sd[keep] = np.sqrt(p.nu0 * p.s0_sq / rng.chisquare(p.nu0)) * np.exp(g * sub.x)
+        growth.append(g)
+    mu = np.asarray(p.m0, float)[cells.present] + cell_sd / np.sqrt(p.kappa0) * rng.standard_normal(cells.size)
+    g_cell = cells.as_plates.group
+    peaks = mu[g_cell] + cell_sd[g_cell] * rng.standard_normal(g_cell.size)
+    ride, snapped = mu[cells.index[:, 0]], mu[cells.index[:, 1]]
+    s_ride, s_snap = cell_sd[cells.index[:, 0]], cell_sd[cells.index[:, 1]]
     gap = snapped - ride
-    truth = _named_truth(ride + share * gap, np.sqrt(sigma ** 2 + share * (1 - share) * gap ** 2), growth, plates,
-                         "growing" if within == "growing" else noise, tau_s)
+    sd = np.sqrt((1 - share) * s_ride ** 2 + share * s_snap ** 2 + share * (1 - share) * gap ** 2)
+    truth = _named_truth(ride + share * gap, sd, growth[0], plates, "growing" if within == "growing" else noise, tau_s)
     a = truth["a"]
-    truth.update({f"plate_snap_mm[{c}]": float(a * g) for c, g in enumerate(gap)}, snap_share=share)
+    for name, v in (("plate_snap_mm", gap), ("plate_ride_sd_mm", s_ride), ("plate_snap_sd_mm", s_snap)):
+        truth.update({f"{name}[{c}]": float(a * x) for c, x in enumerate(v)})
+    truth["snap_share"] = share
+    if within == "growing":
+        truth["snap_growth"] = growth[-1]
     return truth, (peaks, snap)
 
 

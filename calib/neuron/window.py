@@ -15,7 +15,9 @@ data (the labels), unlike the density of P(τ), which differs with τ. Weights
 pseudo-BMA+ (Yao et al. 2018; :func:`tau_log_weights`). A decoder whose curve is flat
 or turns down somewhere cannot be inverted and gets elpd = −∞ there. The noise model is
 chosen by the total (log Σ_τ prior·exp(elpd)); per-plate spreads must earn their extra
-parameters by two standard errors (:func:`choose_noise`). Under a two-mode model
+parameters by two standard errors (:func:`choose_noise`). The two-mode models are
+compared with one spread for both modes; the chosen one is then scored (for the weights)
+with a spread per mode when the modes have the scans for it (:func:`loo_two_mode`). Under a two-mode model
 (:mod:`.modes`) a scan is decoded by the curve of its own mode (snap or ride, read from
 the scan as :func:`~feeler.calib.neuron.classify.classify` reads a new one), made
 monotone as the decoder makes it (:func:`.decoder.monotone_curve`: isotonic, and past
@@ -115,13 +117,13 @@ def _growth_hat(q, r, x, prior: PlatePrior, growth_max: float) -> np.ndarray:
     return nodes[np.argmax(lp, axis=1)]
 
 
-def loo_plates(table: PeakTable, plates: Plates, noise: str, *, growth_max: float = 3.0):
+def loo_plates(table: PeakTable, plates: Plates, noise: str, *, growth_max: float = 3.0, shared_spread: bool = False):
     """Every scan's view of the plates fitted without it, per τ node: the plate means and
     predictive spreads s·√(1 + 1/n_c) of the plug-in fit of one noise model, two
     ndarray[n_grid, n_scans, C] (units of P). Under a two-mode model, the plates of the
-    scan's own mode (:func:`loo_two_mode`)."""
+    scan's own mode (:func:`loo_two_mode`, ``shared_spread`` passed on)."""
     if within_noise(noise):
-        return loo_two_mode(table, plates, within_noise(noise), growth_max=growth_max)
+        return loo_two_mode(table, plates, within_noise(noise), growth_max=growth_max, shared_spread=shared_spread)
     p = table.peak.T                                                        # (G, n)
     mean, ss = plate_stats(p, plates)                                       # (G, C)
     n_c = plates.counts.astype(float)
@@ -157,17 +159,44 @@ def loo_plates(table: PeakTable, plates: Plates, noise: str, *, growth_max: floa
         return mu, np.sqrt(var * (1 + 1 / nk))
 
 
+def _fitted_spreads(p: np.ndarray, plates: Plates, noise: str, growth_max: float) -> np.ndarray:
+    """The predictive spreads s·√(1 + 1/n_c) of the pooled (``constant`` or ``growing``)
+    plug-in fit of all the scans ``p (ndarray[n_grid, n_scans])``, ndarray[n_grid, C]:
+    :func:`loo_plates` with no scan left out."""
+    mean, ss = plate_stats(p, plates)
+    n_c = plates.counts.astype(float)
+    shape = np.ones((1, n_c.size))
+    if noise == "growing":
+        g = _growth_hat(ss, n_c - 1, plates.x, PlatePrior(), growth_max)
+        shape = np.exp(g[:, None] * plates.x[None, :])
+    s0 = np.sum(ss / shape ** 2, axis=-1, keepdims=True) / (p.shape[-1] - n_c.size)
+    floor = (1e-12 * np.max(np.abs(mean), axis=-1, keepdims=True)) ** 2
+    return np.sqrt(np.maximum(s0 * shape ** 2, floor) * (1 + 1 / n_c))
+
+
 def loo_two_mode(table: PeakTable, plates: Plates, within: str = "constant", *, growth_max: float = 3.0,
-                 mixture: bool = False):
+                 mixture: bool = False, shared_spread: bool = False):
     """Every scan's view of the two-mode plates fitted without it, per τ node, in the
     scan's own mode (as classify reads a new scan): the plates' means and predictive
     spreads in that mode (each a (plate, mode) cell of the pooled ``within`` fit,
-    :func:`loo_plates`), two ndarray[n_grid, n_scans, C]. A mode left without scans takes
+    :func:`loo_plates`; the ride and the snap cells pooled apart when both modes have
+    the scans for a spread curve of their own, :attr:`.modes.Cells.own_spreads`, unless
+    ``shared_spread``), two ndarray[n_grid, n_scans, C]. A mode left without scans takes
     the other mode's mean and spread. ``mixture``: a third, the plates' means over both
     modes (weights the shares of snaps and rides), whose slope bounds the mode's curve
     past its ends as in the decoder (:func:`.decoder.monotone_curve`)."""
     cells = Cells(plates, plates.snap)
     mu, s = loo_plates(table, cells.as_plates, within, growth_max=growth_max)  # (G, n, K)
+    if cells.own_spreads and not shared_spread:       # every cell's spread from its own mode's pool
+        for k in (0, 1):
+            keep, scans, sub = cells.of_mode(k)
+            m_k, s_k = loo_plates(PeakTable(log_tau=table.log_tau, peak=table.peak[scans]), sub, within,
+                                  growth_max=growth_max)
+            rows = np.flatnonzero(scans)[:, None]
+            mu[:, rows, keep], s[:, rows, keep] = m_k, s_k
+            # the other mode's scans see these cells whole (a cell they borrow where their own is empty)
+            s[:, np.flatnonzero(~scans)[:, None], keep] = _fitted_spreads(table.peak[scans].T, sub, within,
+                                                                          growth_max)[:, None, :]
     ride, snap = mu[..., cells.index[:, 0]], mu[..., cells.index[:, 1]]
     s_ride, s_snap = s[..., cells.index[:, 0]], s[..., cells.index[:, 1]]
     empty_r, empty_s = ~np.isfinite(ride), ~np.isfinite(snap)
@@ -182,11 +211,13 @@ def loo_two_mode(table: PeakTable, plates: Plates, within: str = "constant", *, 
 
 
 def loo_elpd(table: PeakTable, plates: Plates, noise: str, *, growth_max: float = 3.0,
-             pointwise: bool = False) -> np.ndarray:
+             pointwise: bool = False, shared_spread: bool = False) -> np.ndarray:
     """Leave-one-out elpd of the labels per τ node (ndarray[n_grid]) for one noise model
-    (``pointwise``: per node and scan, ndarray[n_grid, n_scans])."""
+    (``pointwise``: per node and scan, ndarray[n_grid, n_scans]; ``shared_spread``:
+    :func:`loo_two_mode`)."""
     if within_noise(noise):        # a scan read by its mode's curve, made monotone as the decoder makes it
-        mu, s, plate_curve = loo_two_mode(table, plates, within_noise(noise), growth_max=growth_max, mixture=True)
+        mu, s, plate_curve = loo_two_mode(table, plates, within_noise(noise), growth_max=growth_max, mixture=True,
+                                          shared_spread=shared_spread)
     else:
         mu, s = loo_plates(table, plates, noise, growth_max=growth_max)
     G, n, C = mu.shape
@@ -224,8 +255,13 @@ def loo_class_log_prob(table: PeakTable, plates: Plates, noise: str, log_w: np.n
     p = table.peak.T[..., None]                                             # (G, n, 1)
     nk = np.repeat(plates.counts[None, :].astype(float), p.shape[1], axis=0)
     nk[np.arange(p.shape[1]), plates.group] -= 1
-    pooled = Cells(plates, plates.snap).size if within_noise(noise) else nk.shape[1]     # means fitted
+    cells = Cells(plates, plates.snap) if within_noise(noise) else None
+    pooled = cells.size if cells is not None else nk.shape[1]                      # means fitted
     dof = nk - 1 if noise == "per-plate" else np.full(nk.shape, p.shape[1] - 1.0 - pooled)
+    if cells is not None and cells.own_spreads:          # a scan's mode pools its own cells
+        per_mode = np.array([cells.as_plates.counts[cells.mode == k].sum() - 1.0 - np.sum(cells.mode == k)
+                             for k in (0, 1)])
+        dof = np.broadcast_to(per_mode[plates.snap.astype(int)][:, None], nk.shape)
     with np.errstate(divide="ignore", invalid="ignore"):
         ll = student_t.logpdf(p, dof, loc=mu, scale=s)
     ll = np.where(np.isfinite(ll), ll, -np.inf)
@@ -278,7 +314,7 @@ def choose_noise(table: PeakTable, plates: Plates, *, growth_max: float = 3.0,
     models = candidates or usable_noise_models(plates)
     scores, curves, points = {}, {}, {}
     for m in models:
-        dens = loo_elpd(table, plates, m, growth_max=growth_max, pointwise=True)
+        dens = loo_elpd(table, plates, m, growth_max=growth_max, pointwise=True, shared_spread=True)
         e = np.sum(dens, axis=1)
         curves[m] = dens
         scores[m] = float(logsumexp(e) - np.log(e.size)) if np.any(np.isfinite(e)) else -np.inf
@@ -302,5 +338,7 @@ def choose_noise(table: PeakTable, plates: Plates, *, growth_max: float = 3.0,
         return "per-plate", scores, curves["per-plate"]
     if beats("per-plate", best):
         best = "per-plate"
+    if within_noise(best) and Cells(plates, plates.snap).own_spreads:
+        return best, scores, loo_elpd(table, plates, best, growth_max=growth_max, pointwise=True)
     return best, scores, curves[best]
 

@@ -94,6 +94,12 @@ def run(args) -> int:
                f"one-mode model scores better by two standard errors: left out, a touch takes its cell's mean with it)")
     print(f"decoder noise: {attrs['noise']}" + (" (leave-one-out log score per scan: " + ", ".join(
         f"{k} {v / scans.step_mm.size:+.3f}" for k, v in scores.items()) + ")" if scores else "") + why)
+    by_mode = json.loads(attrs.get("mode_decoders", "{}"))
+    if by_mode:
+        print("decoded by mode: " + ", ".join(
+            f"{k}s at a window of about {v['tau_s']:.3g} s (gamma {v['sharpness']:.3g}, {v['scans']} scans)"
+            for k, v in by_mode.items()) + "; each mode weighted by how its own touches are told apart (the "
+            "summary's tau_s weighs both together)")
     if "loo_coverage90" in checks:
         print("posterior predictive check (leave-one-out): labels inside their 90 % interval per plate: " + ", ".join(
             f"{s + 0.0:g} mm " + (f"{100 * c:.0f} %" if c == c else "- (one scan)")
@@ -114,7 +120,7 @@ def _undecodable_note(result) -> str | None:
     from feeler.errors import ArgumentError
 
     try:
-        return DecoderDraws.from_result(result).note
+        return DecoderDraws.from_result(result, by_mode=False).note
     except ArgumentError:
         return None
 

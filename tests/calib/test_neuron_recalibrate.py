@@ -1,5 +1,8 @@
 """Sharpening of the pooled plate probabilities (calib/neuron/recalibrate.py) and the
 leave-one-out plate probabilities it is fitted to — each against a reference."""
+import dataclasses
+import json
+
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -95,10 +98,16 @@ def test_fit_records_the_sharpness_and_classify_applies_it():
     c = classify(res, train.strain[:6], train.t_s, rng=np.random.default_rng(0))
     dec = DecoderDraws.from_result(res, rng=np.random.default_rng(0), n_draws=400)
     assert (dec.sharpness, dec.floor) == (gamma, floor)
-    raw = DecoderDraws(dec.steps_mm, dec.tau_s, dec.a, dec.h, dec.mean_mm, dec.sd_mm, snap_mm=dec.snap_mm,
-                       snap_share=dec.snap_share).class_log_prob(c.p_at_tau, scan_modes(train.strain[:6])
-                                                                 if dec.snap_mm is not None else None)
-    np.testing.assert_allclose(c.log_prob, recalibrated(raw, gamma, floor), rtol=1e-12, atol=1e-12)
+    modes = scan_modes(train.strain[:6]) if dec.snap_mm is not None else None
+    plain = None if dec.mode_sharpness is None else (1.0, 1.0)
+    raw = dataclasses.replace(dec, sharpness=1.0, floor=0.0, mode_sharpness=plain).class_log_prob(c.p_at_tau, modes)
+    # a decoder per mode: each scan sharpened by its mode's γ (both recorded with the fit)
+    g = np.full(6, gamma) if plain is None else np.asarray(dec.mode_sharpness)[modes.astype(int)]
+    if plain is not None:
+        by_mode = json.loads(attrs["mode_decoders"])
+        assert dec.mode_sharpness == (by_mode["ride"]["sharpness"], by_mode["snap"]["sharpness"])
+    np.testing.assert_allclose(c.log_prob, np.stack([recalibrated(raw[i], g[i], floor) for i in range(6)]),
+                               rtol=1e-12, atol=1e-12)
 
 
 @settings(max_examples=60, deadline=None)

@@ -1,5 +1,6 @@
 """The two-mode noise models: touches that snap onto the upper level or ride over the edge."""
 import dataclasses
+import re
 import warnings
 
 import numpy as np
@@ -78,11 +79,43 @@ def test_two_mode_draws_recover_the_cells_and_the_share():
     for c, s in enumerate([0.0, 0.1, 0.2]):
         q = np.quantile(gaps[:, c], [0.005, 0.995])
         assert (q[0] <= gap[s] <= q[1]) if s > 0 else np.all(gaps[:, c] == 0)
-    # the plate's sd (mm) is the mixture's: σ² + π(1 − π)·gap² in P units
-    sd_p = out["plate_sd_mm"] / a[:, None]
-    within = np.sqrt(sd_p ** 2 - (out["snap_share"] * (1 - out["snap_share"]))[:, None] * gaps ** 2)
-    np.testing.assert_allclose(within, within[:, :1] * np.ones(3), rtol=1e-9)          # one σ
-    assert np.quantile(within[:, 0], 0.005) < sigma < np.quantile(within[:, 0], 0.995)
+    # each mode's sd (one σ for its cells, constant noise) covers the truth; the plate's sd (mm) is
+    # the mixture's: (1 − π)σ_r² + πσ_s² + π(1 − π)·gap² in P units
+    ride_sd, snap_sd = out["plate_ride_sd_mm"] / a[:, None], out["plate_snap_sd_mm"] / a[:, None]
+    for within in (ride_sd, snap_sd[:, 1:]):
+        np.testing.assert_allclose(within, within[:, :1] * np.ones(within.shape[1]), rtol=1e-9)
+        assert np.quantile(within[:, 0], 0.005) < sigma < np.quantile(within[:, 0], 0.995)
+    assert np.corrcoef(ride_sd[:, 0], snap_sd[:, 1])[0, 1] < 0.1          # drawn apart
+    np.testing.assert_allclose(snap_sd[:, 0], ride_sd[:, 0])              # the floor has no snaps: its rides'
+    pi_s = out["snap_share"][:, None]
+    np.testing.assert_allclose(out["plate_sd_mm"] / a[:, None], np.sqrt(
+        (1 - pi_s) * ride_sd ** 2 + pi_s * snap_sd ** 2 + pi_s * (1 - pi_s) * gaps ** 2), rtol=1e-9)
+    shared = two_mode_draws(rng, np.ones(400), table.at(np.ones(400)), plates, make_priors(table), shared_spread=True)
+    np.testing.assert_array_equal(shared["plate_ride_sd_mm"], shared["plate_snap_sd_mm"])
+
+
+def test_each_mode_has_a_spread_curve_of_its_own_only_with_the_scans_for_it():
+    """Cells.own_spreads needs OWN_SPREAD_DOF scans more than cells in each mode; of_mode
+    gives each mode's cells as plates, the snaps' starting at the lowest riser."""
+    steps = np.repeat([0.0, 0.1, 0.2], 4)
+    snap = np.zeros(12, bool)
+    snap[[4, 5, 8, 9]] = True                       # 2 snaps on each riser: 4 scans, 2 cells
+    cells = Cells(Plates.of(steps, snap), snap)
+    assert not cells.own_spreads                    # 4 − 2 < 3
+    keep, scans, sub = cells.of_mode(1)
+    np.testing.assert_array_equal(sub.steps_mm, [0.1, 0.2])
+    np.testing.assert_array_equal(sub.x, [0.0, 1.0])
+    np.testing.assert_array_equal(scans, snap)
+    np.testing.assert_array_equal(cells.mode[keep], [1, 1])
+    snap[[6, 7, 10]] = True                         # snaps 7 in 2 cells, rides 5 in 2 (plate 0.1 has none)
+    cells = Cells(Plates.of(steps, snap), snap)
+    assert cells.own_spreads                        # 7 − 2 and 5 − 2 ≥ 3
+    _, _, rides = cells.of_mode(0)
+    np.testing.assert_array_equal(rides.steps_mm, [0.0, 0.2])
+    np.testing.assert_array_equal(rides.counts, [4, 1])
+    steps = np.array([0, 0, 0.1, 0.1, 0.1, 0.1, 0.2, 0.2, 0.2, 0.2])
+    snap = np.array([0, 0, 1, 1, 1, 0, 1, 1, 1, 0], bool)
+    assert not Cells(Plates.of(steps, snap), snap).own_spreads          # rides 4 − 3 < 3
 
 
 def _decoder(snap_mm=None, share=None):
@@ -121,10 +154,72 @@ def test_a_known_mode_reads_its_own_component():
             np.testing.assert_allclose(x, y, atol=1e-8)
 
 
-def test_a_two_mode_fit_decodes_fresh_touches_and_live_ends_as_classify():
-    """On few-scans (half the touches snap) the default fit picks a two-mode model; it
-    classifies fresh touches better than one that ignores the modes, and a live decoder
-    fed one scan sample by sample ends where classify does."""
+def _mode_decoder(S=50):
+    """A two-mode decoder whose ride draws (window 1 s, γ 0.8) and snap draws (window 3 s,
+    γ 1.6) differ in every parameter."""
+    rng = np.random.default_rng(5)
+    ride = dataclasses.replace(_decoder(0.05 + 0.002 * rng.random((S, 3)), np.full(S, 0.4)), sharpness=0.8)
+    snap = dataclasses.replace(_decoder(0.08 + 0.002 * rng.random((S, 3)), np.full(S, 0.6)), sharpness=1.6,
+                               tau_s=np.full(S, 3.0), a=np.full(S, 1.1), h=np.full(S, 0.01),
+                               mean_mm=ride.mean_mm[::-1] * 0.9 + 0.01)
+    joined = dataclasses.replace(ride, **{k: np.concatenate([getattr(ride, k), getattr(snap, k)])
+                                          for k in ("tau_s", "a", "h", "mean_mm", "sd_mm", "snap_mm", "snap_share")},
+                                 draw_mode=np.repeat([0, 1], S), mode_sharpness=(0.8, 1.6), sharpness=1.0)
+    return ride, snap, joined
+
+
+def test_each_mode_is_read_by_its_own_draws():
+    """With a decoder per mode, a ride scan's plate probabilities and height interval are
+    those of the ride draws alone (with the rides' γ), a snap's those of the snap draws;
+    a scan whose mode is unknown is read by every draw (the mixture, the joint γ)."""
+    ride, snap, joined = _mode_decoder()
+    S = ride.size
+    rng = np.random.default_rng(6)
+    p = 0.2 * rng.random((2 * S, 8))                                   # P at each draw's window
+    flags = np.array([0, 1, 1, 0, 1, 0, 0, 1], bool)
+    got = joined.class_log_prob(p, flags)
+    heights = joined.height(p, flags)
+    for part, rows, sel in ((ride, slice(0, S), ~flags), (snap, slice(S, 2 * S), flags)):
+        np.testing.assert_allclose(got[sel], part.class_log_prob(p[rows][:, sel], flags[sel]), atol=1e-12)
+        for x, y in zip(heights, part.height(p[rows][:, sel], flags[sel])):
+            np.testing.assert_allclose(x[sel], y, atol=1e-8)
+    assert np.max(np.abs(got[~flags] - joined.class_log_prob(p, np.zeros(8, bool))[~flags])) < 1e-12
+    assert np.max(np.abs(got[flags] - joined.class_log_prob(p, np.zeros(8, bool))[flags])) > 0.01
+    both = dataclasses.replace(joined, draw_mode=None, mode_sharpness=None)
+    np.testing.assert_allclose(joined.class_log_prob(p), both.class_log_prob(p), atol=1e-12)
+    np.testing.assert_array_equal(joined.take(np.arange(S - 5, S + 5)).draw_mode, [0] * 5 + [1] * 5)
+
+
+def test_each_modes_draws_sit_at_the_windows_that_read_that_mode():
+    """Rides that tell their plates apart only at the long window, snaps only at the short
+    one: the joint weights split between the windows, the rides' decoder sits at the long
+    one and the snaps' at the short one, each with its own γ."""
+    from feeler.calib.neuron.fit import mode_decoders
+    rng = np.random.default_rng(8)
+    steps = np.repeat([0.0, 0.05, 0.1, 0.15], 16)
+    snap = np.tile([False, True], 32) & (steps > 0)
+    level = steps / 0.05
+    short = np.where(snap, 1.0 + level, 1.0) + 0.15 * rng.standard_normal(steps.size)
+    long = np.where(snap, 2.0, 1.0 + level) + 0.15 * rng.standard_normal(steps.size)
+    table = PeakTable(log_tau=np.log([0.5, 4.0]), peak=np.column_stack([short, long]))
+    plates = Plates.of(steps, snap)
+    pri = make_priors(table)
+    elpd = loo_elpd(table, plates, "two-mode", pointwise=True)
+    out = mode_decoders(table, plates, pri, "two-mode", elpd, chains=2, draws=200, rng=rng)
+    assert set(out) == {"ride", "snap"} and out["ride"]["scans"] == 40 and out["snap"]["scans"] == 24
+    assert np.median(out["ride"]["draws"]["tau_s"]) > 2.0 > np.median(out["snap"]["draws"]["tau_s"])
+    assert out["ride"]["draws"]["plate_mean_mm"].shape == (2, 200, 4)
+    few = Plates.of(steps, snap & (np.arange(steps.size) < 12))      # 5 snaps: no decoder per mode
+    assert mode_decoders(table, few, pri, "two-mode", loo_elpd(table, few, "two-mode", pointwise=True),
+                         chains=1, draws=50, rng=rng) == {}
+
+
+def test_a_two_mode_fit_decodes_fresh_touches_and_live_ends_as_classify(tmp_path):
+    """On few-scans (half the touches snap) the default fit picks a two-mode model with a
+    decoder per mode; it classifies fresh touches better than one that ignores the modes,
+    reads them the same once saved and loaded, and a live decoder fed one scan sample by
+    sample ends where classify does."""
+    from feeler.calib.fit import load
     from feeler.calib.neuron.live import LiveDecoder
     from feeler.calib.neuron.synth import scene_scans
 
@@ -143,6 +238,11 @@ def test_a_two_mode_fit_decodes_fresh_touches_and_live_ends_as_classify():
     ll1 = -np.mean(c1.log_prob[np.arange(truth.size), truth])
     print(f"\nlog-loss two-mode {ll2:.3f}, growing {ll1:.3f}")
     assert ll2 < ll1
+    assert {"ride_decoder", "snap_decoder"} <= set(two.posterior.children)
+    back = classify(load(two.save(tmp_path / "fit")), fresh.strain, fresh.t_s, rng=np.random.default_rng(0),
+                    n_draws=200)
+    np.testing.assert_allclose(back.log_prob, c2.log_prob, atol=1e-12)
+    np.testing.assert_allclose(back.hi90_mm, c2.hi90_mm, atol=1e-12)
     live = LiveDecoder(two, seed=0, n_draws=200)
     for k in (0, 61, 130, 200):
         live.reset()
@@ -176,6 +276,9 @@ def test_the_cli_says_why_a_two_mode_model_was_chosen(capsys, tmp_path):
     line = next(s for s in out if s.startswith("decoder noise:"))
     assert line.startswith("decoder noise: two-mode") and "touches of plates with a riser snapped onto the upper" in line
     assert "two standard errors" in line
+    modes = next(s for s in out if s.startswith("decoded by mode:"))
+    assert re.fullmatch(r"decoded by mode: rides at a window of about [0-9.]+ s \(gamma [0-9.]+, \d+ scans\), snaps at "
+                        r"a window of about [0-9.]+ s \(gamma [0-9.]+, \d+ scans\); .*", modes)
     # the floor plate's snap offset is 0 at every draw: shown as fixed, not as R-hat nan
     floor = next(s for s in out if s.strip().startswith("plate_snap_mm[0]")).split()
     assert floor[-3:] == ["fixed", "-", "-"] and not any("nan" in s.split() for s in out)
@@ -212,21 +315,24 @@ def test_two_mode_leave_one_out_reads_a_scan_by_its_modes_monotone_curve():
     p = ride + 1.5 * snap * (steps > 0) + 0.25 * rng.standard_normal(steps.size)
     plates = Plates.of(steps, snap)
     table = PeakTable(log_tau=np.log([1.0, 2.0]), peak=np.column_stack([p, 1.2 * p + 0.3]))
-    got = loo_elpd(table, plates, "two-mode")
-    assert np.all(np.isfinite(got))
     share = snap[steps > 0].mean()
-    for j in range(2):
-        ref = 0.0
-        for k in range(p.size):
-            keep = np.arange(p.size) != k
-            cells = Cells(plates.subset(keep), snap[keep])
-            mean, ss = plate_stats(table.peak[keep, j], cells.as_plates)
-            var = ss.sum() / (keep.sum() - cells.size)
-            sd = np.sqrt(var * (1 + 1 / cells.as_plates.counts))
-            mode = int(snap[k])
-            own, own_sd = mean[cells.index[:, mode]], sd[cells.index[:, mode]]
-            mix = (1 - share) * mean[cells.index[:, 0]] + share * mean[cells.index[:, 1]]
-            curve, ends = monotone_curve(plates.steps_mm, own, mix)
-            ref += continuous_log_density(np.array(table.peak[k, j]), np.array(plates.group[k]), curve, own_sd,
-                                          plates.steps_mm, ends)
-        assert got[j] == pytest.approx(ref, rel=1e-10)
+    for shared in (False, True):      # each mode's cells pooled apart (15 rides in 4 cells, 9 snaps in 3), or all
+        got = loo_elpd(table, plates, "two-mode", shared_spread=shared)
+        assert np.all(np.isfinite(got))
+        for j in range(2):
+            ref = 0.0
+            for k in range(p.size):
+                keep = np.arange(p.size) != k
+                cells = Cells(plates.subset(keep), snap[keep])
+                mean, ss = plate_stats(table.peak[keep, j], cells.as_plates)
+                mode = int(snap[k])
+                # each cell's spread from its mode's pool (the floor's snap view is its ride cell)
+                pools = [np.ones(cells.size, bool)] * 2 if shared else [cells.mode == 0, cells.mode == 1]
+                var = np.array([ss[q].sum() / (cells.as_plates.counts[q].sum() - q.sum()) for q in pools])
+                sd = np.sqrt(var[cells.mode] * (1 + 1 / cells.as_plates.counts))
+                own, own_sd = mean[cells.index[:, mode]], sd[cells.index[:, mode]]
+                mix = (1 - share) * mean[cells.index[:, 0]] + share * mean[cells.index[:, 1]]
+                curve, ends = monotone_curve(plates.steps_mm, own, mix)
+                ref += continuous_log_density(np.array(table.peak[k, j]), np.array(plates.group[k]), curve, own_sd,
+                                              plates.steps_mm, ends)
+            assert got[j] == pytest.approx(ref, rel=1e-10)
