@@ -178,7 +178,7 @@ class DecoderDraws:
         steps = np.asarray(obs["plate_steps_mm"].values, float)
         groups = ("ride_decoder", "snap_decoder")
         if by_mode and all(g in tree.children for g in groups):
-            parts = [cls._of_group(tree[g], steps, None if n_draws is None else (n_draws + k) // 2, rng)
+            parts = [cls._of_group(tree[g], steps, None if n_draws is None else max(1, (n_draws + k) // 2), rng)
                      for k, g in enumerate(groups)]
             names = ("tau_s", "a", "h", "mean_mm", "sd_mm", "snap_mm", "snap_share", "ride_sd_mm", "snap_sd_mm")
             joined = {k: np.concatenate([getattr(p, k) for p in parts]) for k in names

@@ -239,6 +239,7 @@ def test_a_two_mode_fit_decodes_fresh_touches_and_live_ends_as_classify(tmp_path
     print(f"\nlog-loss two-mode {ll2:.3f}, growing {ll1:.3f}")
     assert ll2 < ll1
     assert {"ride_decoder", "snap_decoder"} <= set(two.posterior.children)
+    assert DecoderDraws.from_result(two, rng=np.random.default_rng(0), n_draws=1).draw_mode.tolist() == [0, 1]
     back = classify(load(two.save(tmp_path / "fit")), fresh.strain, fresh.t_s, rng=np.random.default_rng(0),
                     n_draws=200)
     np.testing.assert_allclose(back.log_prob, c2.log_prob, atol=1e-12)
