@@ -27,7 +27,7 @@ s_cs (mm):
   (:meth:`DecoderDraws.belt_targets`), so the floor plate is covered at 90 %, not 95 %.
 
 Under a two-mode noise model (:mod:`.modes`) each plate has a ride and a snap
-component (means m − πd and m + (1 − π)d, one within-mode sd): a scan whose mode is given
+component (means m − πd and m + (1 − π)d, each mode's own sd): a scan whose mode is given
 (``snap``, read from the scan) is decoded by its mode's components alone, one without by
 the mixture with weights 1 − π and π; the calibration curve, its spread and the belt are
 then each component's, F the weighted sum.

@@ -15,10 +15,10 @@ with the decoder noise σ_c following one of :data:`NOISE_MODELS`:
 - ``growing``:   σ_c = σ₀·exp(g·x_c), x_c = (c − c_min)/(c_max − c_min), g ~ Uniform(±g_max);
 - ``per-plate``: σ_c free;
 - ``two-mode``:  a touch snaps onto the upper level (share π) or rides over the edge
-  (:mod:`.modes`): P_k | plate c, mode m ~ Normal(μ_cm, σ), one σ, π ~ Beta(1, 1) from
+  (:mod:`.modes`): P_k | plate c, mode m ~ Normal(μ_cm, σ_m), π ~ Beta(1, 1) from
   the training touches' modes. Every touch's mode is read from its scan, so the decoder
   reads a new scan by its own mode's plates; without one (a live scan's first samples)
-  by the mixture (1 − π)·N(μ_c0, σ) + π·N(μ_c1, σ);
+  by the mixture (1 − π)·N(μ_c0, σ_0) + π·N(μ_c1, σ_1);
 - ``two-mode-growing``: the same with σ_c = σ₀·exp(g·x_c).
 
   In both two-mode models the ride cells and the snap cells each have a spread of their

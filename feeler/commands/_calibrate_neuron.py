@@ -5,9 +5,10 @@ DATASET is a run directory of a robot-scan scene (scans.csv + scene.toml, as wri
 label is its plate's step (mm). P_k(τ) is the peak window sum of strain = U_y / length;
 per plate, P ~ Normal(μ_c, σ_c) with the noise σ_c constant, growing with the step, or
 free per plate; or per plate and mode (two-mode, two-mode-growing): a touch snaps onto
-the upper level or rides over the edge, read from its scan, and each has its own mean
-(--noise; auto picks by leave-one-out prediction of the labels, a two-mode model when the
-touches show both modes unless a one-mode one predicts clearly better). The
+the upper level or rides over the edge, read from its scan, and each has its own mean,
+each mode its own spread and windows (--noise; auto picks by leave-one-out prediction of
+the labels, a two-mode model when the touches show both modes unless a one-mode one
+predicts clearly better). The
 window τ is weighted by how well the decoder predicts each left-out label; the decoded
 height is z = a·P − h on the least-squares line through the plates. Backends: grid
 (exact, default, fastest), nuts (PyMC), emcee (runs until its chains are 50
@@ -38,8 +39,9 @@ def register(parser) -> None:
                         default="auto",
                         help="decoder noise model (default auto: chosen by leave-one-out prediction). two-mode: "
                              "touches that snap onto the upper level and touches that ride over the edge (read "
-                             "from each scan) get their own mean, one sd; two-mode-growing: that sd grows with the "
-                             "step. Grid backend only")
+                             "from each scan) get their own mean and each mode its own sd (one for both when a "
+                             "mode has few scans), and each mode is read at its own windows; two-mode-growing: "
+                             "those sds grow with the step. Grid backend only")
     parser.add_argument("--emcee-steps", type=int, default=None,
                         help="emcee: cap on steps per walker (default: run until 50 autocorrelation times, "
                              "at most 200000 steps)")
