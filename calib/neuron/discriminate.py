@@ -62,6 +62,11 @@ class Interval:
     median: float = float("nan")
     found: float = 1.0
 
+    @property
+    def estimate(self) -> float:
+        """The figure to print: the mean when every draw has a value, else the median."""
+        return self.mean if self.found == 1 else self.median
+
     @classmethod
     def of(cls, values, resampled=None) -> "Interval":
         """From per-draw ``values`` and their bootstrap-resampled twins (non-finite = not

@@ -17,11 +17,11 @@ or turns down somewhere cannot be inverted and gets elpd = −∞ there. The noi
 chosen by the total (log Σ_τ prior·exp(elpd)); per-plate spreads must earn their extra
 parameters by two standard errors (:func:`choose_noise`). The two-mode models are
 compared with one spread for both modes; the chosen one is then scored (for the weights)
-with a spread per mode when the modes have the scans for it (:func:`loo_two_mode`):
-compared with their own spreads, fitted to half the scans, the two-mode models lost to a
-one-mode one in 2 of 10 training sets of exponential-fast-frames and of
-five-plates-long-window, whose accuracy fell 0.74 → 0.69 and 0.81 → 0.76. Under a
-two-mode model (:mod:`.modes`) a scan is decoded by the curve of its own mode (snap or ride, read from
+with a spread per mode when the modes have the scans for it (:func:`loo_two_mode`).
+(Compared with their own spreads instead, the choice between one-mode and two-mode came
+out the same in all 120 training sets of the eleven hard scenes and the control; only
+two-mode against two-mode-growing moved, in 1-2 sets of four scenes.) Under a two-mode
+model (:mod:`.modes`) a scan is decoded by the curve of its own mode (snap or ride, read from
 the scan as :func:`~feeler.calib.neuron.classify.classify` reads a new one), made
 monotone as the decoder makes it (:func:`.decoder.monotone_curve`: isotonic, and past
 its ends at least a tenth of the plates' mean slope). A mode's curve, from 1–6 touches a
@@ -39,7 +39,7 @@ from feeler.calib.neuron.decoder import monotone_curve
 from feeler.calib.neuron.model import NOISE_MODELS, PeakTable, PlatePrior, Plates, plate_stats
 from feeler.calib.neuron.modes import Cells, within_noise
 
-__all__ = ["alone", "loo_plates", "loo_class_log_prob", "loo_elpd", "choose_noise", "tau_log_weights", "continuous_log_density",
+__all__ = ["alone", "loo_plates", "loo_class_log_prob", "loo_class_cond", "pooled_class_log_prob", "loo_elpd", "choose_noise", "tau_log_weights", "continuous_log_density",
            "loo_two_mode", "usable_noise_models"]
 
 
@@ -150,14 +150,7 @@ def loo_plates(table: PeakTable, plates: Plates, noise: str, *, growth_max: floa
     if noise == "per-plate":
         var = np.maximum(ssk / (nk - 1), floor)
     else:
-        dof = n - 1 - C
-        if noise == "growing":
-            g = _growth_hat(ss, n_c - 1, plates.x, PlatePrior(), growth_max)          # (G,)
-            shape = np.exp(g[:, None] * plates.x[None, :])                           # (G, C)
-            s0 = np.sum(ssk / shape[:, None, :] ** 2, axis=-1) / dof               # (G, n)
-            var = np.maximum(s0[..., None] * shape[:, None, :] ** 2, floor)
-        else:
-            var = np.maximum(np.sum(ssk, axis=-1, keepdims=True) / dof, floor) * np.ones(C)
+        var = _pooled_var(ssk, _spread_shape(ss, plates, noise, growth_max)[:, None, :], n - 1 - C, floor)
     with np.errstate(divide="ignore", invalid="ignore"):           # a lone scan's own plate: nk = 0
         return mu, np.sqrt(var * (1 + 1 / nk))
 
@@ -168,13 +161,25 @@ def _fitted_spreads(p: np.ndarray, plates: Plates, noise: str, growth_max: float
     :func:`loo_plates` with no scan left out."""
     mean, ss = plate_stats(p, plates)
     n_c = plates.counts.astype(float)
-    shape = np.ones((1, n_c.size))
-    if noise == "growing":
-        g = _growth_hat(ss, n_c - 1, plates.x, PlatePrior(), growth_max)
-        shape = np.exp(g[:, None] * plates.x[None, :])
-    s0 = np.sum(ss / shape ** 2, axis=-1, keepdims=True) / (p.shape[-1] - n_c.size)
     floor = (1e-12 * np.max(np.abs(mean), axis=-1, keepdims=True)) ** 2
-    return np.sqrt(np.maximum(s0 * shape ** 2, floor) * (1 + 1 / n_c))
+    var = _pooled_var(ss, _spread_shape(ss, plates, noise, growth_max), p.shape[-1] - n_c.size, floor)
+    return np.sqrt(var * (1 + 1 / n_c))
+
+
+def _spread_shape(ss: np.ndarray, plates: Plates, noise: str, growth_max: float) -> np.ndarray:
+    """σ_c/σ₀ of a pooled noise model fitted to the plates' sums of squares ``ss
+    (ndarray[G, C])``: e^(ĝ x_c) (``growing``, ĝ the mode of g) ndarray[G, C], else ones
+    ndarray[1, C]."""
+    if noise != "growing":
+        return np.ones((1, ss.shape[-1]))
+    g = _growth_hat(ss, plates.counts - 1.0, plates.x, PlatePrior(), growth_max)       # (G,)
+    return np.exp(g[:, None] * plates.x[None, :])
+
+
+def _pooled_var(ss: np.ndarray, shape: np.ndarray, dof: float, floor) -> np.ndarray:
+    """σ_c² of the pooled plug-in fit: σ₀² = Σ_c SS_c/shape_c² / dof, times shape_c², at
+    least ``floor``; ``ss`` and ``shape`` broadcast with the plates last."""
+    return np.maximum(np.sum(ss / shape ** 2, axis=-1, keepdims=True) / dof * shape ** 2, floor)
 
 
 def loo_two_mode(table: PeakTable, plates: Plates, within: str = "constant", *, growth_max: float = 3.0,
@@ -252,6 +257,23 @@ def loo_class_log_prob(table: PeakTable, plates: Plates, noise: str, log_w: np.n
     """log P(plate | scan k) of every training scan under the plates fitted without it,
     pooled over the τ nodes with weights ``exp(log_w) (ndarray[n_grid])`` as the decoder
     pools its draws (equal plate priors): ndarray[n_scans, C]."""
+    return pooled_class_log_prob(loo_class_cond(table, plates, noise, growth_max=growth_max), log_w)
+
+
+def pooled_class_log_prob(cond: np.ndarray, log_w: np.ndarray) -> np.ndarray:
+    """:func:`loo_class_log_prob` from its per-node plate probabilities ``cond``
+    (:func:`loo_class_cond`), for one set of τ weights: the leave-one-out fits do not
+    depend on the weights, so a fit with a decoder per mode computes them once."""
+    keep = np.isfinite(log_w) & np.all(np.isfinite(cond), axis=(1, 2))
+    if not keep.any():
+        return np.full(cond.shape[1:], -np.log(cond.shape[2]))
+    w = log_w[keep] - logsumexp(log_w[keep])
+    return logsumexp(cond[keep] + w[:, None, None], axis=0)
+
+
+def loo_class_cond(table: PeakTable, plates: Plates, noise: str, *, growth_max: float = 3.0) -> np.ndarray:
+    """log P(plate | scan k) at each τ node under the plates fitted without scan k (equal
+    plate priors; Student-t predictives), ndarray[n_grid, n_scans, C]."""
     from scipy.stats import t as student_t          # here: scipy.stats costs `classify` 0.4 s of imports
 
     mu, s = loo_plates(table, plates, noise, growth_max=growth_max)
@@ -269,12 +291,7 @@ def loo_class_log_prob(table: PeakTable, plates: Plates, noise: str, log_w: np.n
         ll = student_t.logpdf(p, dof, loc=mu, scale=s)
     ll = np.where(np.isfinite(ll), ll, -np.inf)
     ll[:, alone(plates), :] = 0.0                                          # no prediction: even odds
-    cond = ll - logsumexp(ll, axis=2, keepdims=True)                        # per node
-    keep = np.isfinite(log_w) & np.all(np.isfinite(cond), axis=(1, 2))
-    if not keep.any():
-        return np.full((p.shape[1], mu.shape[2]), -np.log(mu.shape[2]))
-    w = log_w[keep] - logsumexp(log_w[keep])
-    return logsumexp(cond[keep] + w[:, None, None], axis=0)
+    return ll - logsumexp(ll, axis=2, keepdims=True)                         # per node
 
 
 def tau_log_weights(pointwise: np.ndarray, rng: np.random.Generator, n_boot: int = 400) -> np.ndarray:

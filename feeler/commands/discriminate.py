@@ -66,7 +66,7 @@ def threshold_text(th, scale: float = 1e3, unit: str = "um") -> str:
     missing = f" ({100 * (1 - th.found):.0f} % of draws do not reach 75 % within {top:.2f} {unit})"
     if d.median == float("inf"):
         return f"> {top:.2f} {unit}{missing}"
-    est = d.mean if th.found == 1 else d.median
+    est = d.estimate
     if not th.is_bound:
         return f"{format_estimate(est, d.lo95, d.hi95, 2, scale)} {unit}" + ("" if th.found == 1 else missing)
     return f"{est * scale:.2f} [{d.lo95 * scale:.2f}, > {top:.2f}] {unit}{missing}"
@@ -131,7 +131,7 @@ def run(args) -> int:
     th = disc.threshold(args.reference)
     w = th.weber
     weber = (f"> {th.searched_mm / args.reference:.4f}" if w.median == float("inf") else
-             format_estimate(w.mean if th.found == 1 else w.median, w.lo95, w.hi95, 4) if not th.is_bound else
+             format_estimate(w.estimate, w.lo95, w.hi95, 4) if not th.is_bound else
              f"{w.median:.4f} [{w.lo95:.4f}, > {th.searched_mm / args.reference:.4f}]")
     print(f"threshold at 75 % around {args.reference:g} mm: {threshold_text(th)}; Weber fraction {weber}")
     v_ref, v_test = args.speeds or (scene.motion.speed_mm_s, 2 * scene.motion.speed_mm_s)
@@ -144,7 +144,7 @@ def run(args) -> int:
     if args.out:
         out = prepare_out_dir(args.out, ("discrimination.json",), force=args.force)
         d = th.delta75_mm
-        est = d.mean if th.found == 1 else d.median
+        est = d.estimate
         bound = th.is_bound
         write_json(out / "discrimination.json", {
             "pairs": [{k: (_num(v) if isinstance(v, float) else v) for k, v in r.items()} for r in rows],
@@ -155,8 +155,7 @@ def run(args) -> int:
                              "hi95": th.searched_mm if bound else _num(d.hi95), "found": th.found,
                              "median": _num(d.median), "mcse": _num(d.mcse), "searched_mm": th.searched_mm,
                              "hi95_is_bound": bound, "estimate_is_bound": d.median == float("inf")},
-            "weber": interval_json(w, median=_num(w.median), hi95_is_bound=bound)
-            | ({} if th.found == 1 else {"mean": _num(w.median)}),         # as the threshold: the median
+            "weber": interval_json(w, median=_num(w.median), hi95_is_bound=bound) | {"mean": _num(w.estimate)},
             "pse": {"speed_ref_mm_s": v_ref, "speed_test_mm_s": v_test, "mean_mm": _num(pse.mean),
                     "lo95": _num(pse.lo95), "hi95": _num(pse.hi95), "mcse": _num(pse.mcse), "found": pse.found}})
         print(f"wrote {out / 'discrimination.json'}")
