@@ -46,6 +46,17 @@ def test_demo_writes_figures_and_table(tmp_path, small):
     assert table["plates"][3]["peak_z_mean"] == pytest.approx(f.peak_z[sel].mean())
 
 
+def test_a_scene_of_ones_own_is_filed_under_its_own_name(tmp_path, small):
+    """`feeler demo --scene small.toml` wrote its scans into OUT/four-plates/, where a user
+    looks for the shipped scene's."""
+    run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1])
+    assert (tmp_path / "demo" / "small" / "scans.csv").is_file()
+    assert "scans_per_plate = 4" in (tmp_path / "demo" / "small" / "scene.toml").read_text(encoding="utf-8")
+    assert not (tmp_path / "demo" / "four-plates").exists()
+    with pytest.raises(OverwriteError, match="small/scans.csv"):     # its scans are guarded as the shipped ones are
+        run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1])
+
+
 def test_demo_refuses_to_overwrite_without_force(tmp_path, small):
     run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1])
     with pytest.raises(OverwriteError):

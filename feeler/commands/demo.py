@@ -1,9 +1,10 @@
 """Run the demo: a whole calibration campaign on the shipped synthetic scenes.
 
 This is what `make demo` runs. Stages, each with its progress line:
-  1-4  simulate datasets-synthetic/four-plates.toml into OUT/four-plates/, run the FA-I
-       neuron on every scan, print the per-plate table (peak z, raw U_dot_y peak, the
-       ΔU_y jump, 2AFC proportion correct of adjacent plates) and draw Figs 7-9;
+  1-4  simulate datasets-synthetic/four-plates.toml into OUT/four-plates/ (a --scene file
+       into OUT/<its name without .toml>/), run the FA-I neuron on every scan, print the
+       per-plate table (peak z, raw U_dot_y peak, the ΔU_y jump, 2AFC proportion correct
+       of adjacent plates) and draw Figs 7-9;
   5    simulate the sensor-calibration campaign and fit the force→displacement matrix
        (M1, exact conjugate posterior) into OUT/m1/;
   6    fit the neuron's (a, tau, h, sigma) on the four plates (M2, exact grid) into OUT/m2/;

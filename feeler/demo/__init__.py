@@ -4,7 +4,8 @@ The demo is a list of stages (:data:`STAGES`), each ``func(ctx) -> None`` readin
 adding entries of one shared context dict. The robot stages below come first; the
 calibration campaign and the report follow (:mod:`feeler.demo.campaign`).
 
-1. ``simulate``: ``four-plates`` into ``OUT/four-plates/`` (via :mod:`feeler.simulate`);
+1. ``simulate``: the robot-scan scene (``four-plates``, or ``--scene``) into ``OUT/<its file
+   name without .toml>/`` (``OUT/four-plates/``; via :mod:`feeler.simulate`);
 2. ``features``: read ``scans.csv`` back, run the neuron (z(t) and peak z per scan), the
    ΔU_y jump and the raw U̇_y peak;
 3. ``table``: per plate, peak z and raw U̇_y mean ± sd and the ΔU_y jump; 2AFC proportion
@@ -37,7 +38,7 @@ FIGURES = ("fig7_delta_uy.png", "fig8_uy_rate.png", "fig9_pulse_density.png")
 def _simulate(ctx: dict) -> None:
     from feeler.simulate import run_simulation
 
-    ctx["run_dir"] = run_simulation(ctx["scene_path"], ctx["out"] / "four-plates", force=ctx["force"],
+    ctx["run_dir"] = run_simulation(ctx["scene_path"], ctx["out"] / robot_dir(ctx["scene_path"]), force=ctx["force"],
                                     progress=ctx.get("progress"))
     ctx["scene"] = load_scene(ctx["run_dir"] / "scene.toml")
 
@@ -121,8 +122,15 @@ STAGES: list[tuple[str, Callable[[dict], None]]] = [
     *_campaign_stages()]
 
 
-#: files whose presence means an earlier demo's results (overwritten only with force)
-_RESULTS = ("robot_table.json", *FIGURES, "four-plates/scans.csv")
+def robot_dir(scene_path: Path) -> str:
+    """The run directory of the demo's robot scans under OUT: the scene file's name without
+    ``.toml`` (``four-plates``), so that ``--scene`` scans are not filed as four-plates."""
+    return Path(scene_path).stem
+
+
+def _results(scene_path: Path) -> tuple[str, ...]:
+    """Files whose presence means an earlier demo's results (overwritten only with force)."""
+    return ("robot_table.json", *FIGURES, f"{robot_dir(scene_path)}/scans.csv")
 
 
 def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | None = None,
@@ -149,12 +157,13 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
 
     # two demos into one directory (two `make demo` on a shared machine) would overwrite each
     # other's files stage by stage: the second is refused, naming the first one's PID
+    scene_path = Path(scene_path or DEFAULT_SCENE)
     if not force:                # refused before anything in ``out`` changes (the lock file included)
-        prepare_out_dir(out, _RESULTS, force=False)
+        prepare_out_dir(out, _results(scene_path), force=False)
     lock = lock_run_dir(out, then="")
     try:
-        out = prepare_out_dir(out, _RESULTS, force=force)
-        ctx = {"out": out, "force": force, "scene_path": Path(scene_path or DEFAULT_SCENE), "print": echo,
+        out = prepare_out_dir(out, _results(scene_path), force=force)
+        ctx = {"out": out, "force": force, "scene_path": scene_path, "print": echo,
                "seconds": {}, "cpu_seconds": {}, "scenes": dict(scenes or {}),
                "discriminate_scans": discriminate_scans, "progress": progress}
         todo = STAGES if stages is None else stages

@@ -12,7 +12,7 @@ ends with :class:`DemoIncomplete`. Earlier results stay on disk.
 Run-directory layout written here (the report reads it):
 
 - ``sensor-calibration/`` simulated calibration campaign; ``m1/`` its M1 posterior;
-- ``m2/`` the neuron's (a, τ, h, σ) posterior from ``four-plates/``;
+- ``m2/`` the neuron's (a, τ, h, σ) posterior from ``four-plates/`` (with ``--scene``, the scene file's name);
 - ``held-out/`` fresh four-plates scans (seed + 10⁸); ``classify/`` their classification;
 - ``discriminate/`` the robot's 2AFC table, difference threshold, Weber fraction, PSE, and
   the curve behind the threshold (:mod:`feeler.demo.curve`);

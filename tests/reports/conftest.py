@@ -24,7 +24,7 @@ TINY_PLAN = ROOT / "tests" / "hardware" / "data" / "tiny-plan.toml"
 
 def small_scenes(tmp: Path) -> tuple[Path, dict]:
     """(four-plates with 6 scans per plate and an evil name, {"finger-steps": a small one})."""
-    robot = tmp / "evil-four-plates.toml"
+    robot = tmp / "four-plates.toml"                  # the demo files its scans under the file's name
     text = (SCENES / "four-plates.toml").read_text(encoding="utf-8")
     robot.write_text(text.replace('name = "four-plates"', f'name = "{EVIL}"')
                      .replace("scans_per_plate = 24", "scans_per_plate = 6"), encoding="utf-8")
