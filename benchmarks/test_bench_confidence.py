@@ -100,12 +100,14 @@ def jackknife_se(stat, n_sets: int) -> float:
     return float(np.sqrt((n_sets - 1) / n_sets * np.sum((loo - loo.mean()) ** 2)))
 
 
-def evaluate(path: Path) -> dict:
+def evaluate(path: Path, replicates: int = REPLICATES, fresh: int = FRESH) -> dict:
+    """The row of one scene: ``replicates`` training sets, each classifying ``fresh``
+    fresh touches a plate (see the module docstring)."""
     seed = load_seed(path)
     ours, base_true, base_fit, cover, truth, gammas, ok, failed = [], [], [], [], [], [], [], []
-    for r in range(1, REPLICATES + 1):
+    for r in range(1, replicates + 1):
         scene, _, train = scene_scans(path, seed=seed + r)
-        _, _, test = scene_scans(path, seed=seed + 10 ** 6 + r, per_plate=FRESH)
+        _, _, test = scene_scans(path, seed=seed + 10 ** 6 + r, per_plate=fresh)
         plates = np.sort(np.asarray(scene.surface.heights_mm, float))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -134,6 +136,7 @@ def evaluate(path: Path) -> dict:
         np.exp(np.concatenate([ours[k] for k in i])), np.concatenate([truth[k] for k in i])), len(ours))
     cov_lo, cov_hi = between_sets(lambda i: np.mean([cover[k] for k in i], axis=0), len(cover), rng)
     return said_ok | {"scene": path.stem, "accuracy": float(np.mean(lo.argmax(1) == t)),
+            "confidence": float(np.mean(np.exp(lo).max(axis=1))),
             "ece": expected_calibration_error(np.exp(lo), t), "ece_se": ece_se,
             "coverage_lo90": cov_lo, "coverage_hi90": cov_hi,
             "ece_floor": ece_floor(np.exp(lo), np.random.default_rng(seed)),
