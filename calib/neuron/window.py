@@ -254,10 +254,10 @@ def alone(plates: Plates, noise: str | None = None) -> np.ndarray:
     With a two-mode ``noise`` (passed by :func:`loo_class_cond`, whose probabilities fit
     the sharpness γ), also scans alone in their (plate, mode) cell: left out, their cell
     is empty and they are read by the other mode's curve, which no new scan of their mode
-    meets, and confidently misread they pulled γ down (30 random untuned scenes, 8
-    training sets each: mean ECE 0.033 → 0.031 over the 16 with accuracy 0.6-0.95, one
-    scene 0.053 → 0.032; on the confidence benchmark ECE moved by at most 0.005 and
-    log-loss by at most 0.007). The
+    meets, and confidently misread they pulled γ down (30 random untuned scenes drawn as
+    ``benchmarks/test_bench_open_world.py`` draws them, 8 training sets each: mean ECE
+    0.033 → 0.031 over the 16 with accuracy 0.6-0.95, one scene 0.053 → 0.032; on the
+    confidence benchmark ECE moved by at most 0.005 and log-loss by at most 0.007). The
     window and model scores (:func:`loo_elpd`) keep them: left out there as well, the
     log-loss of three hard scenes with 60-80 % snaps rose by up to 0.03, and one-mode
     and two-mode models would be scored on different scans."""
