@@ -17,7 +17,8 @@ models describe the touches; the control shows the default choice does no harm t
 Per scene, ``REPLICATES`` training sets (the scene with seeds seed+1…) are fitted with the
 default backend, and each classifies its own ``FRESH`` fresh touches per plate (seeds
 seed + 10⁶ + r: independent test sets, so the ECE's sampling noise shrinks with every
-replicate instead of repeating the same scans).
+replicate instead of repeating the same scans). A fit whose verdict failed and that
+``classify`` refuses to read (more than 5 % undecodable draws) is counted and left out.
 
 Baselines, the five-line Gaussian classifier a lab would write without a posterior
 (per-plate mean and sd by maximum likelihood, equal plate priors) on the peak pulse
@@ -52,6 +53,7 @@ from _ratios import FULL, record_ratio
 from feeler.calib.neuron import fit_neuron
 from feeler.calib.neuron.classify import classify, expected_calibration_error, log_loss
 from feeler.calib.neuron.synth import HARD_SCENES, scene_scans
+from feeler.errors import ArgumentError
 from feeler.models import neuron
 
 REPLICATES = 20 if FULL else 10
@@ -105,6 +107,7 @@ def evaluate(path: Path, replicates: int = REPLICATES, fresh: int = FRESH) -> di
     fresh touches a plate (see the module docstring)."""
     seed = load_seed(path)
     ours, base_true, base_fit, cover, truth, gammas, ok, failed = [], [], [], [], [], [], [], []
+    refused = 0
     for r in range(1, replicates + 1):
         scene, _, train = scene_scans(path, seed=seed + r)
         _, _, test = scene_scans(path, seed=seed + 10 ** 6 + r, per_plate=fresh)
@@ -112,9 +115,15 @@ def evaluate(path: Path, replicates: int = REPLICATES, fresh: int = FRESH) -> di
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             res = fit_neuron(train, seed=r)
-        ok.append(res.verdict.ok)
         failed += [p.split(":")[0] + ": " + p.split(":")[1].split("(")[0].strip()[:40] for p in res.verdict.problems]
-        c = classify(res, test.strain, test.t_s, rng=np.random.default_rng(r))
+        try:
+            c = classify(res, test.strain, test.t_s, rng=np.random.default_rng(r))
+        except ArgumentError:                   # a failed fit classify cannot read (e.g. > 5 % undecodable draws)
+            if res.verdict.ok:
+                raise                           # a fit said ok that cannot be read: a defect, not a measurement
+            refused += 1
+            continue
+        ok.append(res.verdict.ok)
         ours.append(c.log_prob)
         truth.append(np.searchsorted(plates, test.step_mm))
         base_true.append(plugin_log_prob(scene, train, test, scene.neuron.tau_s))
@@ -125,7 +134,7 @@ def evaluate(path: Path, replicates: int = REPLICATES, fresh: int = FRESH) -> di
     t = np.concatenate(truth)
     lo, lt, lf = np.concatenate(ours), np.concatenate(base_true), np.concatenate(base_fit)
     kept = np.concatenate([np.full(v.size, k) for v, k in zip(truth, ok)])
-    said_ok = {"n_ok": int(sum(ok)), "failed_because": sorted(set(failed)),
+    said_ok = {"n_ok": int(sum(ok)), "n_refused": refused, "failed_because": sorted(set(failed)),
                "ece_ok": expected_calibration_error(np.exp(lo[kept]), t[kept]) if kept.any() else float("nan"),
                "log_loss_ok": log_loss(lo[kept], t[kept]) if kept.any() else float("nan"),
                "log_loss_plugin_ok": log_loss(lt[kept], t[kept]) if kept.any() else float("nan"),

@@ -72,12 +72,13 @@ def test_random_scene(benchmark, scene_dir, index):
     row = benchmark.pedantic(lambda: evaluate(path, REPLICATES, FRESH), rounds=1, iterations=1)
     row["hard"] = bool(0.6 <= row["accuracy"] <= 0.95)
     ROWS.append(row)
+    refused = f" ({row['n_refused']} refused by classify)" if row["n_refused"] else ""
     heights = re.search(r"^heights_mm = (.*?) *$", path.read_text(encoding="utf-8"), flags=re.M).group(1)
     print(f"\n{row['scene']} {heights}: acc {row['accuracy']:.3f}{'' if row['hard'] else ' (outside 0.6-0.95)'} "
           f"(mean confidence {row['confidence']:.3f})  "
           f"ECE {row['ece']:.4f} (se {row['ece_se']:.4f}; floor {row['ece_floor']:.4f})  log-loss "
           f"{row['log_loss']:.3f} (plug-in {row['log_loss_plugin']:.3f})  gamma {row['sharpness_median']:.2f}  "
-          f"verdict ok {row['n_ok']} of {REPLICATES}  coverage " + " ".join(f"{c:.2f}" for c in row["coverage"]))
+          f"verdict ok {row['n_ok']} of {REPLICATES}{refused}  coverage " + " ".join(f"{c:.2f}" for c in row["coverage"]))
     benchmark.extra_info.update({"accuracy": row["accuracy"], "ece": row["ece"], "log_loss": row["log_loss"],
                                  "log_loss_plugin": row["log_loss_plugin"],
                                  "coverage": [float(c) for c in row["coverage"]]})
