@@ -51,24 +51,19 @@ def random_scene(rng: np.random.Generator, name: str) -> str:
     return text
 
 
-def _scene_paths(directory: Path) -> list[Path]:
-    rng = np.random.default_rng(SEED)
-    paths = []
-    for i in range(SCENES):
-        path = directory / f"random-{i:02d}.toml"
+@pytest.fixture(scope="module")
+def scene_paths(tmp_path_factory) -> list[Path]:
+    """The ``SCENES`` random scenes, written once for the module."""
+    directory, rng = tmp_path_factory.mktemp("open-world"), np.random.default_rng(SEED)
+    paths = [directory / f"random-{i:02d}.toml" for i in range(SCENES)]
+    for path in paths:
         path.write_text(random_scene(rng, path.stem), encoding="utf-8")
-        paths.append(path)
     return paths
 
 
-@pytest.fixture(scope="module")
-def scene_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("open-world")
-
-
 @pytest.mark.parametrize("index", range(SCENES), ids=[f"random-{i:02d}" for i in range(SCENES)])
-def test_random_scene(benchmark, scene_dir, index):
-    path = _scene_paths(scene_dir)[index]
+def test_random_scene(benchmark, scene_paths, index):
+    path = scene_paths[index]
     row = benchmark.pedantic(lambda: evaluate(path, REPLICATES, FRESH), rounds=1, iterations=1)
     row["hard"] = bool(0.6 <= row["accuracy"] <= 0.95)
     ROWS.append(row)

@@ -254,8 +254,9 @@ def alone(plates: Plates, noise: str | None = None) -> np.ndarray:
     With a two-mode ``noise`` (passed by :func:`loo_class_cond`, whose probabilities fit
     the sharpness γ), also scans alone in their (plate, mode) cell: left out, their cell
     is empty and they are read by the other mode's curve, which no new scan of their mode
-    meets, and confidently misread they pulled γ down (30 random untuned scenes drawn as
-    ``benchmarks/test_bench_open_world.py`` draws them, 8 training sets each: mean ECE
+    meets, and confidently misread they pulled γ down (30 random untuned scenes, drawn as
+    ``benchmarks/test_bench_open_world.py`` draws them but from a four-plates with more
+    drift (0.5 um/s) and a gain of 2, 8 training sets each: mean ECE
     0.033 → 0.031 over the 16 with accuracy 0.6-0.95, one scene 0.053 → 0.032; on the
     confidence benchmark ECE moved by at most 0.005 and log-loss by at most 0.007). The
     window and model scores (:func:`loo_elpd`) keep them: left out there as well, the
