@@ -62,7 +62,7 @@ GRAMS_FORCE_PER_N = 1000 / 9.80665      # a force gauge's gram-force, per newton
 # shipped prior on K (sd 0.5 max|K0| = 2.5 N/mm per entry) holds the kgf data's K within 1.8 sd.
 MODERATE_SLIPS = ((9.80665, "forces probably in kgf (expected N; 1 kgf = 9.807 N)"),
                   (4.448222, "forces probably in lbf (expected N; 1 lbf = 4.448 N)"),
-                  (0.1, "displacements probably in cm (expected mm)"),
+                  (0.1, "displacements probably in cm (expected mm), or forces 10 times too large"),
                   (1 / 25.4, "displacements probably in inches (expected mm; 1 in = 25.4 mm)"))
 SLIP_WINDOW = 1.35
 

@@ -58,7 +58,8 @@ def test_units_um_and_mn_are_named():
 
 @pytest.mark.parametrize("u_scale, f_scale, words", [
     (1.0, 1 / 9.80665, "forces probably in kgf"), (1.0, 1 / 4.448222, "forces probably in lbf"),
-    (0.1, 1.0, "displacements probably in cm"), (1 / 25.4, 1.0, "displacements probably in inches")])
+    (0.1, 1.0, "displacements probably in cm"), (1.0, 10.0, "or forces 10 times too large"),
+    (1 / 25.4, 1.0, "displacements probably in inches")])
 def test_smaller_unit_slips_are_named(u_scale, f_scale, words):
     """A force gauge in kgf or lbf moves the compliance by 9.8 or 4.4, under the x30 of the
     usual slips: with K's prior linear (sd 0.5 K0, K/10 at 1.8 sd) both passed with verdict
