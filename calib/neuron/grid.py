@@ -3,7 +3,9 @@
 τ is drawn from its weights on the nodes of the peak table (:mod:`.window`), jittered
 uniformly inside its cell (reflected at the prior's bounds); the scans' peaks are read at
 that τ (linear in ln τ, as in every backend), and the plate parameters are drawn exactly
-from their conjugate posterior at that τ (:mod:`.conjugate`). The draws go through the
+from their conjugate posterior at that τ (:mod:`.conjugate`; under the reference prior a
+two-mode model's cell means from their posterior pooled along each mode's line,
+:mod:`.pooling`). The draws go through the
 same diagnostics as MCMC draws (R-hat ≈ 1, bulk ESS ≈ the number of draws).
 """
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numpy as np
 from feeler.calib.neuron.conjugate import draw_plate_parameters
 from feeler.calib.neuron.model import PeakTable, Plates, Priors, decoder_line, plate_stats
 from feeler.calib.neuron.modes import Cells, within_noise
+from feeler.calib.neuron.pooling import pooled_means
 
 __all__ = ["sample_grid", "draw_tau", "named_draws", "two_mode_draws"]
 
@@ -64,11 +67,14 @@ def sample_grid(table: PeakTable, plates: Plates, priors: Priors, noise: str, lo
 
 
 def two_mode_draws(rng: np.random.Generator, tau_s: np.ndarray, peaks: np.ndarray, plates: Plates,
-                   priors: Priors, within: str = "constant", *, shared_spread: bool = False) -> dict:
+                   priors: Priors, within: str = "constant", *, shared_spread: bool = False,
+                   pooled: bool = True) -> dict:
     """Named draws of the ``two-mode`` model from ``peaks (ndarray[S, n_scans])`` at ``tau_s``:
     each (plate, mode) cell's mean and σ exactly as the ``within`` (constant or growing)
     model's plates (:mod:`.conjugate`, the cells as plates), the snap share
-    π ~ Beta(1 + snaps, 1 + rides). The ride cells and the snap cells each have a spread
+    π ~ Beta(1 + snaps, 1 + rides). Under the reference prior (κ₀ = 0) the means of each
+    mode's cells are pooled along a line in the step (:func:`.pooling.pooled_means`; not
+    when ``pooled`` is False: the flat means). The ride cells and the snap cells each have a spread
     curve of their own (σ₀ and, growing, g) when both modes have the scans for it
     (:attr:`.modes.Cells.own_spreads`), else (or ``shared_spread``) one for both.
 
@@ -93,6 +99,11 @@ def two_mode_draws(rng: np.random.Generator, tau_s: np.ndarray, peaks: np.ndarra
     else:
         par = draw_plate_parameters(rng, mean, ss, cells.as_plates, within, prior, priors.growth_max)
         mu, sigma, growth = par["mu"], par["sigma"], [par["growth"]]
+    if prior.kappa0 == 0 and pooled:        # the reference prior: each mode's means pooled along its line
+        for k in (0, 1):
+            keep = np.flatnonzero(cells.mode == k)
+            mu[:, keep] = pooled_means(rng, mean[:, keep], sigma[:, keep], cells.as_plates.counts[keep],
+                                       cells.as_plates.steps_mm[keep])
     ride, snap = mu[:, cells.index[:, 0]], mu[:, cells.index[:, 1]]
     s_ride, s_snap = sigma[:, cells.index[:, 0]], sigma[:, cells.index[:, 1]]
     share = rng.beta(1.0 + cells.snaps, 1.0 + cells.rides, size=tau_s.size)[:, None]

@@ -207,6 +207,10 @@ class Priors:
             out["modes"] = ("each touch snaps onto the upper level or rides over the edge (read from its scan: its "
                             "largest one-frame rise against its whole rise); plate c, mode m ~ Normal(mu_cm, sigma_c); "
                             "snap share pi ~ Beta(1, 1)")
+            if p.kappa0 == 0:
+                out["cell means"] = ("each mode's mu_cm = alpha_m + beta_m c + delta_cm, delta_cm ~ Normal(0, omega_m^2), "
+                                     "(alpha_m, beta_m) flat, ln omega_m uniform on 0.05-100 times the cells' "
+                                     "standard error (three cells or more)")
         return out
 
     def bounds(self) -> dict[str, tuple[float, float]]:
