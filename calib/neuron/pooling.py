@@ -51,6 +51,7 @@ __all__ = ["pooled_means", "NODES", "RANGE"]
 
 NODES = 40                  # nodes of ω
 RANGE = (0.05, 100.0)       # ω / s̄ at the first and the last node
+BLOCK = 512                 # draws a block (4000 at once took 30 ms a call, in blocks of 512 11 ms)
 
 
 def _line_design(steps: np.ndarray) -> np.ndarray:
@@ -63,15 +64,28 @@ def _line_design(steps: np.ndarray) -> np.ndarray:
 def omega_log_posterior(mean: np.ndarray, se_sq: np.ndarray, steps: np.ndarray, omega_sq: np.ndarray):
     """log p(ω | x̄, σ) + const at ``omega_sq (ndarray[S, G])`` for cell means ``mean`` and
     their squared standard errors σ_c²/n_c ``se_sq`` (ndarray[S, K]) → (log p ndarray[S, G],
-    b̂ ndarray[S, G, 2], XᵀWX ndarray[S, G, 2, 2])."""
-    X = _line_design(steps)
+    b̂ ndarray[S, G, 2], the entries (A₀₀, A₀₁, A₁₁) of XᵀWX, each ndarray[S, G]).
+
+    Written for speed (a fit makes six calls on 4000 draws × 40 nodes; :func:`pooled_means`
+    passes them in blocks of :data:`BLOCK`): the 2 × 2 algebra by hand and every sum over
+    the cells as a matrix product (numpy's batched solve and slogdet, and sums over a short
+    last axis, took the default fit from 0.34 s to 0.82 s); the
+    residual sum of squares as x̄ᵀWx̄ − b̂ᵀXᵀWx̄ on means centred per draw (the line's
+    intercept takes the centre back)."""
+    x = _line_design(steps)[:, 1]
+    centre = mean.mean(axis=1, keepdims=True)
+    m = mean - centre
     V = se_sq[:, None, :] + omega_sq[:, :, None]                               # (S, G, K)
     W = 1.0 / V
-    A = np.einsum("sgk,ki,kj->sgij", W, X, X)
-    b = np.linalg.solve(A, np.einsum("sgk,ki,sk->sgi", W, X, mean)[..., None])[..., 0]
-    r = mean[:, None, :] - np.einsum("ki,sgi->sgk", X, b)
-    logp = -0.5 * (np.sum(np.log(V), axis=-1) + np.linalg.slogdet(A)[1] + np.sum(W * r ** 2, axis=-1))
-    return logp, b, A
+    K = x.size
+    a00, a01, a11 = W @ np.ones(K), W @ x, W @ (x * x)
+    Wm = W * m[:, None, :]
+    r0, r1, mwm = Wm @ np.ones(K), Wm @ x, np.matmul(Wm, m[:, :, None])[..., 0]
+    det = a00 * a11 - a01 ** 2
+    b0, b1 = (a11 * r0 - a01 * r1) / det, (a00 * r1 - a01 * r0) / det
+    quad = np.maximum(mwm - b0 * r0 - b1 * r1, 0.0)
+    logp = -0.5 * (np.log(V) @ np.ones(K) + np.log(det) + quad)
+    return logp, np.stack([b0 + centre, b1], axis=-1), (a00, a01, a11)
 
 
 def pooled_means(rng: np.random.Generator, mean: np.ndarray, sigma: np.ndarray, counts: np.ndarray,
@@ -90,17 +104,31 @@ def pooled_means(rng: np.random.Generator, mean: np.ndarray, sigma: np.ndarray, 
         out = mean + np.sqrt(se_sq) * rng.standard_normal(mean.shape)
         out[:, riser] = pooled_means(rng, mean[:, riser], sigma[:, riser], np.asarray(counts)[riser], steps[riser])
         return out
+    if mean.shape[0] > BLOCK:               # a block of draws at a time: its temporaries stay in cache
+        return np.concatenate([_pooled_block(rng, mean[a:a + BLOCK], se_sq[a:a + BLOCK], steps)
+                               for a in range(0, mean.shape[0], BLOCK)])
+    return _pooled_block(rng, mean, se_sq, steps)
+
+
+def _pooled_block(rng: np.random.Generator, mean: np.ndarray, se_sq: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """:func:`pooled_means` of cells that all have a riser, from their squared standard errors."""
     S = mean.shape[0]
     scale_sq = np.mean(se_sq, axis=1)                                         # s̄²
     ratio = np.geomspace(*RANGE, NODES)
     omega_sq = scale_sq[:, None] * ratio[None, :] ** 2                       # (S, G)
-    logp, b, A = omega_log_posterior(mean, se_sq, steps, omega_sq)
+    logp, b, (a00, a01, a11) = omega_log_posterior(mean, se_sq, steps, omega_sq)
     p = np.exp(logp - logp.max(axis=1, keepdims=True))
     cdf = np.cumsum(p, axis=1)
     j = np.minimum((cdf < rng.uniform(size=S)[:, None] * cdf[:, -1:]).sum(axis=1), NODES - 1)
     rows = np.arange(S)
-    o2, cov = omega_sq[rows, j], np.linalg.inv(A[rows, j])                   # (S,), (S, 2, 2)
-    line = b[rows, j] + np.einsum("sij,sj->si", np.linalg.cholesky(cov), rng.standard_normal((S, 2)))
+    o2, a00, a01, a11 = omega_sq[rows, j], a00[rows, j], a01[rows, j], a11[rows, j]
+    det = a00 * a11 - a01 ** 2
+    c00, c01, c11 = a11 / det, -a01 / det, a00 / det                       # (XᵀWX)⁻¹
+    l00 = np.sqrt(c00)
+    l10 = c01 / l00
+    l11 = np.sqrt(np.maximum(c11 - l10 ** 2, 0.0))
+    z = rng.standard_normal((S, 2))
+    line = b[rows, j] + np.column_stack([l00 * z[:, 0], l10 * z[:, 0] + l11 * z[:, 1]])
     prior_mean = line @ _line_design(steps).T                                 # (S, K)
     precision = 1.0 / se_sq + 1.0 / o2[:, None]
     centre = (mean / se_sq + prior_mean / o2[:, None]) / precision
