@@ -208,9 +208,10 @@ class Priors:
                             "largest one-frame rise against its whole rise); plate c, mode m ~ Normal(mu_cm, sigma_c); "
                             "snap share pi ~ Beta(1, 1)")
             if p.kappa0 == 0:
-                out["cell means"] = ("each mode's mu_cm = alpha_m + beta_m c + delta_cm, delta_cm ~ Normal(0, omega_m^2), "
-                                     "(alpha_m, beta_m) flat, ln omega_m uniform on 0.05-100 times the cells' "
-                                     "standard error (three cells or more)")
+                out["cell means"] = ("on the plates with a riser (c > 0; three or more), each mode's mu_cm = alpha_m + "
+                                     "beta_m c + delta_cm, delta_cm ~ Normal(0, omega_m^2), (alpha_m, beta_m) flat, "
+                                     "ln omega_m uniform on 0.05-100 times the cells' standard error; "
+                                     "otherwise flat as above")
         return out
 
     def bounds(self) -> dict[str, tuple[float, float]]:

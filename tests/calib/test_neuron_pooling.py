@@ -144,3 +144,16 @@ def test_a_modes_cells_that_sit_together_are_drawn_together():
         rise[p] = np.median(snap_p[:, 3] - snap_p[:, 0])
     assert np.all(spread[True] < 0.8 * spread[False]), spread
     assert rise[True] == pytest.approx(rise[False], rel=0.05), rise
+
+
+def test_the_fit_states_the_pooled_prior_only_where_it_holds():
+    """The priors a fit prints name the pooling for the two-mode models under the reference
+    prior, not for the one-mode models nor under a proper plate prior (whose means it keeps)."""
+    import dataclasses
+    from feeler.calib.neuron.model import PlatePrior
+    table = PeakTable(log_tau=np.array([0.0, 0.1]), peak=np.ones((6, 2)))
+    pri = make_priors(table)
+    assert "cell means" in pri.as_text("two-mode-growing") and "cell means" in pri.as_text("two-mode")
+    assert "cell means" not in pri.as_text("growing")
+    proper = dataclasses.replace(pri, plate=PlatePrior(nu0=4.0, s0_sq=1.0, kappa0=1.0, m0=(0.0, 1.0)))
+    assert "cell means" not in proper.as_text("two-mode")
