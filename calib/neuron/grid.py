@@ -16,7 +16,7 @@ import numpy as np
 
 from feeler.calib.neuron.conjugate import draw_plate_parameters
 from feeler.calib.neuron.model import PeakTable, Plates, Priors, decoder_line, plate_stats
-from feeler.calib.neuron.modes import Cells, within_noise
+from feeler.calib.neuron.modes import Cells, own_spread_weight, within_noise
 from feeler.calib.neuron.pooling import pooled_means
 
 __all__ = ["sample_grid", "draw_tau", "named_draws", "two_mode_draws"]
@@ -76,7 +76,9 @@ def two_mode_draws(rng: np.random.Generator, tau_s: np.ndarray, peaks: np.ndarra
     mode's cells are pooled along a line in the step (:func:`.pooling.pooled_means`; not
     when ``pooled`` is False: the flat means). The ride cells and the snap cells each have a spread
     curve of their own (σ₀ and, growing, g) when both modes have the scans for it
-    (:attr:`.modes.Cells.own_spreads`), else (or ``shared_spread``) one for both.
+    (:attr:`.modes.Cells.own_spreads`), else (or ``shared_spread``) one for both; under the
+    reference prior each draw takes its own curves with the weight the cells' scatter at
+    its window gives them (:func:`.modes.own_spread_weight`) and one curve otherwise.
 
     Named as the other models' (a plate's mean and sd are those of its mixture of modes,
     mm), plus ``plate_snap_mm`` (ndarray[N, C]: snap mean − ride mean, mm),
@@ -88,17 +90,23 @@ def two_mode_draws(rng: np.random.Generator, tau_s: np.ndarray, peaks: np.ndarra
     prior = priors.plate
     if prior.kappa0 > 0:                    # a proper prior: m0 per (plate, mode), 2C of them; the cells' own
         prior = dataclasses.replace(prior, m0=tuple(np.asarray(prior.m0, float)[cells.present]))
-    if cells.own_spreads and not shared_spread:
-        mu, sigma, growth = np.empty(mean.shape), np.empty(mean.shape), []
+    S = mean.shape[0]
+    own = np.full(S, cells.own_spreads and not shared_spread)
+    if own.any() and prior.kappa0 == 0:     # the reference prior: a curve each where the data tell them apart
+        own = rng.uniform(size=S) < own_spread_weight(ss, cells, within, priors.growth_max)
+    mu, sigma, growth = np.empty(mean.shape), np.empty(mean.shape), np.zeros((2, S))
+    rows = np.flatnonzero(own)
+    if rows.size:
         for k in (0, 1):
             keep, _, sub = cells.of_mode(k)
             pri = dataclasses.replace(prior, m0=tuple(np.asarray(prior.m0, float)[keep])) if prior.kappa0 > 0 else prior
-            par = draw_plate_parameters(rng, mean[:, keep], ss[:, keep], sub, within, pri, priors.growth_max)
-            mu[:, keep], sigma[:, keep] = par["mu"], par["sigma"]
-            growth.append(par["growth"])
-    else:
-        par = draw_plate_parameters(rng, mean, ss, cells.as_plates, within, prior, priors.growth_max)
-        mu, sigma, growth = par["mu"], par["sigma"], [par["growth"]]
+            par = draw_plate_parameters(rng, mean[rows][:, keep], ss[rows][:, keep], sub, within, pri, priors.growth_max)
+            mu[np.ix_(rows, keep)], sigma[np.ix_(rows, keep)] = par["mu"], par["sigma"]
+            growth[k, rows] = par["growth"]
+    rows = np.flatnonzero(~own)
+    if rows.size:
+        par = draw_plate_parameters(rng, mean[rows], ss[rows], cells.as_plates, within, prior, priors.growth_max)
+        mu[rows], sigma[rows], growth[:, rows] = par["mu"], par["sigma"], par["growth"]
     if prior.kappa0 == 0 and pooled:        # the reference prior: each mode's means pooled along its line
         for k in (0, 1):
             keep = np.flatnonzero(cells.mode == k)
@@ -114,5 +122,5 @@ def two_mode_draws(rng: np.random.Generator, tau_s: np.ndarray, peaks: np.ndarra
     a = out["a"][:, None]
     out.update(plate_snap_mm=a * gap, plate_ride_sd_mm=a * s_ride, plate_snap_sd_mm=a * s_snap, snap_share=share[:, 0])
     if within == "growing":                 # the snaps' g (the rides' when one curve serves both)
-        out["snap_growth"] = growth[-1]
+        out["snap_growth"] = growth[1]
     return out

@@ -9,7 +9,8 @@ then two modes mixed: their spread grows with the step and is flatter than Gauss
 Gaussian band with the right mean and sd holds more than 90 % of them (0.935 on
 few-scans' top plate). The ``two-mode`` noise models (:func:`.grid.two_mode_draws`)
 describe each plate by a ride mean and a snap mean, an sd for each mode (constant, or
-growing with the step; one for both when a mode has too few scans) and the share of
+growing with the step; one for both when a mode has too few scans, or, draw by draw,
+when the two modes' spreads do not differ: :func:`own_spread_weight`) and the share of
 snapping touches; a scan is decoded by its own mode's curve, at its own mode's windows
 (:func:`.fit.mode_decoders`).
 
@@ -27,10 +28,13 @@ is no riser: its touches count as rides.
 from __future__ import annotations
 
 import numpy as np
+from scipy.special import expit
 
-from feeler.calib.neuron.model import Plates
+from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
+from feeler.calib.neuron.model import Plates, PlatePrior
 
-__all__ = ["SNAP_SHARE", "snap_flags", "Cells", "TWO_MODE", "within_noise", "OWN_SPREAD_DOF"]
+__all__ = ["SNAP_SHARE", "snap_flags", "Cells", "TWO_MODE", "within_noise", "OWN_SPREAD_DOF", "own_spread_weight",
+           "spread_profile"]
 
 #: the two-mode noise models and the noise of P within a (plate, mode) cell
 TWO_MODE = {"two-mode": "constant", "two-mode-growing": "growing"}
@@ -120,3 +124,53 @@ class Cells:
     @property
     def size(self) -> int:
         return int(self.as_plates.steps_mm.size)
+
+
+def spread_profile(ss: np.ndarray, counts: np.ndarray, x: np.ndarray, within: str, growth_max: float = 3.0) -> np.ndarray:
+    """Profile log-likelihood of one spread curve for cells with within-cell sums of squares
+    ``ss (ndarray[S, K])``, scan counts and positions ``x`` (ndarray[K]): σ_c = σ₀ (``constant``)
+    or σ₀·exp(g·x_c) (``growing``, g on the prior's nodes in ±``growth_max``). Each cell's
+    mean is integrated out under its flat prior (the restricted likelihood, Σ_c −r_c ln σ_c
+    − SS_c / 2σ_c², r_c = n_c − 1), σ₀ and g at their maximum; up to a constant that
+    depends on the scans only → ndarray[S]. With R = Σ r_c:
+    max_g [−g Σ r_c x_c − (R/2) ln(Σ_c SS_c e^(−2 g x_c) / R)] − R/2."""
+    r = np.maximum(np.asarray(counts, float) - 1.0, 0.0)
+    R = float(r.sum())
+    if R <= 0:
+        return np.zeros(np.shape(ss)[0])
+    g = np.linspace(-growth_max, growth_max, G_NODES) if within == "growing" else np.zeros(1)
+    ll = growth_log_density(g, np.asarray(ss, float), r, np.asarray(x, float), PlatePrior())
+    return ll.max(axis=1) + 0.5 * R * np.log(R) - 0.5 * R
+
+
+def own_spread_weight(ss: np.ndarray, cells: Cells, within: str, growth_max: float = 3.0) -> np.ndarray:
+    """Weight of "each mode has a spread curve of its own" against "one curve serves both",
+    per row of the cells' within-cell sums of squares ``ss (ndarray[S, K])`` (each draw's,
+    at its window) → ndarray[S] in [0, 1].
+
+    The Schwarz (BIC) approximation to the posterior probability of the two, even prior
+    odds (Kass & Raftery 1995, "Bayes factors", §4.1.3): with Λ = 2·(ℓ_ride + ℓ_snap −
+    ℓ_both) the likelihood ratio of the profiles (:func:`spread_profile`), d the extra
+    parameters (1: σ₀; 2 growing: σ₀ and g) and n the scans, w = 1 / (1 + exp(−(Λ − d·ln n)/2)).
+
+    Why: a mode's curve fitted to the 8–14 rides of a random untuned scene
+    (``benchmarks/test_bench_open_world.py``) reads spreads that differ by chance (one
+    training set: rides' sd 1.5, 3.5 and 9.8 um on three plates whose rides all spread
+    alike), and the plates are then told apart by their spreads (rides read at accuracy
+    0.30 with confidence 0.53); over that scene's eight training sets the mean w at the
+    windows the fit weights is 0.05-0.65. Where the modes do differ the data say so: on
+    hard/close-steps, at the snaps' windows (about 0.5 s: snaps spread 0.001-0.004 mm, rides
+    0.011-0.013), w is 0.95-1.00 in each of eight training sets, and 0.03-0.49 at the rides'
+    longer windows. Not finite (a cell that never varies): 1, a curve each."""
+    ss = np.asarray(ss, float)
+    plates = cells.as_plates
+    both = spread_profile(ss, plates.counts, plates.x, within, growth_max)
+    own = np.zeros_like(both)
+    for k in (0, 1):
+        keep, _, sub = cells.of_mode(k)
+        own = own + spread_profile(ss[:, keep], sub.counts, sub.x, within, growth_max)
+    extra = 2 if within == "growing" else 1
+    with np.errstate(invalid="ignore"):
+        lam = 2.0 * (own - both)
+        w = expit(0.5 * (lam - extra * np.log(max(int(plates.counts.sum()), 2))))
+    return np.where(np.isfinite(w), w, 1.0)

@@ -147,8 +147,9 @@ def test_a_modes_cells_that_sit_together_are_drawn_together():
 
 
 def test_the_fit_states_the_pooled_prior_only_where_it_holds():
-    """The priors a fit prints name the pooling for the two-mode models under the reference
-    prior, not for the one-mode models nor under a proper plate prior (whose means it keeps)."""
+    """The priors a fit prints name the pooling (and the choice of spread curves) for the
+    two-mode models under the reference prior, not for the one-mode models nor under a
+    proper plate prior (whose means and curves it keeps)."""
     import dataclasses
     from feeler.calib.neuron.model import PlatePrior
     table = PeakTable(log_tau=np.array([0.0, 0.1]), peak=np.ones((6, 2)))
@@ -157,3 +158,5 @@ def test_the_fit_states_the_pooled_prior_only_where_it_holds():
     assert "cell means" not in pri.as_text("growing")
     proper = dataclasses.replace(pri, plate=PlatePrior(nu0=4.0, s0_sq=1.0, kappa0=1.0, m0=(0.0, 1.0)))
     assert "cell means" not in proper.as_text("two-mode")
+    assert "BIC" in pri.as_text("two-mode")["spreads"] and "spreads" not in pri.as_text("growing")
+    assert "spreads" not in proper.as_text("two-mode")             # a proper prior: a curve each, as SBC draws them

@@ -11,7 +11,7 @@ from feeler.calib.neuron.classify import classify, scan_modes
 from feeler.calib.neuron.decoder import DecoderDraws, isotonic_rows, monotone_curve
 from feeler.calib.neuron.grid import two_mode_draws
 from feeler.calib.neuron.model import PeakTable, Plates, make_priors, plate_stats
-from feeler.calib.neuron.modes import Cells, snap_flags
+from feeler.calib.neuron.modes import Cells, own_spread_weight, snap_flags
 from feeler.calib.neuron.synth import FOUR_PLATES, HARD_SCENES, scene_scans, single_window_table
 from feeler.calib.neuron.window import continuous_log_density, loo_elpd
 from feeler.errors import ArgumentError
@@ -59,15 +59,15 @@ def test_cells_index_the_modes_a_plate_shows():
 
 
 def test_two_mode_draws_recover_the_cells_and_the_share():
-    """Many touches drawn from the model itself: every cell mean, σ and π inside their
-    central 99 % posterior intervals, and the named plate mean and sd are the mixture's."""
+    """Many touches drawn from the model itself: every cell mean, each mode's σ and π inside
+    their central 99 % posterior intervals, and the named plate mean and sd are the mixture's."""
     rng = np.random.default_rng(3)
     steps = np.repeat([0.0, 0.1, 0.2], 400)
-    pi, sigma = 0.3, 0.02
+    pi, sigma = 0.3, {False: 0.02, True: 0.012}     # rides spread wider than snaps
     snap = (rng.random(steps.size) < pi) & (steps > 0)
     ride = {0.0: 1.0, 0.1: 1.5, 0.2: 2.0}
     gap = {0.0: 0.0, 0.1: 0.1, 0.2: 0.2}
-    peaks = np.array([ride[s] + gap[s] * f for s, f in zip(steps, snap)]) + sigma * rng.standard_normal(steps.size)
+    peaks = np.array([ride[s] + gap[s] * f + sigma[bool(f)] * rng.standard_normal() for s, f in zip(steps, snap)])
     plates = Plates.of(steps, snap)
     table = single_window_table(peaks, 1.0)
     out = two_mode_draws(rng, np.ones(4000), table.at(np.ones(4000)), plates, make_priors(table))
@@ -82,9 +82,9 @@ def test_two_mode_draws_recover_the_cells_and_the_share():
     # each mode's sd (one σ for its cells, constant noise) covers the truth; the plate's sd (mm) is
     # the mixture's: (1 − π)σ_r² + πσ_s² + π(1 − π)·gap² in P units
     ride_sd, snap_sd = out["plate_ride_sd_mm"] / a[:, None], out["plate_snap_sd_mm"] / a[:, None]
-    for within in (ride_sd, snap_sd[:, 1:]):
+    for within, truth in ((ride_sd, sigma[False]), (snap_sd[:, 1:], sigma[True])):
         np.testing.assert_allclose(within, within[:, :1] * np.ones(within.shape[1]), rtol=1e-9)
-        assert np.quantile(within[:, 0], 0.005) < sigma < np.quantile(within[:, 0], 0.995)
+        assert np.quantile(within[:, 0], 0.005) < truth < np.quantile(within[:, 0], 0.995)
     assert np.corrcoef(ride_sd[:, 0], snap_sd[:, 1])[0, 1] < 0.1          # drawn apart
     np.testing.assert_allclose(snap_sd[:, 0], ride_sd[:, 0])              # the floor has no snaps: its rides'
     pi_s = out["snap_share"][:, None]
@@ -92,6 +92,84 @@ def test_two_mode_draws_recover_the_cells_and_the_share():
         (1 - pi_s) * ride_sd ** 2 + pi_s * snap_sd ** 2 + pi_s * (1 - pi_s) * gaps ** 2), rtol=1e-9)
     shared = two_mode_draws(rng, np.ones(400), table.at(np.ones(400)), plates, make_priors(table), shared_spread=True)
     np.testing.assert_array_equal(shared["plate_ride_sd_mm"], shared["plate_snap_sd_mm"])
+
+
+def _mode_scans(rng, sd_ride, sd_snap, per_cell, growth=0.0):
+    """Peaks of three risers (0.1, 0.2, 0.3 mm) and a floor, ``per_cell`` touches in each
+    (plate, mode) cell (the floor: rides only), sd σ·exp(growth·x) in each mode."""
+    steps, snap, peaks = [], [], []
+    for c, step in enumerate([0.0, 0.1, 0.2, 0.3]):
+        for mode, sd in ((False, sd_ride), (True, sd_snap)):
+            if mode and step == 0:
+                continue
+            scale = sd * np.exp(growth * c / 3)
+            steps += [step] * per_cell
+            snap += [mode] * per_cell
+            peaks += list(1.0 + 5 * step + 0.3 * mode * step + scale * rng.standard_normal(per_cell))
+    return np.array(steps), np.array(snap), np.array(peaks)
+
+
+def test_own_spread_weight_is_the_bic_weight_of_the_restricted_likelihoods():
+    """Constant spread: Λ in closed form from the pooled variances (each cell's mean taken
+    out: r_c = n_c − 1 degrees of freedom), w = expit((Λ − ln n)/2). Growing spread: Λ
+    against a numerical maximum of Σ_c −r_c ln σ_c − SS_c / 2σ_c² over (σ₀, g), the sums of
+    squares computed from the scans here, not by plate_stats."""
+    from scipy.optimize import minimize
+    from scipy.special import expit
+
+    rng = np.random.default_rng(11)
+    steps, snap, peaks = _mode_scans(rng, 0.02, 0.012, 6, growth=0.7)
+    cells = Cells(Plates.of(steps, snap), snap)
+    group = cells.as_plates.group
+    ss = np.array([np.sum((peaks[group == k] - peaks[group == k].mean()) ** 2) for k in range(cells.size)])
+    r = cells.as_plates.counts - 1.0
+    n = steps.size
+
+    def pooled(sel):
+        return -0.5 * r[sel].sum() * np.log(ss[sel].sum() / r[sel].sum())
+    modes = [cells.mode == k for k in (0, 1)]
+    lam = 2 * (pooled(modes[0]) + pooled(modes[1]) - pooled(np.ones(cells.size, bool)))
+    np.testing.assert_allclose(own_spread_weight(ss[None], cells, "constant"), expit(0.5 * (lam - np.log(n))),
+                               rtol=1e-10)
+
+    def best(sel, x):
+        def neg(theta):
+            log_sd = theta[0] + theta[1] * x
+            return np.sum(r[sel] * log_sd + 0.5 * ss[sel] * np.exp(-2 * log_sd))
+        return -min(minimize(neg, [np.log(0.02), g0], bounds=[(-10, 2), (-3, 3)]).fun for g0 in (-1.0, 0.0, 1.0))
+    x_all = cells.as_plates.x
+    x_own = [cells.of_mode(k)[2].x for k in (0, 1)]
+    lam_g = 2 * (best(modes[0], x_own[0]) + best(modes[1], x_own[1]) - best(np.ones(cells.size, bool), x_all))
+    w = own_spread_weight(ss[None], cells, "growing")[0]
+    lam_grid = 2 * np.log(w / (1 - w)) + 2 * np.log(n)
+    assert lam_g > 0 and abs(lam_grid - lam_g) < 0.02 * max(1.0, lam_g)
+
+
+def test_own_spreads_where_the_modes_spread_apart_one_curve_where_they_do_not():
+    """Two modes of equal spread (8 touches a cell): the BIC weight of a curve each is small
+    (40 datasets: median under 0.05); spreads 2.5 times apart (16 a cell): over 0.99 in all
+    40. two_mode_draws gives
+    that share of its draws a curve each, the rest one for both; a cell that never varies
+    leaves the weight finite."""
+    rng = np.random.default_rng(5)
+    for sd_snap, per_cell in ((0.02, 8), (0.008, 16)):
+        w = []
+        for _ in range(40):
+            steps, snap, peaks = _mode_scans(rng, 0.02, sd_snap, per_cell)
+            plates = Plates.of(steps, snap)
+            cells = Cells(plates, snap)
+            table = single_window_table(peaks, 1.0)
+            w.append(own_spread_weight(plate_stats(table.at(np.ones(1)), cells.as_plates)[1], cells, "growing")[0])
+        if sd_snap == 0.02:
+            assert np.median(w) < 0.05 and np.mean(w) < 0.15
+        else:
+            assert min(w) > 0.99
+        out = two_mode_draws(rng, np.ones(2000), table.at(np.ones(2000)), plates, make_priors(table),
+                             within="growing")
+        apart = np.mean(~np.isclose(out["plate_ride_sd_mm"][:, 1], out["plate_snap_sd_mm"][:, 1], rtol=1e-12))
+        assert abs(apart - w[-1]) < 0.04
+    ss = np.array([[0.0, 0.1, 0.2, 0.0, 0.3, 0.1, 0.2]])
+    assert np.isfinite(own_spread_weight(ss, cells, "growing")).all()
 
 
 def test_each_mode_has_a_spread_curve_of_its_own_only_with_the_scans_for_it():
