@@ -154,10 +154,10 @@ def own_spread_weight(ss: np.ndarray, cells: Cells, within: str, growth_max: flo
     parameters (1: σ₀; 2 growing: σ₀ and g) and n the scans, w = 1 / (1 + exp(−(Λ − d·ln n)/2)).
 
     Why: a mode's curve fitted to the 8–14 rides of a random untuned scene
-    (``benchmarks/test_bench_open_world.py``) reads spreads that differ by chance (one
-    training set: rides' sd 1.5, 3.5 and 9.8 um on three plates whose rides all spread
-    alike), and the plates are then told apart by their spreads (rides read at accuracy
-    0.30 with confidence 0.53); over that scene's eight training sets the mean w at the
+    (``benchmarks/test_bench_open_world.py``) can read spreads far apart (one training
+    set of random-04: rides' sd 1.5, 3.5 and 9.8 um on its three plates), and the plates
+    are then told apart by their spreads (its fresh rides read at accuracy 0.30 with
+    confidence 0.53); over that scene's eight training sets the mean w at the
     windows the fit weights is 0.05-0.65. Where the modes do differ the data say so: on
     hard/close-steps, at the snaps' windows (about 0.5 s: snaps spread 0.001-0.004 mm, rides
     0.011-0.013), w is 0.95-1.00 in each of eight training sets, and 0.03-0.49 at the rides'
