@@ -148,9 +148,8 @@ def test_own_spread_weight_is_the_bic_weight_of_the_restricted_likelihoods():
 def test_own_spreads_where_the_modes_spread_apart_one_curve_where_they_do_not():
     """Two modes of equal spread (8 touches a cell): the BIC weight of a curve each is small
     (40 datasets: median under 0.05); spreads 2.5 times apart (16 a cell): over 0.99 in all
-    40. two_mode_draws gives
-    that share of its draws a curve each, the rest one for both; a cell that never varies
-    leaves the weight finite."""
+    40. two_mode_draws gives that share of its draws a curve each, the rest one for both; a
+    cell that never varies leaves the weight finite."""
     rng = np.random.default_rng(5)
     for sd_snap, per_cell in ((0.02, 8), (0.008, 16)):
         w = []
