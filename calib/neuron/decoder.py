@@ -53,7 +53,8 @@ from feeler.calib.diagnostics import Thresholds
 from feeler.calib.neuron.recalibrate import log_sum_exp, recalibrated
 from feeler.errors import ArgumentError
 
-__all__ = ["DecoderDraws", "curve_at", "isotonic_rows", "monotone_curve", "MAX_UNDECODABLE", "END_SLOPE_MIN"]
+__all__ = ["DecoderDraws", "curve_at", "isotonic_rows", "monotone_curve", "undecodable_draws", "MAX_UNDECODABLE",
+           "END_SLOPE_MIN"]
 
 # share of posterior draws without a decodable line that is left out, not refused: the share
 # for which the fit's summary and verdict do the same (calib.diagnostics)
@@ -62,6 +63,26 @@ MAX_UNDECODABLE = Thresholds.nonfinite_max
 
 #: the least slope of a draw's curve past an end plate, as a fraction of its mean slope
 END_SLOPE_MIN = 0.1
+
+
+def undecodable_draws(draws) -> np.ndarray:
+    """Draws no height can be decoded from, ndarray[n_draws] bool, of a mapping of named
+    draws (a posterior group, or a fit's dict of arrays, each (chain, draw, ...)): a
+    window, line or plate mean or sd that is not finite, or a plate sd (and, two-mode
+    with a spread per mode, a ride or snap sd) that is not positive."""
+    def flat(name):
+        v = draws[name]
+        v = np.asarray(v.transpose("chain", "draw", ...).values if hasattr(v, "dims") else v, float)
+        return v.reshape((-1,) + v.shape[2:])
+
+    n = flat("a").size
+    cols = [flat(k).reshape(n, -1) for k in ("tau_s", "a", "h", "plate_mean_mm", "plate_sd_mm")]
+    bad = ~np.isfinite(np.column_stack(cols)).all(axis=1)
+    bad |= ~np.all(cols[4] > 0, axis=1)                       # NaN compares False: bad too
+    names = draws.data_vars if hasattr(draws, "data_vars") else draws
+    if all(k in names for k in ("plate_snap_mm", "snap_share", "plate_ride_sd_mm", "plate_snap_sd_mm")):
+        bad |= ~np.all((flat("plate_ride_sd_mm") > 0) & (flat("plate_snap_sd_mm") > 0), axis=1)
+    return bad
 
 
 def isotonic_rows(x: np.ndarray) -> np.ndarray:
@@ -207,10 +228,7 @@ class DecoderDraws:
                   snap_sd_mm=flat("plate_snap_sd_mm") if own else None)
         if out.steps_mm.size < 2:
             raise ArgumentError("posterior labels", f"{out.steps_mm.size} plate", ">= 2 plates to decode")
-        bad = ~np.isfinite(np.column_stack([out.tau_s, out.a, out.h, out.mean_mm, out.sd_mm])).all(axis=1)
-        bad |= ~np.all(out.sd_mm > 0, axis=1)                     # NaN compares False: bad too
-        if own:
-            bad |= ~np.all((out.ride_sd_mm > 0) & (out.snap_sd_mm > 0), axis=1)
+        bad = undecodable_draws(post)
         if bad.mean() > MAX_UNDECODABLE:
             raise ArgumentError("posterior", f"{int(bad.sum())} of {bad.size} draws with a non-finite or zero-spread "
                                 f"decoder", f"a fit whose plates can be decoded (at most {MAX_UNDECODABLE:.0%} such "

@@ -291,6 +291,39 @@ def test_each_modes_draws_sit_at_the_windows_that_read_that_mode():
                          chains=1, draws=50, rng=rng) == {}
 
 
+def test_no_decoder_per_mode_when_a_modes_draws_cannot_be_read(monkeypatch):
+    """A mode whose draws leave more lines undecodable than classify reads (here 6 % of the
+    rides' draws with a = NaN) gives no decoder per mode: the fit decodes with its joint
+    draws, which its verdict checked. 4 % (within the limit) keeps them."""
+    import feeler.calib.neuron.grid as grid_module
+    from feeler.calib.neuron.decoder import undecodable_draws
+    from feeler.calib.neuron.fit import mode_decoders
+    rng = np.random.default_rng(8)
+    steps = np.repeat([0.0, 0.05, 0.1, 0.15], 16)
+    snap = np.tile([False, True], 32) & (steps > 0)
+    peaks = np.where(snap, 1.5, 1.0) + steps / 0.05 + 0.15 * rng.standard_normal(steps.size)
+    table = single_window_table(peaks, 1.0)
+    plates = Plates.of(steps, snap)
+    pri = make_priors(table)
+    elpd = loo_elpd(table, plates, "two-mode", pointwise=True)
+    original = grid_module.sample_grid
+    for share, kept in ((0.06, False), (0.04, True)):
+        calls = []
+
+        def spoiled(*args, **kwargs):
+            out = original(*args, **kwargs)
+            if not calls:                                   # the rides' draws
+                a = out["a"].copy()
+                a.reshape(-1)[: int(share * a.size)] = np.nan
+                out["a"] = a
+                assert undecodable_draws(out).mean() == pytest.approx(share, abs=1e-3)
+            calls.append(1)
+            return out
+        monkeypatch.setattr(grid_module, "sample_grid", spoiled)
+        out = mode_decoders(table, plates, pri, "two-mode", elpd, chains=2, draws=500, rng=rng)
+        assert calls and bool(out) == kept
+
+
 def test_a_two_mode_fit_decodes_fresh_touches_and_live_ends_as_classify(tmp_path):
     """On few-scans (half the touches snap) the default fit picks a two-mode model with a
     decoder per mode; it classifies fresh touches better than one that ignores the modes,
