@@ -65,23 +65,26 @@ MAX_UNDECODABLE = Thresholds.nonfinite_max
 END_SLOPE_MIN = 0.1
 
 
+def _flat(draws, name: str) -> np.ndarray:
+    """Draws ``name`` of a posterior group or a dict of arrays, each (chain, draw, ...), as
+    ndarray[chain·draw, ...]."""
+    v = draws[name]
+    v = np.asarray(v.transpose("chain", "draw", ...).values if hasattr(v, "dims") else v, float)
+    return v.reshape((-1,) + v.shape[2:])
+
+
 def undecodable_draws(draws) -> np.ndarray:
     """Draws no height can be decoded from, ndarray[n_draws] bool, of a mapping of named
     draws (a posterior group, or a fit's dict of arrays, each (chain, draw, ...)): a
     window, line or plate mean or sd that is not finite, or a plate sd (and, two-mode
     with a spread per mode, a ride or snap sd) that is not positive."""
-    def flat(name):
-        v = draws[name]
-        v = np.asarray(v.transpose("chain", "draw", ...).values if hasattr(v, "dims") else v, float)
-        return v.reshape((-1,) + v.shape[2:])
-
-    n = flat("a").size
-    cols = [flat(k).reshape(n, -1) for k in ("tau_s", "a", "h", "plate_mean_mm", "plate_sd_mm")]
+    n = _flat(draws, "a").size
+    cols = [_flat(draws, k).reshape(n, -1) for k in ("tau_s", "a", "h", "plate_mean_mm", "plate_sd_mm")]
     bad = ~np.isfinite(np.column_stack(cols)).all(axis=1)
     bad |= ~np.all(cols[4] > 0, axis=1)                       # NaN compares False: bad too
     names = draws.data_vars if hasattr(draws, "data_vars") else draws
     if all(k in names for k in ("plate_snap_mm", "snap_share", "plate_ride_sd_mm", "plate_snap_sd_mm")):
-        bad |= ~np.all((flat("plate_ride_sd_mm") > 0) & (flat("plate_snap_sd_mm") > 0), axis=1)
+        bad |= ~np.all((_flat(draws, "plate_ride_sd_mm") > 0) & (_flat(draws, "plate_snap_sd_mm") > 0), axis=1)
     return bad
 
 
@@ -215,8 +218,7 @@ class DecoderDraws:
     def _of_group(cls, post, steps, n_draws, rng) -> "DecoderDraws":
         """The decoder of one group of draws (the posterior, or a mode's decoder group)."""
         def flat(name):
-            v = np.asarray(post[name].transpose("chain", "draw", ...).values, float)
-            return v.reshape((-1,) + v.shape[2:])
+            return _flat(post, name)
 
         two = "plate_snap_mm" in post.data_vars and "snap_share" in post.data_vars
         own = two and "plate_ride_sd_mm" in post.data_vars and "plate_snap_sd_mm" in post.data_vars

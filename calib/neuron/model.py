@@ -32,13 +32,12 @@ with the decoder noise σ_c following one of :data:`NOISE_MODELS`:
   it: draw by draw, at the draw's window, each mode takes a curve of its own with the BIC
   weight of the two spread models and one curve for both otherwise
   (:func:`.modes.own_spread_weight`). A curve fitted to the 8-14 rides of a random untuned
-  scene reads spreads that differ by chance, and the plates are then told apart by their
-  spreads. Against a curve each whenever the scans allowed it, the log-loss of fresh
-  touches fell on 8 of the confidence benchmark's 12 scenes (by 0.0035 a touch on
-  average, se 0.0013; the largest rise 0.0044, five-plates-long-window), on 14 of the
-  open-world benchmark's 16 random scenes in its range (by 0.011, se 0.003), and, measured
-  with a prototype of the same rule, on 18 of 20 random scenes drawn with another seed
-  (by 0.011) and on 9 of 10 altered scenes (by 0.010). ECE stayed at most 0.03 on the
+  scene can read spreads far apart, and the plates are then told apart by their spreads.
+  Against a curve each whenever the scans allowed it, the log-loss of fresh touches fell
+  on 8 of the confidence benchmark's 12 scenes (by 0.0035 a touch on average, se 0.0013;
+  the largest rise 0.0044, five-plates-long-window), on 14 of the open-world benchmark's
+  16 random scenes in its range (by 0.011, se 0.003), on 20 of 22 random scenes drawn
+  with another seed (by 0.010) and on 9 of 10 altered scenes (by 0.009). ECE stayed at most 0.03 on the
   twelve (six-plates-few 0.011 → 0.020); on the random scenes 13 of 16 are at most 0.03
   against 12, but their mean rose from 0.023 to 0.026 and the largest from 0.053 to
   0.059 (random-04, whose rides read at chance with confidence 0.42).

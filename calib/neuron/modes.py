@@ -160,7 +160,7 @@ def own_spread_weight(ss: np.ndarray, cells: Cells, within: str, growth_max: flo
     confidence 0.53); over that scene's eight training sets the mean w at the
     windows the fit weights is 0.05-0.65. Where the modes do differ the data say so: on
     hard/close-steps, at the snaps' windows (about 0.5 s: snaps spread 0.001-0.004 mm, rides
-    0.011-0.013), w is 0.95-1.00 in each of eight training sets, and 0.03-0.49 at the rides'
+    0.011-0.013), w is 0.95-1.00 in each of eight training sets, and 0.025-0.49 at the rides'
     longer windows. Not finite (a cell that never varies): 1, a curve each."""
     ss = np.asarray(ss, float)
     plates = cells.as_plates
