@@ -478,3 +478,45 @@ def test_a_scan_alone_in_its_mode_on_its_plate_does_not_score_the_sharpness():
     others = np.delete(np.arange(steps.size), lone)
     assert np.all(np.max(cond[:, others, :], axis=2) > np.log(0.5))             # the others are read
     assert np.max(loo_class_cond(table, plates, "constant")[:, lone, :]) > np.log(0.5)
+
+
+def _two_mode_peaks(seed):
+    """Six touches on each of four plates, three of each riser's snapping; the snaps
+    spread 0.1, the rides 0.3 (units of P), at two windows: PeakTable and Plates."""
+    rng = np.random.default_rng(seed)
+    levels = [0.0, 0.05, 0.1, 0.2]
+    steps = np.repeat(levels, 6)
+    snap = np.tile([False, False, False, True, True, True], 4) & (steps > 0)
+    p = np.searchsorted(levels, steps) + 1.5 * snap + np.where(snap, 0.1, 0.3) * rng.standard_normal(steps.size)
+    table = PeakTable(log_tau=np.log([1.0, 2.0]), peak=np.column_stack([p, 1.2 * p + 0.3]))
+    return table, Plates.of(steps, snap)
+
+
+def test_class_leave_one_out_of_a_two_mode_model_by_hand():
+    """loo_class_cond (the probabilities the sharpness γ is fitted on), each scan left out
+    in turn and its plates refitted by hand: the cells' means in the scan's own mode (the
+    floor has no snap cell: a snap reads its ride cell), their variance pooled over the
+    cells of the scan's mode (each mode has the scans for a curve of its own), a Student-t
+    with that pool's scans less its cells as degrees of freedom and scale
+    s·√(1 + 1/n_cell), normalised over the plates."""
+    from scipy import stats
+
+    from feeler.calib.neuron.window import loo_class_cond
+
+    table, plates = _two_mode_peaks(11)
+    snap = plates.snap
+    assert Cells(plates, snap).own_spreads                  # rides 15 in 4 cells, snaps 9 in 3
+    got = loo_class_cond(table, plates, "two-mode")
+    for k in range(snap.size):
+        keep = np.arange(snap.size) != k
+        cells = Cells(plates.subset(keep), snap[keep])
+        mode = int(snap[k])
+        pools = [cells.mode == 0, cells.mode == 1]
+        dof = np.array([cells.as_plates.counts[q].sum() - q.sum() for q in pools], float)
+        cell = cells.index[:, mode]
+        for j in range(2):
+            mean, ss = plate_stats(table.peak[keep, j], cells.as_plates)
+            var = np.array([ss[q].sum() for q in pools]) / dof
+            sd = np.sqrt(var[cells.mode] * (1 + 1 / cells.as_plates.counts))
+            ll = stats.t.logpdf(table.peak[k, j], dof[mode], mean[cell], sd[cell])
+            np.testing.assert_allclose(got[j, k], ll - np.logaddexp.reduce(ll), rtol=1e-10, atol=1e-12)
