@@ -20,7 +20,7 @@ import numpy as np
 from feeler.errors import DataFileError
 
 __all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_text", "read_csv_file",
-           "missing_columns_problem", "renamed_hint", "shared_scan_id_problem", "starts_again",
+           "missing_columns_problem", "renamed_hint", "shared_scan_id_problem", "scan_time_problem", "starts_again",
            "varying_label_problem", "repeated_header_problem", "read_scans", "scan_files", "header_columns",
            "scan_file_frames", "natural_key", "strain", "jump_uy_mm", "peak_rate_uy_mm_s", "scan_features",
            "proportion_correct"]
@@ -308,9 +308,10 @@ def read_scans(path: str | Path) -> Scans:
 
     Raises:
         DataFileError: missing file or column, non-numeric, NaN or infinite values, an id
-            shared by several scans (its times start again, or its step label changes),
-            scans of unequal length, or t not strictly increasing within a scan (naming the
-            column).
+            shared by several scans (its times start again, or its step label changes), t
+            not strictly increasing within a scan (a sample written twice, or rows out of
+            time order: :func:`scan_time_problem`, naming the rows), or scans of unequal
+            length (naming a sample missing mid-scan).
     """
     import pandas as pd
 
@@ -339,14 +340,14 @@ def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
     for col in COLUMNS:
         frame[col] = numeric_column(frame, col, path)
     groups = frame.groupby("scan_id", sort=False)
-    # starts_again's rule, over every scan at once
-    restart = ((groups["t_s"].diff() < 0) & (frame["t_s"] <= groups["t_s"].transform("first"))).to_numpy()
-    if restart.any():                           # before lengths: shared ids make "unequal lengths" too
-        sid = frame["scan_id"].iloc[int(np.flatnonzero(restart)[0])]
-        rows = frame["scan_id"] == sid
-        raise DataFileError(path, shared_scan_id_problem(scan_id_text(sid, named),
-                                                         frame.loc[rows, "t_s"].to_numpy(float),
-                                                         frame.loc[rows, "step_mm"].to_numpy(float)))
+    # before lengths: shared ids, a sample written twice or rows out of order make "unequal lengths" too
+    late = (groups["t_s"].diff() <= 0).to_numpy()
+    if late.any():                              # the first such scan in the file's order, as classify's reader
+        flagged = set(frame["scan_id"][late])
+        sid = next(v for v in frame["scan_id"].drop_duplicates() if v in flagged)
+        rows = (frame["scan_id"] == sid).to_numpy()
+        raise DataFileError(path, scan_time_problem(scan_id_text(sid, named), frame.loc[rows, "t_s"].to_numpy(float),
+                                                    np.flatnonzero(rows) + 1, frame.loc[rows, "step_mm"].to_numpy(float)))
     for col in ("step_mm", "speed_mm_s"):               # before lengths too, for the same reason
         varying = groups[col].transform("nunique").to_numpy() > 1
         if varying.any():
@@ -368,6 +369,10 @@ def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
                                       f"scans of one length, and trimming would cut the slower ones' traverse "
                                       f"short: fit each speed on its own (classify and decode take scans of any "
                                       f"length)")
+        gap = missing_sample_problem(frame.loc[frame["scan_id"] == odd.index[0], "t_s"].to_numpy(float))
+        if gap and int(odd.iloc[0]) < common:
+            raise DataFileError(path, f"{head}: {gap}; a fit needs scans of one length: restore that sample or leave "
+                                      f"the scan out (classify and decode take scans of any length)")
         raise DataFileError(path, f"{head}; a fit needs scans of one length: trim them to {int(lengths.min())} "
                                   f"samples (classify and decode take scans of any length)")
     n_scans, n_time = len(lengths), int(lengths.iloc[0])
@@ -456,6 +461,45 @@ def shared_scan_id_problem(scan_id, t_s, step_mm=None) -> str:
     return (f"column scan_id: t_s restarts {restarts} time(s) within scan_id {scan_id_text(scan_id)}{held}: "
             f"about {restarts + 1} scans share this id; give every scan its own scan_id across the file (ids that "
             f"start again on each plate are not unique)")
+
+
+def scan_time_problem(scan_id, t_s, rows, step_mm=None) -> str | None:
+    """The line for one scan_id whose times ``t_s`` (in file order, at data rows ``rows``)
+    do not rise sample after sample, or None: several scans share the id (each run of rows
+    starts its times again), a sample written twice, or rows out of time order (a file
+    sorted by another column in a spreadsheet), each with what to do."""
+    t = np.asarray(t_s, float)
+    d = np.diff(t)
+    late = np.flatnonzero(d <= 0)
+    if not late.size:
+        return None
+    drops = d < 0
+    if drops.any() and not np.any(drops & ~starts_again(t)):        # increasing runs, each from the start
+        return shared_scan_id_problem(scan_id, t, step_mm)
+    repeats = t.size - np.unique(t).size
+    if not drops.any() and 2 * repeats >= t.size:                   # sorted, but every time held several times
+        return (f"column scan_id: scan_id {scan_id_text(scan_id)} holds each of its times about "
+                f"{t.size / (t.size - repeats):.0f} times: several scans share this id; give every scan its own "
+                f"scan_id across the file")
+    i = int(late[0])
+    head = f"column t_s: not strictly increasing within scan_id {scan_id_text(scan_id)}"
+    if d[i] == 0:
+        return f"{head}: t_s {t[i]:g} twice, at data rows {rows[i]} and {rows[i + 1]} (a sample written twice?)"
+    return (f"{head}: t_s {t[i]:g} at data row {rows[i]}, then {t[i + 1]:g} at data row {rows[i + 1]}; sort the rows "
+            f"by scan_id, then t_s, or correct that time")
+
+
+def missing_sample_problem(t_s) -> str | None:
+    """"its times jump from 9.5 to 10.5 s, …" for a scan whose one interval is at least
+    1.5 times its median sample interval (a sample missing there), else None."""
+    d = np.diff(np.asarray(t_s, float))
+    if d.size < 3:
+        return None
+    j, med = int(np.argmax(d)), float(np.median(d))
+    if not d[j] >= 1.5 * med > 0:
+        return None
+    return (f"its times jump from {t_s[j]:g} to {t_s[j + 1]:g} s where its other samples lie {med:g} s apart "
+            f"(a sample missing there?)")
 
 
 def varying_label_problem(col: str, scan_id, values) -> str:

@@ -299,9 +299,9 @@ def _one_file_per_scan(directory, rows, *, names=None, drop_id=True):
     return directory
 
 
-def _rows(n_scans):
+def _rows(n_scans, n_time=4):
     return [[s, 0.05 * (s % 2), 0.5, 0.5 * k, 0.25 * k, -0.01, 0.05 + 0.01 * k * s, 0.0]
-            for s in range(n_scans) for k in range(4)]
+            for s in range(n_scans) for k in range(n_time)]
 
 
 def test_a_directory_of_scan_files_reads_as_one_file_of_its_scans_in_name_order(tmp_path):
@@ -411,3 +411,53 @@ def test_a_labs_notes_above_the_header_are_comments_not_a_parse_error(tmp_path):
         np.testing.assert_array_equal(getattr(got, col), getattr(plain, col))
     assert read_csv_file(noted).attrs["comments"] == ["sensor element 12, 2026-11-20", "operator AB"]
     assert "comments" not in read_csv_file(tmp_path / "scans.csv").attrs
+
+
+def _shuffled(rows):
+    rng = np.random.default_rng(3)
+    return [rows[i] for i in rng.permutation(len(rows))]
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda r: r[:8] + [r[7]] + r[8:],                  # scan 1's sample at 0.5 s written twice (data rows 8, 9)
+     "column t_s: not strictly increasing within scan_id 1: t_s 0.5 twice, at data rows 8 and 9 (a sample written "
+     "twice?)"),
+    (lambda r: r[:8] + [r[9], r[8]] + r[10:],           # two of scan 1's rows swapped
+     "column t_s: not strictly increasing within scan_id 1: t_s 1.5 at data row 9, then 1 at data row 10; sort the "
+     "rows by scan_id, then t_s, or correct that time"),
+    (lambda r: _shuffled(_rows(2, 12)),                 # rows shuffled: the first scan in the file's order is named
+     "column t_s: not strictly increasing within scan_id 1: t_s 0.5 at data row 1, then 0 at data row 2; sort the "
+     "rows by scan_id, then t_s, or correct that time"),
+    (lambda r: sorted([[0] + row[1:] for row in r], key=lambda row: row[3]),   # one id for both, sorted by time
+     "column scan_id: scan_id 0 holds each of its times about 2 times: several scans share this id; give every scan "
+     "its own scan_id across the file"),
+])
+def test_times_out_of_order_or_written_twice_are_named_with_their_rows(tmp_path, edit, words):
+    """Both readers (the fit's and classify's) name a sample written twice by its data
+    rows, rows out of time order by the two rows and what to do (they used to read as
+    scans of unequal length, 'trim them to 6 samples', or as scans sharing an id), and a
+    scan_id shared by several scans whose rows were sorted by time."""
+    from feeler.calib.neuron.live.scan_csv import read_scan_records
+
+    path = write_csv(tmp_path / "scans.csv", edit(_rows(2, 6)))
+    for read in (read_scans, read_scan_records):
+        with pytest.raises(DataFileError) as info:
+            read(path)
+        assert str(info.value).startswith(f"{path}: {words}")
+        assert "unequal lengths" not in str(info.value) and "restarts" not in str(info.value)
+
+
+def test_a_scan_missing_a_sample_in_its_middle_is_told_apart_from_a_short_one(tmp_path):
+    """One sample missing in the middle of a scan: the line names the jump and does not
+    tell the user to trim every scan; a scan cut short still gets the trim advice."""
+    rows = _rows(3, 6)
+    path = write_csv(tmp_path / "gap.csv", rows[:9] + rows[10:])          # scan 1 misses t = 1.5 s
+    with pytest.raises(DataFileError) as info:
+        read_scans(path)
+    assert str(info.value) == (f"{path}: column scan_id: scans have unequal lengths [5, 6] (scan 1 has 5 samples, "
+                               "2 of 3 have 6): its times jump from 1 to 2 s where its other samples lie 0.5 s apart "
+                               "(a sample missing there?); a fit needs scans of one length: restore that sample or "
+                               "leave the scan out (classify and decode take scans of any length)")
+    path = write_csv(tmp_path / "short.csv", rows[:-1])
+    with pytest.raises(DataFileError, match="trim them to 5 samples"):
+        read_scans(path)

@@ -54,7 +54,8 @@ def read_scan_records(path: str | Path) -> list[ScanRecord]:
 
     Raises:
         DataFileError: missing file or column (naming the required ones), non-numeric or
-            NaN values, times not increasing within a scan, a label not constant in a scan.
+            NaN values, times not increasing within a scan (as the fit's reader names them:
+            :func:`feeler.datasets.scan_time_problem`), a label not constant in a scan.
     """
     import dataclasses
 
@@ -83,8 +84,9 @@ def no_scans_problem(directory: Path) -> str:
 
 def records_from_frame(frame, path) -> list[ScanRecord]:
     """:class:`ScanRecord` s of a long-format frame (``path`` names it in errors)."""
-    from feeler.datasets import (named_scan_ids, numeric_column, scan_id_text, shared_scan_id_problem,
-                                 starts_again, varying_label_problem)
+    import pandas as pd
+
+    from feeler.datasets import named_scan_ids, numeric_column, scan_id_text, scan_time_problem, varying_label_problem
 
     missing = [c for c in REQUIRED if c not in frame.columns]
     if missing:
@@ -101,17 +103,17 @@ def records_from_frame(frame, path) -> list[ScanRecord]:
     frame, names = named_scan_ids(frame[cols].copy(), path)
     for col in cols:              # labels may be left blank (unlabelled scans); times and U_y may not
         frame[col] = numeric_column(frame, col, path, blank_ok=col not in REQUIRED and col != "x_mm")
+    row = pd.Series(np.arange(1, len(frame) + 1), index=frame.index)      # each row's data row in the file
     if "attempt" in frame.columns:                   # samples.csv: each scan's last attempt
         last = frame.groupby("scan_id")["attempt"].transform("max")
         frame = frame[frame["attempt"] == last]
     out = []
     for sid, g in frame.groupby("scan_id", sort=False):
         t = g["t_s"].to_numpy(float)
-        if np.any(starts_again(t)):
-            raise DataFileError(path, shared_scan_id_problem(scan_id_text(sid, names), t,
-                                                             g["step_mm"] if "step_mm" in g.columns else None))
-        if np.any(np.diff(t) <= 0):
-            raise DataFileError(path, f"column t_s: not strictly increasing within scan_id {scan_id_text(sid, names)}")
+        problem = scan_time_problem(scan_id_text(sid, names), t, row[g.index].to_numpy(),
+                                    g["step_mm"] if "step_mm" in g.columns else None)
+        if problem:
+            raise DataFileError(path, problem)
         labels = {}
         for col in ("step_mm", "speed_mm_s"):
             if col in g.columns:
