@@ -100,7 +100,7 @@ def test_reset_in_motion_and_a_soft_limit_alarm_then_recover_at_once(firmware):
     settings(firmware, **FAST, _22=1, _20=1)
     wrong = StageLimits((-200.0, 10.0), (-200.0, 0.0), (-200.0, 0.0), (3000.0,) * 3, (1000.0,) * 3)
     with open_stage(firmware, limits=wrong) as stage:
-        stage.move_to(x_mm=-20.0, feed_mm_min=600.0)
+        stage.move_to(x_mm=-150.0, feed_mm_min=600.0)      # 15 s: still moving however late the reset comes
         next(s for s in stage.track() if s.mpos_mm[0] < -0.5)
         stage.protocol.soft_reset()                                          # Ctrl-X in motion: ALARM:3
         assert stage.protocol.last_alarm == 3
