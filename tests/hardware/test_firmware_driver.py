@@ -7,6 +7,7 @@ exact in whole motor steps (1/250 mm with Grbl's defaults).
 """
 import json
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -96,14 +97,33 @@ def test_feed_hold_then_resume_waits_for_the_hold_to_complete(firmware):
         assert stage.wait_idle().mpos_mm == (-1.0, 0.0, 0.0)
 
 
+def _reset_in_motion(stage) -> tuple:
+    """Ctrl-X half a millimetre into a 15 s move (still moving however late the reset goes
+    out): (the status the move was last seen in, the alarm Grbl raised or None)."""
+    stage.move_to(x_mm=-150.0, feed_mm_min=600.0)
+    seen = next(s for s in stage.track() if s.mpos_mm[0] < -0.5)
+    stage.protocol.last_alarm = None                        # an earlier attempt's cannot count
+    stage.protocol.soft_reset()
+    return seen, stage.protocol.last_alarm
+
+
 def test_reset_in_motion_and_a_soft_limit_alarm_then_recover_at_once(firmware):
+    """A reset in motion raises ALARM:3 (Grbl's mc_reset: the cycle is aborted, position may
+    be lost). grbl-sim runs Grbl's serial interrupt, main loop and stepper on host threads
+    without the AVR's atomicity, and twice in four full runs (one on an idle host) its reset
+    found no cycle running although the move had 14 s to go; that attempt is said on stderr
+    and made again, up to three times. A driver that dropped the alarm would fail all three."""
     settings(firmware, **FAST, _22=1, _20=1)
     wrong = StageLimits((-200.0, 10.0), (-200.0, 0.0), (-200.0, 0.0), (3000.0,) * 3, (1000.0,) * 3)
     with open_stage(firmware, limits=wrong) as stage:
-        stage.move_to(x_mm=-150.0, feed_mm_min=600.0)      # 15 s: still moving however late the reset comes
-        next(s for s in stage.track() if s.mpos_mm[0] < -0.5)
-        stage.protocol.soft_reset()                                          # Ctrl-X in motion: ALARM:3
-        assert stage.protocol.last_alarm == 3
+        for _ in range(3):
+            seen, alarm = _reset_in_motion(stage)                          # Ctrl-X in motion: ALARM:3
+            if alarm == 3:
+                break
+            print(f"\ngrbl-sim raised no alarm for a reset in motion (last seen {seen.state} at "
+                  f"{seen.mpos_mm}); once more", file=sys.__stderr__)
+            assert stage.recover().state == "Idle"
+        assert alarm == 3
         assert stage.recover().state == "Idle"
         with pytest.raises(StageAlarm) as info:
             stage.move_to(x_mm=1.0, feed_mm_min=600.0)                       # beyond Grbl's [-200, 0]
