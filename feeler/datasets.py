@@ -492,13 +492,14 @@ def scan_time_problem(scan_id, t_s, rows, step_mm=None) -> str | None:
 def missing_sample_problem(t_s) -> str | None:
     """"its times jump from 9.5 to 10.5 s, …" for a scan whose one interval is at least
     1.5 times its median sample interval (a sample missing there), else None."""
-    d = np.diff(np.asarray(t_s, float))
+    t = np.asarray(t_s, float)
+    d = np.diff(t)
     if d.size < 3:
         return None
     j, med = int(np.argmax(d)), float(np.median(d))
     if not d[j] >= 1.5 * med > 0:
         return None
-    return (f"its times jump from {t_s[j]:g} to {t_s[j + 1]:g} s where its other samples lie {med:g} s apart "
+    return (f"its times jump from {t[j]:g} to {t[j + 1]:g} s where its other samples lie {med:g} s apart "
             f"(a sample missing there?)")
 
 

@@ -109,10 +109,11 @@ def _reset_in_motion(stage) -> tuple:
 
 def test_reset_in_motion_and_a_soft_limit_alarm_then_recover_at_once(firmware):
     """A reset in motion raises ALARM:3 (Grbl's mc_reset: the cycle is aborted, position may
-    be lost). grbl-sim runs Grbl's serial interrupt, main loop and stepper on host threads
-    without the AVR's atomicity, and twice in four full runs (one on an idle host) its reset
-    found no cycle running although the move had 14 s to go; that attempt is said on stderr
-    and made again, up to three times. A driver that dropped the alarm would fail all three."""
+    be lost). In two of six full runs (one on an idle host) the reset raised no alarm
+    although the move had 14 s to go; the likely cause, not shown, is grbl-sim running Grbl's
+    serial interrupt, main loop and stepper on host threads without the AVR's atomicity, so
+    its reset can find no cycle running. Such an attempt is said on stderr and made again,
+    up to three times. A driver that dropped the alarm would fail all three."""
     settings(firmware, **FAST, _22=1, _20=1)
     wrong = StageLimits((-200.0, 10.0), (-200.0, 0.0), (-200.0, 0.0), (3000.0,) * 3, (1000.0,) * 3)
     with open_stage(firmware, limits=wrong) as stage:
