@@ -16,7 +16,7 @@ import warnings
 import numpy as np
 import pytest
 
-from _ratios import LOADS, Timed, busy_loops, record_median_ratio
+from _ratios import LOADS, Timed, busy_loops, full_only, record_median_ratio
 
 GOALS_S = {"M1": 10.0, "M2": 10.0, "M4 hierarchical": 20.0}
 ROUNDS = 2
@@ -92,3 +92,63 @@ def test_nuts_wall_time(benchmark, model, make):
               f"sampling {np.median(samp):.1f} s) over {ROUNDS} warm fits; first fit compile "
               f"{first.get('compile_seconds', float('nan')):.1f} s (cache {first.get('compile_cache')}); "
               f"verdict ok={res.verdict.ok}, max R-hat {s['r_hat'].max():.4f}, min bulk ESS {s['ess_bulk'].min():.0f}")
+
+
+# one cold compile of the M1 model in a fresh process with empty PyTensor and numba caches
+# (a fresh machine's first fit); the baseline is the same model with its mean written as
+# pm.math.dot, as it was until session 42. Prints the compile seconds.
+_COLD = """
+import sys, time, numpy as np
+import pymc as pm
+from feeler.calib.matrix import MatrixPrior
+from feeler.calib.matrix.backends import nuts_model
+from feeler.calib.nuts import compile_model
+from feeler.scene import load_scene
+from feeler.simulate.calibration import draw_campaign
+
+scene = load_scene("datasets-synthetic/sensor-calibration.toml")
+rp = MatrixPrior(c0_mm_per_n=scene.prior.c0_mm_per_n, rel_sd=scene.prior.rel_sd,
+                 sigma_f_scale_n=scene.prior.sigma_f_scale_n).for_direction("inverse")
+u, _, f = draw_campaign(scene, np.random.default_rng(scene.scene.seed))
+if sys.argv[1] == "dot":
+    with pm.Model() as model:
+        B = pm.Normal("B", mu=rp.b0, sigma=rp.sd, shape=(3, 3))
+        sigma = pm.HalfNormal("sigma", sigma=rp.sigma_scale, shape=(3,))
+        pm.Normal("y", mu=pm.math.dot(u, B.T), sigma=sigma, observed=f)
+else:
+    model = nuts_model(u, f, rp, noise="gaussian", nu=3.0, eiv=False, stage_sd=0.01, noise_sd=None)
+t0 = time.perf_counter()
+_, cache = compile_model(model)
+assert cache == "miss", cache
+print(time.perf_counter() - t0)
+"""
+
+
+def _cold_compile_seconds(variant: str) -> float:
+    import os
+    import subprocess
+    import sys
+
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, PYTENSOR_FLAGS=f"base_compiledir={tmp}/pytensor", NUMBA_CACHE_DIR=f"{tmp}/numba")
+        out = subprocess.run([sys.executable, "-c", _COLD, variant], env=env, check=True, capture_output=True,
+                             text=True)
+    return float(out.stdout.split()[-1])
+
+
+@full_only("three cold compiles of the M1 model and of its pm.math.dot baseline per load (~8 min: 3.5 idle, 4.5 under two busy loops)")
+def test_m1_cold_compile(benchmark):
+    """Cold compile of the M1 NUTS model (broadcast product and sum) against the same model
+    with pm.math.dot: median(dot s) / median(ours s), goal >= 2 (measured 45.8 s vs 10.1 s)."""
+    benchmark.pedantic(lambda: None, rounds=1, iterations=1)
+    for load, n in LOADS.items():
+        with busy_loops(n):
+            call, base = [], []
+            for i in range(3):            # alternating which goes first
+                pair = [("sum", call), ("dot", base)] if i % 2 == 0 else [("dot", base), ("sum", call)]
+                for variant, into in pair:
+                    into.append(_cold_compile_seconds(variant))
+            timed = Timed(call=np.asarray(call), base=np.asarray(base))
+        ratio = record_median_ratio(benchmark, "dot compile s / ours", timed, ">= 2", load=load)
+        print(f"\nM1 cold compile [{load}]: ours {np.median(call):.1f} s, pm.math.dot {np.median(base):.1f} s "
+              f"(median of 3 each): ratio {ratio:.2f}")

@@ -16,17 +16,14 @@ import numpy as np
 from feeler.calib.matrix.prior import RegressionPrior
 from feeler.calib.progress import show_progress
 
-__all__ = ["sample_nuts", "sample_emcee"]
+__all__ = ["nuts_model", "sample_nuts", "sample_emcee"]
 
 
-def sample_nuts(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise: str, nu: float,
-                eiv: bool, stage_sd: float, noise_sd: np.ndarray | None, chains: int, draws: int,
-                tune: int, seed: int, progress: bool | None, cores: int = 1):
-    """PyMC NUTS; returns (draws dict, sample_stats dict) as numpy arrays."""
+def nuts_model(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise: str, nu: float, eiv: bool,
+               stage_sd: float, noise_sd: np.ndarray | None):
+    """The PyMC model :func:`sample_nuts` samples (``B``, ``sigma``, latent ``eps`` with ``eiv``)."""
     import pymc as pm
     import pytensor.tensor as pt
-
-    from feeler.calib.nuts import sample_model, stats_of
 
     n, p = y.shape
     with pm.Model() as model:
@@ -41,15 +38,26 @@ def sample_nuts(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise: 
             inputs = x - eps
         # Σ_k inputs[n, k]·B[i, k] written as a broadcast product and a sum, not pm.math.dot:
         # PyTensor's numba backend (nutpie) takes 45.8 s to compile this model with the Dot op
-        # and its gradient on a cold cache, 10.1 s without it (measured); the sum is the same
-        # arithmetic over three terms
+        # and its gradient on a cold cache, 10.1 s without it (measured; benchmarks/
+        # test_bench_nuts.py::test_m1_cold_compile); the sum is the same arithmetic over three terms
         mu = (pt.as_tensor(inputs)[:, None, :] * B[None, :, :]).sum(axis=-1)
         if noise == "student":
             pm.StudentT("y", nu=nu, mu=mu, sigma=sigma, observed=y)
         else:
             pm.Normal("y", mu=mu, sigma=sigma, observed=y)
-        tree = sample_model(model, draws=draws, tune=tune, chains=chains, seed=seed,
-                            progress=progress, target_accept=0.9, var_names=["B", "sigma"])
+    return model
+
+
+def sample_nuts(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise: str, nu: float,
+                eiv: bool, stage_sd: float, noise_sd: np.ndarray | None, chains: int, draws: int,
+                tune: int, seed: int, progress: bool | None, cores: int = 1):
+    """PyMC NUTS; returns (draws dict, sample_stats dict) as numpy arrays."""
+    from feeler.calib.nuts import sample_model, stats_of
+
+    p = y.shape[1]
+    model = nuts_model(x, y, prior, noise=noise, nu=nu, eiv=eiv, stage_sd=stage_sd, noise_sd=noise_sd)
+    tree = sample_model(model, draws=draws, tune=tune, chains=chains, seed=seed,
+                        progress=progress, target_accept=0.9, var_names=["B", "sigma"])
     post = tree["posterior"]
     out = {"B": np.asarray(post["B"].transpose("chain", "draw", ...).values),
            "sigma": np.broadcast_to(np.asarray(post["sigma"].transpose("chain", "draw", ...).values),
