@@ -25,7 +25,7 @@ from feeler.calib.neuron.decoder import MAX_UNDECODABLE, undecodable_draws
 from feeler.calib.neuron.grid import sample_grid
 from feeler.calib.neuron.model import NOISE_MODELS, Plates, Priors, make_priors
 from feeler.calib.neuron.modes import Cells, snap_flags, within_noise
-from feeler.calib.neuron.recalibrate import FLOOR, LOG_GAMMA_SD, fit_sharpness
+from feeler.calib.neuron.recalibrate import FLOOR, LOG_GAMMA_SD, fit_sharpness, recalibrated
 from feeler.calib.neuron.window import (choose_noise, loo_class_cond, loo_elpd, pooled_class_log_prob,
                                         tau_log_weights, usable_noise_models)
 from feeler.errors import ArgumentError
@@ -106,11 +106,31 @@ def _readout_noise(data: NeuronData) -> np.ndarray:
 MODE_DECODER_MIN = 8
 
 
+def loo_reading(log_prob: np.ndarray, group: np.ndarray) -> dict:
+    """How the training scans read when each is left out, from their leave-one-out plate
+    probabilities as the decoder gives them (sharpened, floored) ``log_prob (ndarray[n, C])``:
+    ``accuracy`` (the most probable plate is its own) and ``log_score`` (mean log
+    probability of its own plate), beside what a decoder that ignores the scan would get by
+    saying the scans' own plate shares (``base_accuracy``, the most common plate's share;
+    ``base_log_score``, minus their entropy). ``informative``: the log score beats the base
+    one; a decoder that does not reads its scans no better than knowing how many scans each
+    plate has."""
+    lp = np.asarray(log_prob, float)
+    g = np.asarray(group, int)
+    share = np.bincount(g, minlength=lp.shape[1]) / g.size
+    base = float(np.sum(share[share > 0] * np.log(share[share > 0])))
+    out = {"accuracy": float(np.mean(np.argmax(lp, axis=1) == g)), "log_score": float(np.mean(lp[np.arange(g.size), g])),
+           "base_accuracy": float(share.max()), "base_log_score": base}
+    return out | {"informative": bool(out["log_score"] > base)}
+
+
 def mode_decoders(table, plates: Plates, priors: Priors, noise: str, elpd: np.ndarray, *, chains: int, draws: int,
                   rng: np.random.Generator, cond: np.ndarray | None = None) -> dict:
     """Draws of a two-mode model weighted for each mode's own decoding, ``{"ride": …,
     "snap": …}`` (each ``{"draws": name -> ndarray (chains, draws[, C]), "sharpness": γ,
-    "scans": n}``), or {} when a mode has fewer than :data:`MODE_DECODER_MIN` scans or
+    "scans": n, "mask": its scans (ndarray[n_scans] bool), "loo_log_prob": their leave-one-out
+    plate probabilities as its decoder gives them (sharpened, floored), "loo":``
+    :func:`loo_reading` ``of them}``), or {} when a mode has fewer than :data:`MODE_DECODER_MIN` scans or
     when a mode's draws leave more than :data:`~.decoder.MAX_UNDECODABLE` of them without
     a decodable line (its windows may be ones where its plates are not in order): classify
     would refuse those, while the verdict checks the joint draws (a random scene of the
@@ -140,8 +160,11 @@ def mode_decoders(table, plates: Plates, priors: Priors, noise: str, elpd: np.nd
     for name, mask in (("ride", ~plates.snap), ("snap", plates.snap)):
         log_w = tau_log_weights(elpd[:, mask], rng)
         lp = pooled_class_log_prob(cond, log_w)
+        gamma = fit_sharpness(lp[mask], plates.group[mask])
+        read = recalibrated(lp[mask], gamma, FLOOR)
         out[name] = {"draws": sample_grid(table, plates, priors, noise, log_w, chains=chains, draws=draws, rng=rng),
-                     "sharpness": fit_sharpness(lp[mask], plates.group[mask]), "scans": int(mask.sum())}
+                     "sharpness": gamma, "scans": int(mask.sum()), "loo": loo_reading(read, plates.group[mask]),
+                     "loo_log_prob": read, "mask": mask}
         if np.mean(undecodable_draws(out[name]["draws"])) > MAX_UNDECODABLE:
             return {}               # more undecodable draws than classify reads: the joint draws, which the verdict checked
     return out
@@ -191,7 +214,8 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
             elpd = loo_elpd(table, plates, noise, growth_max=pri.growth_max, pointwise=True)
     log_w = tau_log_weights(elpd, rng)
     cond = loo_class_cond(table, plates, noise, growth_max=pri.growth_max) if noise in usable else None
-    sharpness = fit_sharpness(pooled_class_log_prob(cond, log_w), plates.group) if noise in usable else 1.0
+    loo_lp = pooled_class_log_prob(cond, log_w) if noise in usable else None
+    sharpness = fit_sharpness(loo_lp, plates.group) if noise in usable else 1.0
     stats = None
     by_mode = {}
     if backend == "grid":
@@ -216,6 +240,11 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
              "noise_scores": json.dumps(scores), "checks": json.dumps(info),
              "touch_modes": json.dumps({"snaps": cells.snaps, "rides": cells.rides}),
              "prob_sharpness": sharpness, "prob_floor": FLOOR}
+    if loo_lp is not None and np.all(np.isfinite(loo_lp)):     # as classify reads them: by mode when it can
+        read = recalibrated(loo_lp, sharpness, FLOOR)
+        for v in by_mode.values():
+            read[v["mask"]] = v["loo_log_prob"]
+        attrs["loo_reading"] = json.dumps(loo_reading(read, plates.group))
     if "loo_coverage90" in info:                      # overall, kept for readers of the earlier attribute
         cover = np.asarray(info["loo_coverage90"], float)
         known = np.isfinite(cover)                    # a plate of one scan has no left-out check
@@ -225,7 +254,7 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
         attrs.update(scene_toml=scene_toml, scene_path=str(scene_path or ""))
     if by_mode:
         attrs["mode_decoders"] = json.dumps({k: {"sharpness": v["sharpness"], "scans": v["scans"],
-                                                 "tau_s": float(np.median(v["draws"]["tau_s"]))}
+                                                 "tau_s": float(np.median(v["draws"]["tau_s"])), "loo": v["loo"]}
                                              for k, v in by_mode.items()})
     tree = posterior_from_draws(post, sample_stats=stats,
                                 observed={"step_mm": d, "peak_u1": table.peak, "log_tau_grid": table.log_tau,

@@ -96,12 +96,11 @@ def run(args) -> int:
                f"one-mode model scores better by two standard errors: left out, a touch takes its cell's mean with it)")
     print(f"decoder noise: {attrs['noise']}" + (" (leave-one-out log score per scan: " + ", ".join(
         f"{k} {v / scans.step_mm.size:+.3f}" for k, v in scores.items()) + ")" if scores else "") + why)
-    by_mode = json.loads(attrs.get("mode_decoders", "{}"))
-    if by_mode:
-        print("decoded by mode: " + ", ".join(
-            f"{k}s at a window of about {v['tau_s']:.3g} s (gamma {v['sharpness']:.3g}, {v['scans']} scans)"
-            for k, v in by_mode.items()) + "; each mode weighted by how its own touches are told apart (the "
-            "summary's tau_s weighs both together)")
+    reading = json.loads(attrs.get("loo_reading", "null"))
+    if reading:
+        print(f"leave-one-out reading: {_reading(reading, scans.step_mm.size)}")
+    for line in mode_lines(json.loads(attrs.get("mode_decoders", "{}"))):
+        print(line)
     if "loo_coverage90" in checks:
         print("posterior predictive check (leave-one-out): labels inside their 90 % interval per plate: " + ", ".join(
             f"{s + 0.0:g} mm " + (f"{100 * c:.0f} %" if c == c else "- (one scan)")
@@ -114,6 +113,34 @@ def run(args) -> int:
     if left_out:
         print(left_out + " (the summary leaves them out too)")
     return finish_fit(result, args)
+
+
+def mode_lines(by_mode: dict) -> list[str]:
+    """What the fit says of its decoder per mode (the ``mode_decoders`` attribute): each
+    mode's window, γ and leave-one-out accuracy, and a note for a mode that reads no
+    better than its plates' shares."""
+    if not by_mode:
+        return []
+    lines = ["decoded by mode: " + ", ".join(
+        f"{k}s at a window of about {v['tau_s']:.3g} s (gamma {v['sharpness']:.3g}, {v['scans']} scans"
+        + (f"; {100 * v['loo']['accuracy']:.0f} % read as their plate when left out, the most common "
+           f"plate alone {100 * v['loo']['base_accuracy']:.0f} %" if "loo" in v else "") + ")"
+        for k, v in by_mode.items()) + "; each mode weighted by how its own touches are told apart (the "
+        "summary's tau_s weighs both together)"]
+    for k, v in by_mode.items():
+        if "loo" in v and not v["loo"]["informative"]:
+            lines.append(f"note: {k}s read no better when left out than their plates' shares alone (log score per "
+                         f"scan {v['loo']['log_score']:+.3f} against {v['loo']['base_log_score']:+.3f}): a new "
+                         f"{k}'s plate probabilities say little; more {k}s per plate would tell the plates apart "
+                         f"better")
+    return lines
+
+
+def _reading(r: dict, n: int) -> str:
+    """One line on how the training scans read when each is left out (``loo_reading``)."""
+    return (f"{round(r['accuracy'] * n)} of {n} training scans ({100 * r['accuracy']:.0f} %) read as their own "
+            f"plate, against {100 * r['base_accuracy']:.0f} % for the most common plate alone; log score per scan "
+            f"{r['log_score']:+.3f} (the plates' shares alone: {r['base_log_score']:+.3f})")
 
 
 def _undecodable_note(result) -> str | None:

@@ -291,6 +291,53 @@ def test_each_modes_draws_sit_at_the_windows_that_read_that_mode():
                          chains=1, draws=50, rng=rng) == {}
 
 
+def test_loo_reading_exact_cases():
+    """Accuracy and log score of the left-out scans against the plates' shares: a decoder
+    sure and right, one at even odds (no better than the shares of balanced plates), one
+    sure and wrong, and the shares of unbalanced plates."""
+    from feeler.calib.neuron.fit import loo_reading
+    g = np.array([0, 1, 2, 2])
+    sure = np.log(np.full((4, 3), 1e-6))
+    sure[np.arange(4), g] = np.log(1 - 2e-6)
+    r = loo_reading(sure, g)
+    base = 0.5 * np.log(0.25) + 0.5 * np.log(0.5)
+    assert r["accuracy"] == 1.0 and r["log_score"] == pytest.approx(np.log(1 - 2e-6))
+    assert r["base_accuracy"] == 0.5 and r["base_log_score"] == pytest.approx(base) and r["informative"]
+    even = loo_reading(np.full((3, 3), -np.log(3)), np.array([0, 1, 2]))
+    assert even["log_score"] == pytest.approx(even["base_log_score"]) == pytest.approx(-np.log(3))
+    assert not even["informative"]
+    wrong = loo_reading(np.roll(sure, 1, axis=1), g)         # each scan read as the next plate up
+    assert wrong["accuracy"] == 0.0 and not wrong["informative"]
+
+
+def test_a_mode_that_reads_at_chance_is_named():
+    """Rides whose peaks do not depend on the plate at any window, snaps that tell their
+    plates apart: the rides' leave-one-out reading is no better than the plates' shares,
+    the snaps' is, and the fit's CLI lines say so of the rides only."""
+    import json
+
+    from feeler.calib.neuron.fit import mode_decoders
+    from feeler.commands._calibrate_neuron import mode_lines
+    rng = np.random.default_rng(12)
+    steps = np.repeat([0.0, 0.05, 0.1, 0.15], 16)
+    snap = np.tile([False, True], 32) & (steps > 0)
+    level = steps / 0.05
+    peaks = [np.where(snap, 1.0 + level, 1.0) + 0.15 * rng.standard_normal(steps.size) for _ in range(2)]
+    table = PeakTable(log_tau=np.log([0.5, 4.0]), peak=np.column_stack(peaks))
+    plates = Plates.of(steps, snap)
+    elpd = loo_elpd(table, plates, "two-mode", pointwise=True)
+    out = mode_decoders(table, plates, make_priors(table), "two-mode", elpd, chains=2, draws=200, rng=rng)
+    ride, snapped = out["ride"]["loo"], out["snap"]["loo"]
+    assert not ride["informative"] and ride["log_score"] <= ride["base_log_score"]
+    assert snapped["informative"] and snapped["accuracy"] > 0.9
+    assert ride["base_accuracy"] == pytest.approx(16 / 40)                # the floor plate's 16 of 40 rides
+    lines = mode_lines(json.loads(json.dumps({k: {"sharpness": v["sharpness"], "scans": v["scans"], "tau_s": 1.0,
+                                                  "loo": v["loo"]} for k, v in out.items()})))
+    assert lines[0].startswith("decoded by mode: rides at a window of about 1 s") and "40 scans; " in lines[0]
+    assert len(lines) == 2 and lines[1].startswith("note: rides read no better when left out than their plates' "
+                                                   "shares alone (log score per scan -")
+
+
 def test_no_decoder_per_mode_when_a_modes_draws_cannot_be_read(monkeypatch):
     """A mode whose draws leave more lines undecodable than classify reads (here 6 % of the
     rides' draws with a = NaN) gives no decoder per mode: the fit decodes with its joint
@@ -388,11 +435,43 @@ def test_the_cli_says_why_a_two_mode_model_was_chosen(capsys, tmp_path):
     assert line.startswith("decoder noise: two-mode") and "touches of plates with a riser snapped onto the upper" in line
     assert "two standard errors" in line
     modes = next(s for s in out if s.startswith("decoded by mode:"))
-    assert re.fullmatch(r"decoded by mode: rides at a window of about [0-9.]+ s \(gamma [0-9.]+, \d+ scans\), snaps at "
-                        r"a window of about [0-9.]+ s \(gamma [0-9.]+, \d+ scans\); .*", modes)
+    read = r"(\d+) % read as their plate when left out, the most common plate alone \d+ %"
+    got = re.fullmatch(r"decoded by mode: rides at a window of about [0-9.]+ s \(gamma [0-9.]+, (\d+) scans; " + read
+                       + r"\), snaps at a window of about [0-9.]+ s \(gamma [0-9.]+, (\d+) scans; " + read + r"\); .*",
+                       modes)
+    assert got, modes
+    # the whole set reads as classify reads it: each scan by its mode's decoder
+    whole = re.fullmatch(r"leave-one-out reading: (\d+) of (\d+) training scans \((\d+) %\) read as their own plate, "
+                         r"against \d+ % for the most common plate alone; log score per scan -[0-9.]+ \(the plates' "
+                         r"shares alone: -[0-9.]+\)", next(s for s in out if s.startswith("leave-one-out reading:")))
+    assert whole, [s for s in out if s.startswith("leave-one-out")]
+    n_ride, acc_ride, n_snap, acc_snap = (int(x) for x in got.groups())
+    assert int(whole[2]) == n_ride + n_snap
+    assert abs(int(whole[1]) - (n_ride * acc_ride + n_snap * acc_snap) / 100) <= 1      # the printed % are rounded
     # the floor plate's snap offset is 0 at every draw: shown as fixed, not as R-hat nan
     floor = next(s for s in out if s.strip().startswith("plate_snap_mm[0]")).split()
     assert floor[-3:] == ["fixed", "-", "-"] and not any("nan" in s.split() for s in out)
+
+
+def test_the_fit_reads_its_training_scans_as_classify_reads_them(tmp_path):
+    """The fit's leave-one-out reading of the whole set reads each scan by its mode's
+    decoder, as classify does: its accuracy and log score are the modes' weighted by their
+    scans (on exponential-fast-frames the joint decoder alone reads 40 of 60, the modes 45)."""
+    import json
+
+    import xarray as xr
+
+    from feeler.cli import main
+    run = tmp_path / "run"
+    assert main(["simulate", str(HARD_SCENES / "exponential-fast-frames.toml"), "--out", str(run),
+                 "--no-progress"]) == 0
+    assert main(["calibrate", "neuron", str(run), "--out", str(tmp_path / "fit"), "--no-progress"]) == 0
+    attrs = xr.open_datatree(tmp_path / "fit" / "posterior.nc")["posterior"].attrs
+    whole, modes = json.loads(attrs["loo_reading"]), json.loads(attrs["mode_decoders"])
+    n = sum(v["scans"] for v in modes.values())
+    for key in ("accuracy", "log_score"):
+        assert whole[key] == pytest.approx(sum(v["scans"] * v["loo"][key] for v in modes.values()) / n, abs=1e-12)
+    assert modes["snap"]["loo"]["accuracy"] > modes["ride"]["loo"]["accuracy"]
 
 
 @pytest.mark.parametrize("C", [2, 3, 4, 6, 8])
