@@ -49,6 +49,20 @@ def _ppc_note(attrs, src) -> list:
              f"p-value {fmt(attrs.get('ppc_p_value'), 3)}.", sources=(src,))]
 
 
+def _reading_note(attrs, src) -> list:
+    """M2: how the training scans read when each is left out, overall and per mode."""
+    if "loo_reading" not in attrs:
+        return []
+    from feeler.calib.neuron.fit import reading_text
+
+    by_mode = json.loads(attrs.get("mode_decoders", "{}"))
+    modes = "; ".join(f"{k}s {100 * v['loo']['accuracy']:.0f} % (the most common plate alone "
+                      f"{100 * v['loo']['base_accuracy']:.0f} %)" for k, v in by_mode.items() if "loo" in v)
+    return [Note(f"Leave-one-out reading: {reading_text(json.loads(attrs['loo_reading']))}"
+                 + (f". Each scan is read by its mode's decoder, as classify reads it: {modes}" if modes else "") + ".",
+                 sources=(src,))]
+
+
 def fit_section(inv, spec) -> Section:
     """Verdict, posterior plots chosen for the model, the diagnostics and the priors."""
     from feeler.reports.fit_plots import labels_of, plots_of
@@ -65,7 +79,7 @@ def fit_section(inv, spec) -> Section:
                        level="failed", sources=(verdict_rel,))]
     attrs = dict(result.posterior["posterior"].attrs)
     blocks += plots_of(inv, part, result, attrs, sampler=_is_sampler(result.backend))
-    blocks += _ppc_note(attrs, post_rel)
+    blocks += _ppc_note(attrs, post_rel) + _reading_note(attrs, post_rel)
     blocks.append(summary_table(result, labels_of(part.model, attrs, result.summary["name"]),
                                 part.path("summary.csv")))
     if result.priors:

@@ -112,16 +112,25 @@ def loo_reading(log_prob: np.ndarray, group: np.ndarray) -> dict:
     ``accuracy`` (the most probable plate is its own) and ``log_score`` (mean log
     probability of its own plate), beside what a decoder that ignores the scan would get by
     saying the scans' own plate shares (``base_accuracy``, the most common plate's share;
-    ``base_log_score``, minus their entropy). ``informative``: the log score beats the base
+    ``base_log_score``, minus their entropy), over ``scans`` scans. ``informative``: the log score beats the base
     one; a decoder that does not reads its scans no better than knowing how many scans each
     plate has."""
     lp = np.asarray(log_prob, float)
     g = np.asarray(group, int)
     share = np.bincount(g, minlength=lp.shape[1]) / g.size
     base = float(np.sum(share[share > 0] * np.log(share[share > 0])))
-    out = {"accuracy": float(np.mean(np.argmax(lp, axis=1) == g)), "log_score": float(np.mean(lp[np.arange(g.size), g])),
-           "base_accuracy": float(share.max()), "base_log_score": base}
+    out = {"scans": int(g.size), "accuracy": float(np.mean(np.argmax(lp, axis=1) == g)),
+           "log_score": float(np.mean(lp[np.arange(g.size), g])), "base_accuracy": float(share.max()),
+           "base_log_score": base}
     return out | {"informative": bool(out["log_score"] > base)}
+
+
+def reading_text(r: dict) -> str:
+    """:func:`loo_reading`'s figures in words (the fit's CLI and the report say the same)."""
+    n = r["scans"]
+    return (f"{round(r['accuracy'] * n)} of {n} training scans ({100 * r['accuracy']:.0f} %) read as their own "
+            f"plate when each is left out, against {100 * r['base_accuracy']:.0f} % for the most common plate "
+            f"alone; log score per scan {r['log_score']:+.3f} (the plates' shares alone: {r['base_log_score']:+.3f})")
 
 
 def mode_decoders(table, plates: Plates, priors: Priors, noise: str, elpd: np.ndarray, *, chains: int, draws: int,

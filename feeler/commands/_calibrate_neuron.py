@@ -53,6 +53,7 @@ def run(args) -> int:
     import warnings
 
     from feeler.calib.neuron import DecoderMisfitWarning, data_from_scans, fit_neuron
+    from feeler.calib.neuron.fit import reading_text
     from feeler.datasets import read_scans
 
     import json
@@ -98,7 +99,7 @@ def run(args) -> int:
         f"{k} {v / scans.step_mm.size:+.3f}" for k, v in scores.items()) + ")" if scores else "") + why)
     reading = json.loads(attrs.get("loo_reading", "null"))
     if reading:
-        print(f"leave-one-out reading: {_reading(reading, scans.step_mm.size)}")
+        print(f"leave-one-out reading: {reading_text(reading)}")
     for line in mode_lines(json.loads(attrs.get("mode_decoders", "{}"))):
         print(line)
     if "loo_coverage90" in checks:
@@ -134,13 +135,6 @@ def mode_lines(by_mode: dict) -> list[str]:
                          f"{k}'s plate probabilities say little; more {k}s per plate would tell the plates apart "
                          f"better")
     return lines
-
-
-def _reading(r: dict, n: int) -> str:
-    """One line on how the training scans read when each is left out (``loo_reading``)."""
-    return (f"{round(r['accuracy'] * n)} of {n} training scans ({100 * r['accuracy']:.0f} %) read as their own "
-            f"plate, against {100 * r['base_accuracy']:.0f} % for the most common plate alone; log score per scan "
-            f"{r['log_score']:+.3f} (the plates' shares alone: {r['base_log_score']:+.3f})")
 
 
 def _undecodable_note(result) -> str | None:

@@ -441,8 +441,8 @@ def test_the_cli_says_why_a_two_mode_model_was_chosen(capsys, tmp_path):
                        modes)
     assert got, modes
     # the whole set reads as classify reads it: each scan by its mode's decoder
-    whole = re.fullmatch(r"leave-one-out reading: (\d+) of (\d+) training scans \((\d+) %\) read as their own plate, "
-                         r"against \d+ % for the most common plate alone; log score per scan -[0-9.]+ \(the plates' "
+    whole = re.fullmatch(r"leave-one-out reading: (\d+) of (\d+) training scans \((\d+) %\) read as their own plate "
+                         r"when each is left out, against \d+ % for the most common plate alone; log score per scan -[0-9.]+ \(the plates' "
                          r"shares alone: -[0-9.]+\)", next(s for s in out if s.startswith("leave-one-out reading:")))
     assert whole, [s for s in out if s.startswith("leave-one-out")]
     n_ride, acc_ride, n_snap, acc_snap = (int(x) for x in got.groups())

@@ -262,3 +262,22 @@ def test_a_window_at_an_end_of_its_range_is_noted_in_the_fit_section():
     assert [n.text for n in notes[:1]] == [f"Window: {line}."] and len(notes) == 2
     assert all(n.sources == ("neuron/posterior.nc",) for n in notes)
     assert len(_ppc_note({"ppc_coverage90": 0.93}, "p.nc")) == 1
+
+
+def test_the_neuron_fit_section_says_how_its_training_scans_read(report, run_dir):
+    """The demo's M2 section carries the fit's leave-one-out reading, in the words the fit's
+    CLI prints, from the figures its posterior records (and with each mode's accuracy when
+    the fit decodes by mode)."""
+    import html
+
+    import xarray as xr
+
+    from feeler.calib.neuron.fit import reading_text
+    attrs = xr.open_datatree(run_dir / "m2" / "posterior.nc")["posterior"].attrs
+    reading = json.loads(attrs["loo_reading"])
+    assert reading["scans"] == 24 and 0.25 <= reading["base_accuracy"] <= reading["accuracy"] <= 1.0
+    page = html.unescape((report / "report.html").read_text(encoding="utf-8"))
+    assert f"Leave-one-out reading: {reading_text(reading)}" in page
+    by_mode = json.loads(attrs.get("mode_decoders", "{}"))
+    for k, v in by_mode.items():
+        assert f"{k}s {100 * v['loo']['accuracy']:.0f} % (the most common plate alone" in page
