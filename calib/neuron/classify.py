@@ -33,6 +33,8 @@ class Classification:
         note (str | None): why posterior draws were left out, if any (:attr:`DecoderDraws.note`).
         plate_sds, nearest_mm (ndarray[n_scans] | None): each scan's distance from the nearest
             training plate, in its sds, and that plate's step, mm (:meth:`DecoderDraws.plate_distance`).
+        snap (ndarray[n_scans] bool | None): which scans snapped onto the upper level, as the
+            decoder read them (:func:`scan_modes`), when the fit is a two-mode one.
     """
     plates_mm: np.ndarray
     log_prob: np.ndarray
@@ -44,6 +46,7 @@ class Classification:
     note: str | None = None
     plate_sds: np.ndarray | None = None
     nearest_mm: np.ndarray | None = None
+    snap: np.ndarray | None = None
 
     @property
     def prob(self) -> np.ndarray:
@@ -142,7 +145,7 @@ def classify(result, strain, t_s, *, rng: np.random.Generator, n_draws: int = 40
     height, lo, hi, distance, nearest, log_prob = (np.concatenate(v) for v in zip(*parts))
     return Classification(plates_mm=dec.steps_mm, log_prob=log_prob, height_mm=height,
                           lo90_mm=lo, hi90_mm=hi, p_at_tau=p, tau_s=dec.tau_s, note=dec.note,
-                          plate_sds=distance, nearest_mm=dec.steps_mm[nearest])
+                          plate_sds=distance, nearest_mm=dec.steps_mm[nearest], snap=snap)
 
 
 def expected_calibration_error(prob, true_index, *, n_bins: int = 10) -> float:

@@ -87,6 +87,8 @@ def run(args) -> int:
               f"every scan's reason is in {where}")
     if c.note:
         print(c.note)
+    for line in chance_mode_notes(result, c.snap):
+        print(f"note: {line}")
     summary = labelled_summary(table, c.plates_mm)
     print(summary or f"{len(table)} unlabelled scans (no step_mm column): no accuracy to report")
     for line in claims_check(table, c.plates_mm):
@@ -99,3 +101,24 @@ def run(args) -> int:
         table.to_csv(out / "classification.csv", index=False)
         print(f"wrote {out / 'classification.csv'}")
     return 0
+
+
+def chance_mode_notes(result, snap) -> list[str]:
+    """A line for each mode whose training scans this fit reads no better than their plates'
+    shares (the fit's leave-one-out reading, ``mode_decoders``) when some new scans are of it."""
+    import json
+
+    import numpy as np
+
+    by_mode = json.loads(result.posterior["posterior"].attrs.get("mode_decoders", "{}"))
+    if snap is None:
+        return []
+    lines = []
+    for name, snapped in (("ride", False), ("snap", True)):
+        loo = by_mode.get(name, {}).get("loo")
+        n = int(np.sum(np.asarray(snap) == snapped))
+        if loo and not loo["informative"] and n:
+            lines.append(f"{n} of {len(snap)} scans are {name}s, which this fit reads no better than its training "
+                         f"{name}s' plate shares when each is left out (log score per scan {loo['log_score']:+.3f} "
+                         f"against {loo['base_log_score']:+.3f}): their plate probabilities say little")
+    return lines

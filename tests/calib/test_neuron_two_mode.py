@@ -4,6 +4,7 @@ import re
 import warnings
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from feeler.calib.neuron import fit_neuron
@@ -472,6 +473,50 @@ def test_the_fit_reads_its_training_scans_as_classify_reads_them(tmp_path):
     for key in ("accuracy", "log_score"):
         assert whole[key] == pytest.approx(sum(v["scans"] * v["loo"][key] for v in modes.values()) / n, abs=1e-12)
     assert modes["snap"]["loo"]["accuracy"] > modes["ride"]["loo"]["accuracy"]
+
+
+def test_classify_notes_new_scans_of_a_mode_the_fit_reads_at_chance(tmp_path, capsys):
+    """classify says how many new scans are of a mode whose training scans the fit reads no
+    better than their plates' shares (here the rides, marked so in a real two-mode fit's
+    record), counting them as the decoder read them; nothing for a mode that reads well."""
+    import json
+    import shutil
+    from pathlib import Path
+
+    import xarray as xr
+
+    from feeler.cli import main
+    from feeler.commands.classify import chance_mode_notes
+    run, fit = tmp_path / "run", tmp_path / "fit"
+    assert main(["simulate", str(HARD_SCENES / "exponential-fast-frames.toml"), "--out", str(run),
+                 "--no-progress"]) == 0
+    assert main(["calibrate", "neuron", str(run), "--out", str(fit), "--no-progress"]) == 0
+    capsys.readouterr()
+    assert main(["classify", str(fit), str(run), "--no-progress"]) == 0
+    assert "which this fit reads no better" not in capsys.readouterr().out        # both modes read well here
+    marked = Path(shutil.copytree(fit, tmp_path / "marked"))
+    with xr.open_datatree(fit / "posterior.nc") as stored:
+        tree = stored.load()
+    modes = json.loads(tree["posterior"].attrs["mode_decoders"])
+    modes["ride"]["loo"] |= {"informative": False, "log_score": -1.5, "base_log_score": -1.3}
+    tree["posterior"].attrs["mode_decoders"] = json.dumps(modes)
+    tree.to_netcdf(marked / "posterior.nc")
+    assert main(["classify", str(marked), str(run), "--no-progress"]) == 0
+    notes = [s for s in capsys.readouterr().out.splitlines() if "which this fit reads no better" in s]
+    scans = pd.read_csv(run / "scans.csv")
+    strain = np.stack([g.sort_values("t_s")["uy_mm"].to_numpy() for _, g in scans.groupby("scan_id")])
+    rides = int(np.sum(~scan_modes(strain)))
+    assert notes == [f"note: {rides} of {len(strain)} scans are rides, which this fit reads no better than its "
+                     f"training rides' plate shares when each is left out (log score per scan -1.500 against "
+                     f"-1.300): their plate probabilities say little"]
+    assert chance_mode_notes(_fit_result_stub(modes), None) == []            # a one-mode reading: no modes
+
+
+def _fit_result_stub(modes):
+    """The part of a FitResult chance_mode_notes reads."""
+    import json
+    from types import SimpleNamespace
+    return SimpleNamespace(posterior={"posterior": SimpleNamespace(attrs={"mode_decoders": json.dumps(modes)})})
 
 
 @pytest.mark.parametrize("C", [2, 3, 4, 6, 8])
