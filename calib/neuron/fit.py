@@ -110,11 +110,11 @@ def loo_reading(log_prob: np.ndarray, group: np.ndarray) -> dict:
     """How the training scans read when each is left out, from their leave-one-out plate
     probabilities as the decoder gives them (sharpened, floored) ``log_prob (ndarray[n, C])``:
     ``accuracy`` (the most probable plate is its own) and ``log_score`` (mean log
-    probability of its own plate), beside what a decoder that ignores the scan would get by
-    saying the scans' own plate shares (``base_accuracy``, the most common plate's share;
-    ``base_log_score``, minus their entropy), over ``scans`` scans. ``informative``: the log score beats the base
-    one; a decoder that does not reads its scans no better than knowing how many scans each
-    plate has."""
+    probability of its own plate) over ``scans`` scans, beside what a decoder that ignores
+    the scan would get by saying the scans' own plate shares (``base_accuracy``, the most
+    common plate's share; ``base_log_score``, minus their entropy). ``informative``: the
+    log score beats the base one; a decoder that does not reads its scans no better than
+    knowing how many scans each plate has."""
     lp = np.asarray(log_prob, float)
     g = np.asarray(group, int)
     share = np.bincount(g, minlength=lp.shape[1]) / g.size
@@ -139,7 +139,8 @@ def mode_decoders(table, plates: Plates, priors: Priors, noise: str, elpd: np.nd
     "snap": …}`` (each ``{"draws": name -> ndarray (chains, draws[, C]), "sharpness": γ,
     "scans": n, "mask": its scans (ndarray[n_scans] bool), "loo_log_prob": their leave-one-out
     plate probabilities as its decoder gives them (sharpened, floored), "loo":``
-    :func:`loo_reading` ``of them}``), or {} when a mode has fewer than :data:`MODE_DECODER_MIN` scans or
+    :func:`loo_reading` ``of them}``), or {} when a mode has fewer than
+    :data:`MODE_DECODER_MIN` scans or
     when a mode's draws leave more than :data:`~.decoder.MAX_UNDECODABLE` of them without
     a decodable line (its windows may be ones where its plates are not in order): classify
     would refuse those, while the verdict checks the joint draws (a random scene of the

@@ -132,8 +132,7 @@ def mode_lines(by_mode: dict) -> list[str]:
         if "loo" in v and not v["loo"]["informative"]:
             lines.append(f"note: {k}s read no better when left out than their plates' shares alone (log score per "
                          f"scan {v['loo']['log_score']:+.3f} against {v['loo']['base_log_score']:+.3f}): a new "
-                         f"{k}'s plate probabilities say little; more {k}s per plate would tell the plates apart "
-                         f"better")
+                         f"{k}'s plate probabilities say little")
     return lines
 
 
