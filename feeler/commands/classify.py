@@ -12,7 +12,8 @@ or displacements look like the wrong units is refused. For each scan: the probab
 every training plate and the decoded step height with its 90 % interval (inverting each
 plate's predictive band: at any true step the interval covers it 90 % of the time),
 integrating over the posterior. A posterior that failed its diagnostics is refused unless
---accept-failed. --out DIR writes classification.csv.
+--accept-failed. --out DIR writes classification.csv. A note names the scans of a mode
+(snaps, rides) whose training scans the fit reads no better than their plates' shares.
 """
 from __future__ import annotations
 

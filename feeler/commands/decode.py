@@ -14,7 +14,8 @@ scan's end (equal to `feeler classify`), the decision (plate, probability, time 
 position; empty if none), and whether the scan was flagged, with the reason. With
 labels, a warning when the decisions were right less often than the probabilities they
 were taken at promised, or the intervals held for too few labels (README, "Scan CSV
-format").
+format"); as classify, a note on scans of a mode the fit reads no better than its plates'
+shares.
 
 --follow decodes a run another process is still acquiring: it tails RUN/samples.csv
 (a partial last line waits for its end) and stops when the acquisition lets go of the
@@ -149,6 +150,7 @@ def _summary(decoder) -> None:
     import numpy as np
 
     from feeler.calib.neuron.live.table import claims_check
+    from feeler.commands.classify import chance_mode_notes
 
     t = decoder.table()
     if t.empty:
@@ -162,5 +164,8 @@ def _summary(decoder) -> None:
         line += f"; median decision at {np.median(t['decided_at_t_s'].to_numpy(float)[decided]):.3g} s"
     flagged = int(t["flagged"].sum())
     print(line + (f"; {flagged} flagged as unlike the fit's training scans" if flagged else ""))
+    snapped = [decoder.snapped[k] for k in sorted(decoder.rows)]
+    for said in chance_mode_notes(decoder.live.fit, None if None in snapped else np.array(snapped, bool)):
+        print(f"note: {said}")
     for said in claims_check(t, decoder.live.plates_mm, decided="decided_mm", promised="p_decided"):
         print(f"warning: {said}")

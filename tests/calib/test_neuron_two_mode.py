@@ -509,6 +509,11 @@ def test_classify_notes_new_scans_of_a_mode_the_fit_reads_at_chance(tmp_path, ca
     assert notes == [f"note: {rides} of {len(strain)} scans are rides, which this fit reads no better than its "
                      f"training rides' plate shares when each is left out (log score per scan -1.500 against "
                      f"-1.300): their plate probabilities say little"]
+    # the live decoder reads each scan's mode at its end as classify does, and says the same
+    assert main(["decode", str(marked), str(run), "--out", str(tmp_path / "live"), "--no-progress"]) == 0
+    assert [s for s in capsys.readouterr().out.splitlines() if "which this fit reads no better" in s] == notes
+    assert main(["decode", str(fit), str(run), "--out", str(tmp_path / "live2"), "--no-progress"]) == 0
+    assert "which this fit reads no better" not in capsys.readouterr().out
     assert chance_mode_notes(_fit_result_stub(modes), None) == []            # a one-mode reading: no modes
 
 

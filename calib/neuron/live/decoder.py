@@ -143,6 +143,7 @@ class LiveDecoder:
         if not (isinstance(n_draws, int) and n_draws > 0):
             raise ArgumentError("n_draws", n_draws, "an integer > 0")
         post = fit.posterior
+        self.fit = fit
         self.dec = DecoderDraws.from_result(fit, rng=np.random.default_rng(seed), n_draws=n_draws)
         top = 1.0 - self.dec.floor * (self.dec.steps_mm.size - 1) / self.dec.steps_mm.size
         if threshold > top:       # the floor ε/C of every plate caps the top probability
@@ -168,6 +169,13 @@ class LiveDecoder:
     def plates_mm(self) -> np.ndarray:
         """The fit's plates (steps, mm), the order of :attr:`LiveState.prob`."""
         return self.dec.steps_mm
+
+    @property
+    def snapped(self) -> bool | None:
+        """Whether the scan is read as one that snapped onto the upper level (after
+        :meth:`finish`: the mode ``classify`` reads); None when the fit is not two-mode."""
+        mode = self._answer[4]
+        return None if mode is None else bool(mode[0])
 
     def at_draws(self, values_at_nodes: np.ndarray) -> np.ndarray:
         """Values at the τ nodes → at each draw's τ (ndarray[S]), as :meth:`PeakTable.at`."""

@@ -50,6 +50,7 @@ class RunDecoder:
     def __init__(self, live, *, on_state=None, on_scan=None):
         self.live, self.on_state, self.on_scan = live, on_state, on_scan
         self.rows: dict[int, dict] = {}
+        self.snapped: dict[int, bool | None] = {}      # each scan's mode as read at its end (None: one-mode fit)
         self._key = None
         self._labels: dict = {}
         self.labelled = False
@@ -87,6 +88,7 @@ class RunDecoder:
                "decided_at_t_s": np.nan if d is None else d.t_s, "decided_at_x_mm": np.nan if d is None else d.x_mm,
                "n_samples": end.n, "flagged": bool(end.flags), "flag": "; ".join(end.flags)}
         self.rows[sid] = row
+        self.snapped[sid] = self.live.snapped
         if self.on_scan is not None:
             self.on_scan(row)
         return row
