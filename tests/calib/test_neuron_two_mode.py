@@ -454,7 +454,20 @@ def test_the_cli_says_why_a_two_mode_model_was_chosen(capsys, tmp_path):
     assert floor[-3:] == ["fixed", "-", "-"] and not any("nan" in s.split() for s in out)
 
 
-def test_the_fit_reads_its_training_scans_as_classify_reads_them(tmp_path):
+@pytest.fixture(scope="module")
+def fast_frames_fit(tmp_path_factory):
+    """(run, fit): hard/exponential-fast-frames simulated and fitted by the CLI (two modes,
+    a decoder per mode)."""
+    from feeler.cli import main
+    tmp = tmp_path_factory.mktemp("fast-frames")
+    run, fit = tmp / "run", tmp / "fit"
+    assert main(["simulate", str(HARD_SCENES / "exponential-fast-frames.toml"), "--out", str(run),
+                 "--no-progress"]) == 0
+    assert main(["calibrate", "neuron", str(run), "--out", str(fit), "--no-progress"]) == 0
+    return run, fit
+
+
+def test_the_fit_reads_its_training_scans_as_classify_reads_them(fast_frames_fit):
     """The fit's leave-one-out reading of the whole set reads each scan by its mode's
     decoder, as classify does: its accuracy and log score are the modes' weighted by their
     scans (on exponential-fast-frames the joint decoder alone reads 40 of 60, the modes 45)."""
@@ -462,12 +475,8 @@ def test_the_fit_reads_its_training_scans_as_classify_reads_them(tmp_path):
 
     import xarray as xr
 
-    from feeler.cli import main
-    run = tmp_path / "run"
-    assert main(["simulate", str(HARD_SCENES / "exponential-fast-frames.toml"), "--out", str(run),
-                 "--no-progress"]) == 0
-    assert main(["calibrate", "neuron", str(run), "--out", str(tmp_path / "fit"), "--no-progress"]) == 0
-    attrs = xr.open_datatree(tmp_path / "fit" / "posterior.nc")["posterior"].attrs
+    with xr.open_datatree(fast_frames_fit[1] / "posterior.nc") as tree:
+        attrs = dict(tree["posterior"].attrs)
     whole, modes = json.loads(attrs["loo_reading"]), json.loads(attrs["mode_decoders"])
     n = sum(v["scans"] for v in modes.values())
     for key in ("accuracy", "log_score"):
@@ -475,7 +484,7 @@ def test_the_fit_reads_its_training_scans_as_classify_reads_them(tmp_path):
     assert modes["snap"]["loo"]["accuracy"] > modes["ride"]["loo"]["accuracy"]
 
 
-def test_classify_notes_new_scans_of_a_mode_the_fit_reads_at_chance(tmp_path, capsys):
+def test_classify_notes_new_scans_of_a_mode_the_fit_reads_at_chance(fast_frames_fit, tmp_path, capsys):
     """classify says how many new scans are of a mode whose training scans the fit reads no
     better than their plates' shares (here the rides, marked so in a real two-mode fit's
     record), counting them as the decoder read them; nothing for a mode that reads well."""
@@ -487,10 +496,7 @@ def test_classify_notes_new_scans_of_a_mode_the_fit_reads_at_chance(tmp_path, ca
 
     from feeler.cli import main
     from feeler.commands.classify import chance_mode_notes
-    run, fit = tmp_path / "run", tmp_path / "fit"
-    assert main(["simulate", str(HARD_SCENES / "exponential-fast-frames.toml"), "--out", str(run),
-                 "--no-progress"]) == 0
-    assert main(["calibrate", "neuron", str(run), "--out", str(fit), "--no-progress"]) == 0
+    run, fit = fast_frames_fit
     capsys.readouterr()
     assert main(["classify", str(fit), str(run), "--no-progress"]) == 0
     assert "which this fit reads no better" not in capsys.readouterr().out        # both modes read well here
