@@ -37,8 +37,8 @@ def nuts_model(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise: s
             eps = pm.Normal("eps", mu=0.0, sigma=stage_sd, shape=(n, 3))
             inputs = x - eps
         # Σ_k inputs[n, k]·B[i, k] written as a broadcast product and a sum, not pm.math.dot:
-        # PyTensor's numba backend (nutpie) takes 45.8 s to compile this model with the Dot op
-        # and its gradient on a cold cache, 10.1 s without it (measured; benchmarks/
+        # PyTensor's numba backend (nutpie) takes 46.0 s to compile this model with the Dot op
+        # and its gradient on a cold cache, 11.7 s without it (medians, idle; benchmarks/
         # test_bench_nuts.py::test_m1_cold_compile); the sum is the same arithmetic over three terms
         mu = (pt.as_tensor(inputs)[:, None, :] * B[None, :, :]).sum(axis=-1)
         if noise == "student":

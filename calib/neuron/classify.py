@@ -16,7 +16,7 @@ import numpy as np
 from feeler.calib.neuron.decoder import DecoderDraws
 from feeler.calib.neuron.modes import snap_flags
 
-__all__ = ["Classification", "classify", "peaks_at", "peaks_of", "expected_calibration_error", "log_loss"]
+__all__ = ["Classification", "classify", "chance_mode_notes", "peaks_at", "peaks_of", "expected_calibration_error", "log_loss"]
 
 
 @dataclass(frozen=True)
@@ -146,6 +146,27 @@ def classify(result, strain, t_s, *, rng: np.random.Generator, n_draws: int = 40
     return Classification(plates_mm=dec.steps_mm, log_prob=log_prob, height_mm=height,
                           lo90_mm=lo, hi90_mm=hi, p_at_tau=p, tau_s=dec.tau_s, note=dec.note,
                           plate_sds=distance, nearest_mm=dec.steps_mm[nearest], snap=snap)
+
+
+def chance_mode_notes(attrs, snap) -> list[str]:
+    """A line for each mode whose training scans a fit reads no better than their plates'
+    shares (its leave-one-out reading per mode, the posterior's ``attrs["mode_decoders"]``)
+    when some new scans are of it (``snap``: each scan's mode as read, ndarray[n_scans]
+    bool; None: read without modes); classify and decode say them."""
+    import json
+
+    if snap is None:
+        return []
+    by_mode = json.loads(attrs.get("mode_decoders", "{}"))
+    lines = []
+    for name, snapped in (("ride", False), ("snap", True)):
+        loo = by_mode.get(name, {}).get("loo")
+        n = int(np.sum(np.asarray(snap) == snapped))
+        if loo and not loo["informative"] and n:
+            lines.append(f"{n} of {len(snap)} scans are {name}s, which this fit reads no better than its training "
+                         f"{name}s' plate shares when each is left out (log score per scan {loo['log_score']:+.3f} "
+                         f"against {loo['base_log_score']:+.3f}): their plate probabilities say little")
+    return lines
 
 
 def expected_calibration_error(prob, true_index, *, n_bins: int = 10) -> float:

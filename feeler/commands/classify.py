@@ -40,7 +40,7 @@ def run(args) -> int:
     import numpy as np
     import pandas as pd
 
-    from feeler.calib.neuron.classify import classify
+    from feeler.calib.neuron.classify import chance_mode_notes, classify
     from feeler.calib.neuron.live.envelope import Envelope, readout_noise_mm
     from feeler.calib.neuron.live.scan_csv import read_scan_records
     from feeler.calib.neuron.live.table import (claims_check, coverage_note, labelled_summary, plate_column,
@@ -88,7 +88,7 @@ def run(args) -> int:
               f"every scan's reason is in {where}")
     if c.note:
         print(c.note)
-    for line in chance_mode_notes(result, c.snap):
+    for line in chance_mode_notes(result.posterior["posterior"].attrs, c.snap):
         print(f"note: {line}")
     summary = labelled_summary(table, c.plates_mm)
     print(summary or f"{len(table)} unlabelled scans (no step_mm column): no accuracy to report")
@@ -103,23 +103,3 @@ def run(args) -> int:
         print(f"wrote {out / 'classification.csv'}")
     return 0
 
-
-def chance_mode_notes(result, snap) -> list[str]:
-    """A line for each mode whose training scans this fit reads no better than their plates'
-    shares (the fit's leave-one-out reading, ``mode_decoders``) when some new scans are of it."""
-    import json
-
-    import numpy as np
-
-    by_mode = json.loads(result.posterior["posterior"].attrs.get("mode_decoders", "{}"))
-    if snap is None:
-        return []
-    lines = []
-    for name, snapped in (("ride", False), ("snap", True)):
-        loo = by_mode.get(name, {}).get("loo")
-        n = int(np.sum(np.asarray(snap) == snapped))
-        if loo and not loo["informative"] and n:
-            lines.append(f"{n} of {len(snap)} scans are {name}s, which this fit reads no better than its training "
-                         f"{name}s' plate shares when each is left out (log score per scan {loo['log_score']:+.3f} "
-                         f"against {loo['base_log_score']:+.3f}): their plate probabilities say little")
-    return lines

@@ -150,7 +150,7 @@ def _summary(decoder) -> None:
     import numpy as np
 
     from feeler.calib.neuron.live.table import claims_check
-    from feeler.commands.classify import chance_mode_notes
+    from feeler.calib.neuron.classify import chance_mode_notes
 
     t = decoder.table()
     if t.empty:
@@ -165,7 +165,8 @@ def _summary(decoder) -> None:
     flagged = int(t["flagged"].sum())
     print(line + (f"; {flagged} flagged as unlike the fit's training scans" if flagged else ""))
     snapped = [decoder.snapped[k] for k in sorted(decoder.rows)]
-    for said in chance_mode_notes(decoder.live.fit, None if None in snapped else np.array(snapped, bool)):
+    modes = None if None in snapped else np.array(snapped, bool)
+    for said in chance_mode_notes(decoder.live.fit.posterior["posterior"].attrs, modes):
         print(f"note: {said}")
     for said in claims_check(t, decoder.live.plates_mm, decided="decided_mm", promised="p_decided"):
         print(f"warning: {said}")

@@ -495,7 +495,7 @@ def test_classify_notes_new_scans_of_a_mode_the_fit_reads_at_chance(fast_frames_
     import xarray as xr
 
     from feeler.cli import main
-    from feeler.commands.classify import chance_mode_notes
+    from feeler.calib.neuron.classify import chance_mode_notes
     run, fit = fast_frames_fit
     capsys.readouterr()
     assert main(["classify", str(fit), str(run), "--no-progress"]) == 0
@@ -520,14 +520,8 @@ def test_classify_notes_new_scans_of_a_mode_the_fit_reads_at_chance(fast_frames_
     assert [s for s in capsys.readouterr().out.splitlines() if "which this fit reads no better" in s] == notes
     assert main(["decode", str(fit), str(run), "--out", str(tmp_path / "live2"), "--no-progress"]) == 0
     assert "which this fit reads no better" not in capsys.readouterr().out
-    assert chance_mode_notes(_fit_result_stub(modes), None) == []            # a one-mode reading: no modes
+    assert chance_mode_notes({"mode_decoders": json.dumps(modes)}, None) == []     # a one-mode reading: no modes
 
-
-def _fit_result_stub(modes):
-    """The part of a FitResult chance_mode_notes reads."""
-    import json
-    from types import SimpleNamespace
-    return SimpleNamespace(posterior={"posterior": SimpleNamespace(attrs={"mode_decoders": json.dumps(modes)})})
 
 
 @pytest.mark.parametrize("C", [2, 3, 4, 6, 8])
