@@ -88,7 +88,8 @@ def continuous_log_density(p, c_index, mu, s, steps, end_slopes=None) -> np.ndar
     dc = np.diff(steps)
     dm = np.diff(mu, axis=-1)
     beta = dm / dc                                                              # P per mm, (..., C-1)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    # a spread near 0 (a degenerate set's plate) overflows the ratios to ±inf: handled below
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         kappa = np.where(dm > 0, np.diff(s, axis=-1) / dm, 0.0)
         lo = (mu[..., :-1] - p[..., None]) / s[..., :-1]
         hi = (mu[..., 1:] - p[..., None]) / s[..., 1:]
