@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from feeler.calib.neuron import fit_neuron
-from feeler.calib.neuron.checks import data_problems, posterior_problems, unit_problems
+from feeler.calib.neuron.checks import _scale_problem, data_problems, posterior_problems, unit_problems
 from feeler.calib.neuron.grid import sample_grid
 from feeler.calib.neuron.model import PeakTable, Plates, make_priors
 from feeler.calib.neuron.synth import Truth, scene_scans, simulate_peaks
@@ -216,6 +216,37 @@ def test_steps_in_cm_or_inches_are_named(data, per_mm, words):
     (0.31-1.09 measured, :data:`MAX_GAIN`)."""
     res = _quiet_fit(dataclasses.replace(data, step_mm=per_mm * data.step_mm))
     assert not res.verdict.ok and words in res.verdict.problems[0], res.verdict.problems
+
+
+@pytest.mark.parametrize("per_mm, words", [(0.1, "U_y probably in cm, expected mm (or the steps labelled 10 times"),
+                                            (1 / 25.4, "U_y probably in inches")])
+def test_displacements_in_cm_or_inches_are_named(data, per_mm, words):
+    """U_y in cm or inches (steps in mm) rises 0.1 or 0.04 times the step, above the 1/30 of
+    the um check: the fit said verdict ok (an outside audit). A face riding over a step rises
+    by 0.3-1.1 of it (:data:`MIN_GAIN`); U_y a third of the truth still reads as physics."""
+    res = _quiet_fit(dataclasses.replace(data, strain=per_mm * data.strain))
+    assert not res.verdict.ok and words in res.verdict.problems[0], res.verdict.problems
+    table, plates = data.table(n_grid=32), Plates.of(data.step_mm)
+    (q,) = unit_problems(table, Plates.of(10 * data.step_mm), length_mm=3.0, t_s=data.t_s)     # steps x10: the same
+    assert "U_y probably in cm" in q and "steps labelled 10 times too large" in q
+    assert unit_problems(PeakTable(table.log_tau, table.peak / 3), plates, length_mm=3.0, t_s=data.t_s) == []
+
+
+def test_plates_labelled_closer_than_they_read_are_not_a_unit(data):
+    """Two plates labelled 1 um apart whose scans differ by their noise: the slope through
+    them is 10^4, which the check read as U_y in um, though each plate rises about its step.
+    The labels are named instead; U_y truly in um (both ratios off) still is."""
+    table = data.table(n_grid=32)
+    top = data.step_mm == data.step_mm.max()
+    steps = np.where(top, 0.1 + 1e-6, 0.1)                        # the 0.2 mm plate vs the rest, 1 um apart
+    (q,) = unit_problems(table, Plates.of(steps), length_mm=3.0, t_s=data.t_s)
+    assert "labelled closer together than their scans read them" in q and "um" not in q, q
+    assert "(0.1, 0.100001 mm)" in q
+    q = _scale_problem(0.1, 1.2, np.array([0.0, 2.0]))            # a slope of 0.1, the top plate rising its step
+    assert "labelled further apart than their scans read them" in q and "cm" not in q, q
+    (q,) = unit_problems(PeakTable(table.log_tau, 1000 * table.peak), Plates.of(data.step_mm), length_mm=3.0,
+                         t_s=data.t_s)
+    assert "U_y probably in um" in q
 
 
 def test_steps_and_displacements_both_in_another_unit(data):
