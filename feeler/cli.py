@@ -85,7 +85,8 @@ def _first_line(args) -> None:
 
 def _check_before_work(args) -> None:
     """Output path and earlier results, before anything is computed (issue 16 item 3)."""
-    for name, least in (("draws", 1), ("tune", 0), ("chains", 1), ("n_draws", 2), ("n", 1), ("seed", 0), ("workers", 1)):
+    for name, least in (("draws", 1), ("tune", 0), ("chains", 1), ("n_draws", 2), ("n", 1), ("seed", 0),
+                        ("touch_seed", 0), ("workers", 1)):
         value = getattr(args, name, None)
         if isinstance(value, int) and not isinstance(value, bool) and value < least:
             raise ArgumentError(f"--{name.replace('_', '-')}", value, f"an integer >= {least}")

@@ -60,6 +60,9 @@ CASES = {
                                       ["--reference='-0.1'", "(0, 2.5] mm"]),
     "discriminate --speeds 0 1": (lambda d: ("discriminate", d / "m1", "--speeds", "0", "1"),
                                   ["--speeds='0'", "(0, 100] mm/s"]),
+    # a negative touch seed reached numpy's SeedSequence after the work began: a traceback (an outside audit)
+    "discriminate --touch-seed -5": (lambda d: ("discriminate", d / "m1", "--touch-seed", "-5"),
+                                     ["--touch-seed=-5", "an integer >= 0"]),
     "decode --threshold 1.5": (lambda d: ("decode", d / "m1", d / "sc", "--threshold", "1.5"),
                                ["--threshold=1.5", "(0, 1]"]),
     "decode --drop 0": (lambda d: ("decode", d / "m1", d / "sc", "--drop", "0"), ["--drop=0", "(0, 1)"]),
