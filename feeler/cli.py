@@ -75,7 +75,8 @@ def _first_line(args) -> None:
     if command is None or command == "report" or getattr(args, "progress", None) is False:
         return                                   # report prints its own first line
     what = STARTING.get(command.split()[0], "working")
-    target = next((getattr(args, k) for k in ("dataset", "scene", "scans", "posterior", "data", "plan")
+    # the positional the command works on: discriminate --scene X still simulates with the posterior
+    target = next((getattr(args, k) for k in ("dataset", "scans", "posterior", "scene", "data", "plan")
                    if isinstance(getattr(args, k, None), str)), None)
     if target is None and isinstance(getattr(args, "datasets", None), list):
         target = f"{len(args.datasets)} dataset{'s' if len(args.datasets) != 1 else ''}"

@@ -1,4 +1,6 @@
 """Commands import only what they use (issue 18 item 1) and say what they do first (issue 16 item 1)."""
+import pytest
+
 from tests.cli._run import ROOT, feeler, python_x
 
 HEAVY = ("pymc", "pytensor", "arviz", "arviz_stats", "cv2", "weasyprint", "dask", "distributed")
@@ -52,3 +54,16 @@ def test_classify_with_a_grid_fit_needs_neither_pymc_nor_arviz_nor_scipy_stats(t
     assert (tmp_path / "cl" / "classification.csv").is_file()
     unwanted = tuple(m for m in HEAVY if m not in ("dask", "distributed")) + ("scipy.stats", "matplotlib")
     assert [m for m in unwanted if m in loaded] == []
+
+
+@pytest.mark.parametrize("argv, line", [
+    (["discriminate", "fit-dir", "--scene", "other.toml"], "simulating 2AFC discrimination with the posterior fit-dir"),
+    (["classify", "fit-dir", "scans.csv"], "classifying the scans scans.csv"),
+    (["simulate", "a.toml", "--out", "x"], "simulating a.toml"),
+])
+def test_the_first_line_names_what_the_command_works_on(capsys, argv, line):
+    """discriminate's first line called the --scene file "the posterior" (an outside audit)."""
+    from feeler.cli import _first_line, build_parser
+
+    _first_line(build_parser().parse_args(argv))
+    assert capsys.readouterr().err == f"feeler {argv[0]}: {line} (loading libraries) ...\n"
