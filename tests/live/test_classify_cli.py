@@ -82,7 +82,10 @@ def test_scans_of_different_lengths(fit_dir, scans_frame, tmp_path, capsys):
                                      "flags): no accuracy to report") and "probably in" not in out
 
 
-@pytest.mark.parametrize("column, factor, words", [("t_s", 1000.0, "ms"), ("uy_mm", 1000.0, "um")])
+# U_y in cm (an outside audit): its largest rise reads like a small step, inside the training
+# range; the scans were read as plate 0 at p = 0.999, unflagged. Its noise is 10x quieter too.
+@pytest.mark.parametrize("column, factor, words", [("t_s", 1000.0, "ms"), ("uy_mm", 1000.0, "um"),
+                                                   ("uy_mm", 0.1, "U_y probably in cm or inches")])
 def test_wrong_units_are_one_line_errors(fit_dir, scans_frame, tmp_path, capsys, column, factor, words):
     bad = scans_frame.copy()
     bad[column] = bad[column] * factor
@@ -91,6 +94,7 @@ def test_wrong_units_are_one_line_errors(fit_dir, scans_frame, tmp_path, capsys,
     err = capsys.readouterr().err
     said = [ln for ln in err.splitlines() if ln.startswith("feeler: ")]       # beside the first status line
     assert len(said) == 1 and words in said[0] and "bad.csv" in said[0] and "Traceback" not in err
+    assert ("scan_id" in said[0]) == (factor > 1)                   # the batch's quiet noise names no one scan
 
 
 def test_missing_columns_and_bad_values(fit_dir, scans_frame, tmp_path, capsys):

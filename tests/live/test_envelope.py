@@ -111,6 +111,11 @@ def test_a_scan_or_a_batch_noisier_than_training_is_flagged():
     assert env.batch_noise(same[:4] * 3) is None                    # too few scans for a median: per scan only
     assert env.batch_noise(np.r_[same * 1.5, 0.0]) is not None      # a constant scan among them changes nothing
     assert Envelope(0.5, 20.0, 0.5, ENV.p_lo, ENV.p_hi).batch_noise(same * 3) is None      # an older fit
+    # quieter: a third or less is another set-up; a fifth or less, U_y in a larger unit (cm: 0.1)
+    assert env.batch_noise(same / 4).endswith("a quieter set-up, so the plates learned at more noise do not "
+                                              "describe them (refit on such scans)")
+    assert "U_y probably in cm or inches (expected mm)" in env.batch_noise(same / 10)
+    assert env.batch_noise(same[:4] / 10) is None
     t = np.arange(41) * 0.5
     uy = 0.05 + 0.1 * (t >= 10) + 0.005 * np.random.default_rng(7).standard_normal(41)
     assert any(q.startswith("read-out noise") for q in env.problems(t, [0.03, 0.05], x_mm=t * 0.5, uy_mm=uy))

@@ -152,6 +152,8 @@ def spike_problem(uy_mm, t_s=None) -> str | None:
 #: standard errors (the training scans' own scatter of log noise, over both counts)
 BATCH_NOISE_FACTOR = 1.2
 BATCH_MIN_SCANS = 5
+# a batch this many times quieter than training: another set-up, or U_y in a larger unit (cm: 10x)
+BATCH_QUIET_FACTOR = 3.0
 
 UNIT_FACTOR = 30.0     # a scale further off than this is a unit mistake, not physics (M2's verdict uses it too)
 
@@ -271,7 +273,8 @@ class Envelope:
 
     def batch_noise(self, noise_mm) -> str | None:
         """A batch of scans noisier than training (:data:`BATCH_NOISE_FACTOR` on the ratio of
-        medians, and 3 standard errors of it), or None; batches of fewer than
+        medians, and 3 standard errors of it) or quieter (:data:`BATCH_QUIET_FACTOR`: below a
+        fifth, U_y probably in cm or inches), or None; batches of fewer than
         :data:`BATCH_MIN_SCANS` scans are left to :meth:`noise`."""
         train = self._training_noise()
         new = np.asarray(noise_mm, float)
@@ -280,11 +283,18 @@ class Envelope:
             return None                                 # (noise-free training scans: each scan says it)
         ratio = median_of(new) / median_of(train)
         se = 1.2533 * float(np.std(np.log(train), ddof=1)) * np.sqrt(1.0 / new.size + 1.0 / train.size)
-        if not (ratio > BATCH_NOISE_FACTOR and np.log(ratio) > 3.0 * se):
-            return None
-        return (f"these {new.size} scans' read-out noise (median {median_of(new) * 1e3:.3g} um) is {_times(ratio)} "
-                f"the training scans' ({median_of(train) * 1e3:.3g} um): the plates were learned at less noise, so "
-                f"the probabilities and intervals do not hold (refit on scans of this set-up)")
+        said = (f"these {new.size} scans' read-out noise (median {median_of(new) * 1e3:.3g} um) is {_times(ratio)} "
+                f"the training scans' ({median_of(train) * 1e3:.3g} um)")
+        if ratio > BATCH_NOISE_FACTOR and np.log(ratio) > 3.0 * se:
+            return (f"{said}: the plates were learned at less noise, so the probabilities and intervals do not hold "
+                    f"(refit on scans of this set-up)")
+        if 0 < ratio < 1 / BATCH_QUIET_FACTOR and -np.log(ratio) > 3.0 * se:
+            # U_y in cm scales the noise as it scales the steps' rise: the 0.2 mm plate then reads
+            # like 0.02 mm, inside the training range, and was read as plate 0 at p = 0.999
+            why = ("U_y probably in cm or inches (expected mm): every rise is as much smaller" if ratio < 0.2 else
+                   "a quieter set-up")
+            return f"{said}: {why}, so the plates learned at more noise do not describe them (refit on such scans)"
+        return None
 
     def period(self, period_s: float) -> str | None:
         r = period_s / self.period_s

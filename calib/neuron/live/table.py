@@ -38,7 +38,8 @@ def unit_mistake(path, scan_ids, flags) -> None:
     for sid, reasons in zip(scan_ids, flags):
         for r in reasons:
             if "probably in" in r:
-                raise DataFileError(path, f"scan_id {sid}: {r}; the scan CSV takes t_s in s and uy_mm, x_mm in mm "
+                who = "" if r.startswith("these ") else f"scan_id {sid}: "        # a batch's reason names no scan
+                raise DataFileError(path, f"{who}{r}; the scan CSV takes t_s in s and uy_mm, x_mm in mm "
                                           "(README, 'Scan CSV format')")
 
 
