@@ -56,9 +56,11 @@ def _check_arguments(data: NeuronData, backend: str, noise: str) -> np.ndarray:
     lone = int(np.sum(counts == 1))
     if lone == counts.size:
         # no plate has two scans: the decoder noise (a plate's spread) has no degree of freedom at all
+        hint = _rounding_hint(d)                 # labels that change touch to touch: the grid they round to
         raise ArgumentError("step_mm", f"one scan on each of {d.size} plates",
                             "at least 2 scans of a plate (the decoder's noise is the spread of a plate's scans; "
-                            "about 10 per plate pin it down)")
+                            "about 10 per plate pin it down" + (f"; these change from touch to touch, like "
+                                                                f"measured heights{hint}" if hint else "") + ")")
     if lone >= 3 and 2 * lone >= counts.size:
         # labels that differ touch to touch (a gauge's reading of each touch) make plates of one scan each
         raise ArgumentError("step_mm", f"{counts.size} distinct steps over {d.size} scans, {lone} of them with one "

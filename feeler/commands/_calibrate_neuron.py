@@ -67,6 +67,9 @@ def run(args) -> int:
 
     if args.emcee_steps is not None and args.emcee_steps < 100:
         raise ArgumentError("--emcee-steps", args.emcee_steps, ">= 100")
+    if args.backend != "grid" and args.noise.startswith("two-mode"):       # before the scans are read
+        raise ArgumentError("--noise", args.noise, f"constant, growing or per-plate with --backend {args.backend} "
+                            "(the two-mode models are drawn exactly, by the grid backend)")
     csv, length_mm, kernel = locate_scans(Path(args.dataset), args.length_mm)
     scene_path = _scene_beside(csv)
     scene_toml = scene_path.read_text(encoding="utf-8") if scene_path.is_file() else None
@@ -83,9 +86,10 @@ def run(args) -> int:
                                 progress=args.progress, scene_toml=scene_toml,
                                 scene_path=str(scene_path.resolve()) if scene_toml else None)
         except ArgumentError as err:
-            if err.name != "step_mm":
+            column = {"step_mm": "step_mm", "scans": "uy_mm"}.get(err.name)     # the data's fault: name the file
+            if column is None:
                 raise
-            raise DataFileError(csv, f"column step_mm: {err.value}: {err.allowed}") from None
+            raise DataFileError(csv, f"column {column}: {err.value}: {err.allowed}") from None
     print(f"M2 neuron: {scans.step_mm.size} scans from {csv}, strain = U_y / {length_mm:g} mm, "
           f"backend {args.backend}" + ("" if scene_toml else "; no scene.toml: discriminate will need --scene"))
     attrs = result.posterior["posterior"].attrs

@@ -191,3 +191,37 @@ def test_labels_that_change_touch_to_touch_are_refused_with_the_plates_they_roun
     assert re.search(r"rounded to the nearest 0\.0[125] mm they form 4 plates \(0, 0\.05, 0\.1, 0\.2 mm\) of 24 "
                      r"scans each\)$", err[0]), err[0]
     assert captured.out == "" and not (tmp_path / "f").exists()
+
+
+def test_each_label_its_own_and_constant_scans_name_the_file_and_column(run_and_fit, tmp_path, capsys):
+    """Every touch labelled with its own measured step (no two alike) said only "one scan on
+    each of 96 plates", without the grid they round to; scans whose U_y never changes named an
+    argument 'scans', not the file; --noise two-mode with --backend nuts was refused after
+    the scans were read (an outside audit)."""
+    import numpy as np
+    import pandas as pd
+
+    run, _ = run_and_fit
+    frame = pd.read_csv(run / "scans.csv")
+    ids = frame.scan_id.unique()
+    gauge = dict(zip(ids, np.random.default_rng(1).normal(0.0, 0.005, ids.size)))
+    cases = {"distinct": frame.assign(step_mm=frame.step_mm + frame.scan_id.map(gauge)),
+             "flat": frame.assign(uy_mm=0.0)}
+    for name, table in cases.items():
+        (tmp_path / name).mkdir()
+        table.to_csv(tmp_path / name / "scans.csv", index=False)
+    capsys.readouterr()
+    for name, words in (("distinct", "one scan on each of 96 plates: at least 2 scans of a plate (the decoder's noise "
+                                     "is the spread of a plate's scans; about 10 per plate pin it down; these change "
+                                     "from touch to touch, like measured heights; rounded to the nearest 0.05 mm "
+                                     "they form 4 plates (0, 0.05, 0.1, 0.2 mm) of 24 scans each)"),
+                        ("flat", "column uy_mm: U_y constant in every scan (all-zero displacements?)")):
+        csv = tmp_path / name / "scans.csv"
+        assert main(["calibrate", "neuron", str(csv), "--length-mm", "3", "--out", str(tmp_path / "f"),
+                     "--no-progress"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"feeler: error: {csv}: ") and words in err[0], err
+    assert main(["calibrate", "neuron", str(run), "--noise", "two-mode", "--backend", "nuts", "--out",
+                 str(tmp_path / "f")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("feeler: error: argument --noise='two-mode'") and not any("reading" in e for e in err)
