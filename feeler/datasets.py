@@ -477,6 +477,10 @@ def scan_time_problem(scan_id, t_s, rows, step_mm=None) -> str | None:
     if drops.any() and not np.any(drops & ~starts_again(t)):        # increasing runs, each from the start
         return shared_scan_id_problem(scan_id, t, step_mm)
     repeats = t.size - np.unique(t).size
+    if repeats == t.size - 1:                                       # one time for all: not several scans
+        return (f"column t_s: scan_id {scan_id_text(scan_id)} has one time, {t[0]:g} s, in all its {t.size} samples "
+                f"(data rows {rows[0]}-{rows[-1]}): t_s must rise sample after sample (a column filled with one "
+                f"value?)")
     if not drops.any() and 2 * repeats >= t.size:                   # sorted, but every time held several times
         return (f"column scan_id: scan_id {scan_id_text(scan_id)} holds each of its times about "
                 f"{t.size / (t.size - repeats):.0f} times: several scans share this id; give every scan its own "

@@ -428,6 +428,10 @@ def _shuffled(rows):
     (lambda r: _shuffled(_rows(2, 12)),                 # rows shuffled: the first scan in the file's order is named
      "column t_s: not strictly increasing within scan_id 1: t_s 0.5 at data row 1, then 0 at data row 2; sort the "
      "rows by scan_id, then t_s, or correct that time"),
+    # every time of scan 1 the same (an outside audit: it read as 'several scans share this id')
+    (lambda r: r[:6] + [row[:3] + [0.0] + row[4:] for row in r[6:]],
+     "column t_s: scan_id 1 has one time, 0 s, in all its 6 samples (data rows 7-12): t_s must rise sample after "
+     "sample (a column filled with one value?)"),
     (lambda r: sorted([[0] + row[1:] for row in r], key=lambda row: row[3]),   # one id for both, sorted by time
      "column scan_id: scan_id 0 holds each of its times about 2 times: several scans share this id; give every scan "
      "its own scan_id across the file"),
