@@ -59,6 +59,7 @@ STARTING = {
     "calibrate": "fitting",
     "classify": "classifying the scans",
     "discriminate": "simulating 2AFC discrimination with the posterior",
+    "decode": "decoding the run",
     "fit": "fitting",
     "simulate": "simulating",
     "acquire": "starting the acquisition",
@@ -76,7 +77,7 @@ def _first_line(args) -> None:
         return                                   # report prints its own first line
     what = STARTING.get(command.split()[0], "working")
     # the positional the command works on: discriminate --scene X still simulates with the posterior
-    target = next((getattr(args, k) for k in ("dataset", "scans", "posterior", "scene", "data", "plan")
+    target = next((getattr(args, k) for k in ("dataset", "scans", "run_dir", "posterior", "scene", "data", "plan")
                    if isinstance(getattr(args, k, None), str)), None)
     if target is None and isinstance(getattr(args, "datasets", None), list):
         target = f"{len(args.datasets)} dataset{'s' if len(args.datasets) != 1 else ''}"

@@ -60,6 +60,7 @@ def test_classify_with_a_grid_fit_needs_neither_pymc_nor_arviz_nor_scipy_stats(t
     (["discriminate", "fit-dir", "--scene", "other.toml"], "simulating 2AFC discrimination with the posterior fit-dir"),
     (["classify", "fit-dir", "scans.csv"], "classifying the scans scans.csv"),
     (["simulate", "a.toml", "--out", "x"], "simulating a.toml"),
+    (["decode", "fit-dir", "run-dir"], "decoding the run run-dir"),             # it said "working fit-dir"
 ])
 def test_the_first_line_names_what_the_command_works_on(capsys, argv, line):
     """discriminate's first line called the --scene file "the posterior" (an outside audit)."""
