@@ -6,9 +6,9 @@ model (regress F on U, invert), :mod:`.exact` for the conjugate derivation.
 """
 from feeler.calib.matrix.data import (CalibrationData, DesignWarning, read_calibration_csv,
                                       weak_directions)
-from feeler.calib.matrix.fit import BACKENDS, MODELS, NOISES, fit_matrix
+from feeler.calib.matrix.fit import BACKENDS, MODELS, NOISES, NotSampled, fit_matrix
 from feeler.calib.matrix.predict import predict_u
 from feeler.calib.matrix.prior import MatrixPrior
 
 __all__ = ["CalibrationData", "DesignWarning", "read_calibration_csv", "weak_directions",
-           "fit_matrix", "MODELS", "NOISES", "BACKENDS", "predict_u", "MatrixPrior"]
+           "fit_matrix", "NotSampled", "MODELS", "NOISES", "BACKENDS", "predict_u", "MatrixPrior"]

@@ -14,7 +14,10 @@ rows b_i of B per output axis (K for the inverse model, C for the forward one).
   within ×1.35 of a smaller slip's is named too (:data:`MODERATE_SLIPS`: kgf, lbf, cm, inches); with
   the compliance right, outputs scattering about the least-squares fit ×30 beyond the
   noise prior's scale are forces and displacements both in another unit
-  (:func:`noise_unit_problems`: mN and µm leave the compliance as it was);
+  (:func:`noise_unit_problems`: mN and µm leave the compliance as it was); a compliance
+  near C0^-1 in size is a swap only when it has C0^-1's pattern (C0's: a softer sensor),
+  and ×30 to ×170 a softer sensor before a unit; a design with unidentified directions
+  gets the scale check along the directions it pins (:func:`span_unit_problems`);
 - prior–data conflict (:func:`conflict_problems`): the least-squares row b̂_i against
   its prior N(b0_i, s²I): under the model b̂_i ~ N(b0_i, s²I + σ̂_i²(XᵀX)⁻¹), so its
   Mahalanobis distance is χ²₃; a tail probability below 0.01/3 says prior and data
@@ -43,17 +46,15 @@ import numpy as np
 
 from feeler.calib.diagnostics import repeated_rows
 from feeler.calib.matrix.data import AXES, weak_directions
+from feeler.calib.matrix.degenerate import NOISE_FREE, relative_residual
 
-__all__ = ["design_problems", "repeat_problems", "unit_problems", "noise_unit_problems", "conflict_problems",
+__all__ = ["design_problems", "repeat_problems", "unit_problems", "span_unit_problems", "noise_unit_problems",
+           "conflict_problems",
            "sign_problems",
            "ppc_problems", "ALPHA", "UNIT_FACTOR", "NOISE_FREE", "MODERATE_SLIPS"]
 
 ALPHA = 0.01
 UNIT_FACTOR = 30.0
-# residual RMS over output RMS below which an axis is noise-free: exact forces leave 0.6-1.6e-9
-# as simulate writes them and 0.7-1.0e-6 at 6 significant digits; the shipped campaign's
-# 0.02 N noise leaves 0.02-0.14
-NOISE_FREE = 1e-5
 GRAMS_FORCE_PER_N = 1000 / 9.80665      # a force gauge's gram-force, per newton
 # The unit slips that move the compliance less than UNIT_FACTOR, as (data's / nominal compliance,
 # what it says). Each is named when the ratio lies within a factor SLIP_WINDOW of it: 1.35, so a
@@ -109,27 +110,30 @@ def unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool
         k0 = np.linalg.inv(c0)
     except np.linalg.LinAlgError:
         k0 = None
-    slip = next((text for factor, text in MODERATE_SLIPS if abs(np.log(ratio / factor)) < np.log(SLIP_WINDOW)), None)
-    # C0 near 0.2 mm/N puts kgf's C0 x 9.8 near C0^-1: a slip keeps the nominal's pattern, a swap inverts it
+    slip = _slip(ratio)
+    # C0 near 0.2 mm/N puts C0^-1 near C0 x 20 (and kgf's C0 x 9.8): a swap inverts the nominal's
+    # pattern (the stiffest axis becomes the softest), a softer sensor or a unit slip keeps it;
+    # an isotropic C0 has one pattern for both and cannot tell them apart
     unit = c / np.linalg.norm(c)
-    slip_shaped = slip is not None and (k0 is None or _rel(unit, c0 / np.linalg.norm(c0))
-                                        < _rel(unit, k0 / np.linalg.norm(k0)))
-    if k0 is not None and _rel(c, k0) < 0.5 < _rel(c, c0) and not slip_shaped:
-        return [f"C: the data's compliance {_flat(c)} mm/N matches the nominal stiffness C0^-1 {_flat(k0)} N/mm, "
-                f"not C0 {_flat(c0)}: forces and displacements probably swapped "
-                f"(ux_mm, uy_mm, uz_mm are the displacements, fx_n, fy_n, fz_n the forces)"]
-    if ratio > UNIT_FACTOR:
-        return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: displacements probably in um "
-                f"(expected mm) or forces in kN (expected N)"]
-    if ratio < 1 / UNIT_FACTOR:
-        # the nearer on a log scale of the two usual mistakes: ×1000 (mN, m) or ×102 (gram-force)
-        if ratio > np.sqrt(1e-3 / GRAMS_FORCE_PER_N):
-            return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: forces probably in gram-force "
-                    f"(expected N; 1 N = {GRAMS_FORCE_PER_N:.4g} gf, a force gauge's usual unit)"]
-        return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: forces probably in mN "
-                f"(expected N) or displacements in m (expected mm)"]
-    if slip is not None:
-        return [f"C: the data's compliance is {ratio:.3g} times the nominal C0: {slip}"]
+    to_c0 = to_k0 = 0.0
+    if k0 is not None:
+        to_c0, to_k0 = _rel(unit, c0 / np.linalg.norm(c0)), _rel(unit, k0 / np.linalg.norm(k0))
+    if k0 is not None and _rel(c, k0) < 0.5 < _rel(c, c0) and not (slip is not None and to_c0 < to_k0):
+        swap = (f"forces and displacements probably swapped (ux_mm, uy_mm, uz_mm are the displacements, fx_n, "
+                f"fy_n, fz_n the forces)")
+        if to_k0 < to_c0 - 0.05:
+            return [f"C: the data's compliance {_flat(c)} mm/N matches the nominal stiffness C0^-1 {_flat(k0)} N/mm, "
+                    f"not C0 {_flat(c0)}: {swap}"]
+        softer = f"a sensor about {ratio:.2g}x softer than the prior's C0 {_flat(c0)} mm/N (check --c0 or the sensor)"
+        if to_c0 < to_k0 - 0.05:
+            return [f"C: the data's compliance {_flat(c)} mm/N is {ratio:.3g} times the nominal C0 and keeps its "
+                    f"pattern (swapped columns would give C0^-1's, {_flat(k0)}): {softer}, or forces "
+                    f"{ratio:.2g} times too small"]
+        return [f"C: the data's compliance {_flat(c)} mm/N matches the nominal stiffness C0^-1 {_flat(k0)} N/mm "
+                f"in size, and C0's pattern cannot tell a swap from a softer sensor: {swap}, or {softer}"]
+    scale = _scale_line(ratio, slip, f"the data's compliance is {ratio:.3g} times the nominal C0")
+    if scale:
+        return [f"C: {scale}"]
     exchanged = _exchanged_axes(c, c0)
     if exchanged:
         return [exchanged]
@@ -140,6 +144,51 @@ def unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool
                 f"u{'xyz'[i]}_mm or f{'xyz'[i]}_n probably has the opposite sign (the sensor's axis convention)"
                 for i in flipped]
     return []
+
+
+def _scale_line(ratio: float, slip: str | None, subject: str) -> str | None:
+    """``subject``: the unit the compliance ``ratio`` (data's over nominal) points to, or None."""
+    if ratio > UNIT_FACTOR:
+        if ratio < np.sqrt(UNIT_FACTOR * 1e3):      # nearer, on a log scale, to x30 than to um's x1000
+            return (f"{subject}: a sensor about {ratio:.2g}x softer than the prior's C0 (check --c0 or the sensor), "
+                    f"or a unit (displacements in um or forces in kN would give about 1000x)")
+        return f"{subject}: displacements probably in um (expected mm) or forces in kN (expected N)"
+    if ratio < 1 / UNIT_FACTOR:
+        # the nearer on a log scale of the two usual mistakes: ×1000 (mN, m) or ×102 (gram-force)
+        if ratio > np.sqrt(1e-3 / GRAMS_FORCE_PER_N):
+            return (f"{subject}: forces probably in gram-force (expected N; 1 N = {GRAMS_FORCE_PER_N:.4g} gf, "
+                    f"a force gauge's usual unit)")
+        return f"{subject}: forces probably in mN (expected N) or displacements in m (expected mm)"
+    return f"{subject}: {slip}" if slip is not None else None
+
+
+def _slip(ratio: float) -> str | None:
+    return next((text for factor, text in MODERATE_SLIPS if abs(np.log(ratio / factor)) < np.log(SLIP_WINDOW)), None)
+
+
+def span_unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool) -> list[str]:
+    """:func:`unit_problems`' scale check for a design ``x`` that leaves directions
+    unidentified (the full matrix, and so its pattern, is then unknown): the data's
+    matrix along the directions the design pins against the nominal one along them,
+    by the Frobenius norm. µm with only uy moved read 740x the nominal C[1,1] unnamed."""
+    lam, vec = np.linalg.eigh(x.T @ x)
+    keep = lam >= 1e-6 * max(float(lam[-1]), np.finfo(float).tiny)        # weak_directions' tolerance
+    if not keep.any() or keep.all():
+        return []
+    v = vec[:, keep]                                                            # (3, r), largest entry > 0
+    v = v * np.sign(v[np.argmax(np.abs(v), axis=0), np.arange(v.shape[1])])
+    a, *_ = np.linalg.lstsq(x @ v, y, rcond=None)                               # y ≈ (x v) a: B v = aᵀ
+    nominal = c0 @ v if forward else np.linalg.inv(c0) @ v
+    data_norm, nominal_norm = float(np.linalg.norm(a)), float(np.linalg.norm(nominal))
+    if data_norm == 0 or nominal_norm == 0:
+        return []
+    ratio = data_norm / nominal_norm if forward else nominal_norm / data_norm
+    what, unit = ("force", "N") if forward else ("displacement", "mm")
+    dirs = "; ".join("(" + ", ".join(f"{ax}={c:+.3f}" for ax, c in zip(AXES, col)) + ")" for col in v.T)
+    plural = "s" if v.shape[1] > 1 else ""
+    line = _scale_line(ratio, _slip(ratio), f"the data's compliance along the {what} direction{plural} the data pin, "
+                                            f"{dirs} [{unit}], is {ratio:.3g} times the nominal C0's")
+    return [f"C: {line}"] if line else []
 
 
 def noise_unit_problems(x: np.ndarray, y: np.ndarray, sigma_scale: float, *, forward: bool) -> list[str]:
@@ -248,8 +297,12 @@ def _groups(x: np.ndarray) -> np.ndarray:
 
 
 def ppc_problems(x: np.ndarray, y: np.ndarray, B: np.ndarray, sigma: np.ndarray, rng: np.random.Generator, *,
-                 matrix: str, noise: str = "gaussian", nu: float = 4.0, n_draws: int = 400) -> list[str]:
-    """Posterior predictive checks from draws ``B (ndarray[d, p, 3])``, ``sigma (ndarray[d, p])``."""
+                 matrix: str, noise: str = "gaussian", nu: float = 4.0, n_draws: int = 400,
+                 lack_of_fit: bool = True) -> list[str]:
+    """Posterior predictive checks from draws ``B (ndarray[d, p, 3])``, ``sigma (ndarray[d, p])``.
+
+    ``lack_of_fit`` False leaves out the replicated points' check: for copied rows, whose
+    copies agree exactly, between over within says nothing about the model."""
     d = B.shape[0]
     pick = rng.choice(d, size=min(n_draws, d), replace=False)
     B, sigma = B[pick], sigma[pick]
@@ -261,7 +314,7 @@ def ppc_problems(x: np.ndarray, y: np.ndarray, B: np.ndarray, sigma: np.ndarray,
     counts = onehot.sum(axis=0)
     replicated = np.any(counts > 1) and counts.size > 3
 
-    def lack_of_fit(yy):                                                        # (d, n, p) → (d, p)
+    def between_within(yy):                                                     # (d, n, p) → (d, p)
         r = yy - mu
         means = np.einsum("dnp,ng->dgp", r, onehot) / counts[None, :, None]
         between = np.einsum("g,dgp->dp", counts, means ** 2)
@@ -271,9 +324,10 @@ def ppc_problems(x: np.ndarray, y: np.ndarray, B: np.ndarray, sigma: np.ndarray,
     def extreme(yy):
         return np.max(np.abs(yy - mu) / sigma[:, None, :], axis=1)
 
-    noisy = _relative_residual(x, y) > NOISE_FREE
+    noisy = relative_residual(x, y) > NOISE_FREE
     out = []
-    checks = [("lack of fit (between / within replicated points)", lack_of_fit)] if replicated else []
+    checks = [("lack of fit (between / within replicated points)", between_within)] if replicated and lack_of_fit \
+        else []
     checks.append(("largest standardised residual", extreme))
     level = ALPHA / (len(checks) * y.shape[1])
     # the observed data's most extreme row per axis, at the posterior's median fit: where to look
@@ -288,13 +342,6 @@ def ppc_problems(x: np.ndarray, y: np.ndarray, B: np.ndarray, sigma: np.ndarray,
             out.append(f"{matrix}: posterior predictive check of axis {AXES[i]}: {name}, p = {p[i]:.3g}{where}; "
                        f"the {noise} linear model does not describe these data")
     return out
-
-
-def _relative_residual(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Least-squares residual RMS over the output RMS, per output axis: ndarray[p]."""
-    resid = y - x @ _lstsq(x, y).T
-    scale = np.maximum(np.sqrt(np.mean(y ** 2, axis=0)), np.finfo(float).tiny)
-    return np.sqrt(np.mean(resid ** 2, axis=0)) / scale
 
 
 def _chi2_sf_3(d2: float) -> float:

@@ -17,8 +17,9 @@ Backends: ``exact`` (Gaussian noise, models inverse/forward), ``nuts`` (PyMC, al
 variants), ``emcee`` (no latent variables: models inverse/forward; runs until its chains
 pass their diagnostics unless ``draws`` is given).
 
-The verdict adds the model's own checks (:mod:`.checks`): unidentified design
-directions, units off by ~10³, prior–data conflict and posterior predictive checks.
+The verdict adds the model's own checks (:mod:`.checks`, :mod:`.degenerate`): unidentified
+design directions, copied rows, noise-free outputs (NUTS and emcee are then not started:
+:class:`NotSampled`), units off by ~10³, prior–data conflict and posterior predictive checks.
 """
 from __future__ import annotations
 
@@ -26,22 +27,37 @@ import time
 
 import numpy as np
 
+from feeler.calib.diagnostics import Verdict
 from feeler.calib.fit import FitResult, make_result, posterior_from_draws
 from feeler.calib.matrix.backends import sample_emcee, sample_nuts
 from feeler.calib.matrix.checks import (conflict_problems, design_problems, noise_unit_problems, ppc_problems,
-                                        repeat_problems, sign_problems, unit_problems)
+                                        repeat_problems, sign_problems, span_unit_problems, unit_problems)
 from feeler.calib.matrix.data import CalibrationData, weak_directions
+from feeler.calib.matrix.degenerate import copy_problems, noise_free_problems
 from feeler.calib.matrix.exact import exact_posterior
 from feeler.calib.matrix.prior import MatrixPrior
-from feeler.errors import ArgumentError
+from feeler.errors import ArgumentError, FeelerError
 
-__all__ = ["fit_matrix", "MODELS", "NOISES", "BACKENDS"]
+__all__ = ["fit_matrix", "NotSampled", "MODELS", "NOISES", "BACKENDS"]
 
 MODELS = ("inverse", "eiv", "forward")
 NOISES = ("gaussian", "student")
 BACKENDS = ("exact", "nuts", "emcee")
 DIMS = {"C": ["disp_axis", "force_axis"], "K": ["force_axis", "disp_axis"],
         "sigma_n": ["force_axis"], "sigma_mm": ["disp_axis"]}
+
+
+class NotSampled(FeelerError):
+    """A sampler was not started: the data pin nothing it could sample (noise-free outputs).
+
+    Attributes:
+        backend (str): the sampler that was not run ("nuts" or "emcee").
+        verdict (Verdict): the failed verdict, one line per problem found before sampling.
+    """
+
+    def __init__(self, backend: str, problems: list[str]):
+        self.backend, self.verdict = backend, Verdict(ok=False, problems=tuple(problems))
+        super().__init__(f"{backend} not run: {problems[0]}")
 
 
 def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inverse",
@@ -67,6 +83,11 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
             long, with R-hat ≤ 1.01 and bulk ESS ≥ 400 (first quarter discarded, at most
             200 000 steps; the verdict fails at the cap). None means 1000 for exact/NUTS.
         walkers: emcee walkers (stored as chains).
+
+    Raises:
+        ArgumentError: an argument outside what is allowed.
+        NotSampled: ``backend`` "nuts" or "emcee" on noise-free outputs (its verdict
+            names them); the exact backend returns a failed verdict instead.
     """
     if draws is None and backend != "emcee":
         draws = 1000
@@ -77,15 +98,26 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
     x, y = (data.f_n, data.u_mm) if model == "forward" else (data.u_mm, data.f_n)
     if np.any(x):
         weak_directions(x, what=what, unit=unit)
-    problems = design_problems(x, matrix=rp.matrix, what=what, unit=unit)
-    problems += repeat_problems(data.point_id, data.u_mm, data.f_n, matrix=rp.matrix)
+    design = design_problems(x, matrix=rp.matrix, what=what, unit=unit)
+    # known noise sds give the intervals their width: noise-free outputs then pin nothing less
+    noise_free = noise_free_problems(x, y, forward=model == "forward") if noise_sd is None else []
+    copied = repeat_problems(data.point_id, data.u_mm, data.f_n, matrix=rp.matrix)
+    if not copied and not noise_free:     # noise-free replicated points repeat their rows by nature
+        copied = copy_problems(data.u_mm, data.f_n, matrix=rp.matrix)
+    problems = design + copied
     design_ok = not problems
+    problems += noise_free
     if design_ok:
         b_unit = "mm/N" if model == "forward" else "N/mm"
         problems += unit_problems(x, y, prior.c0, forward=model == "forward")
         if not problems:                  # a compliance ~10³ off is named above; with it right, the noise's scale
             problems += noise_unit_problems(x, y, rp.sigma_scale, forward=model == "forward")
         problems += conflict_problems(x, y, rp.b0, rp.sd, matrix=rp.matrix, unit=b_unit)
+    elif design and np.any(x):            # the scale along what the design pins: um hid behind the design's line
+        problems += span_unit_problems(x, y, prior.c0, forward=model == "forward")
+    if noise_free and backend != "exact":
+        # NUTS and emcee cannot sample the sigma -> 0 funnel: refuse before any sampling starts
+        raise NotSampled(backend, problems)
     known = None if noise_sd is None else np.asarray(noise_sd, dtype=float)
     seed = int(rng.integers(2**31 - 1))
     t0 = time.perf_counter()
@@ -106,7 +138,7 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
         problems += notes
     seconds = time.perf_counter() - t0
     problems += ppc_problems(x, y, B.reshape(-1, 3, 3), S.reshape(-1, 3), rng, matrix=rp.matrix, noise=noise,
-                             nu=student_nu)
+                             nu=student_nu, lack_of_fit=not copied)
     attrs = dict(model=model, noise=noise, student_nu=student_nu,
                  noise_sd_known=[] if known is None else [float(v) for v in known])
     posterior = _named_posterior(B, None if known is not None else S, model, data, stats, attrs)

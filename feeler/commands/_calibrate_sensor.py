@@ -13,9 +13,12 @@ and bulk ESS >= 400 (first quarter discarded; the verdict fails at the cap of 20
 steps); --draws N --tune M runs emcee for exactly M + N steps.
 
 The verdict also fails on what the data cannot support: design directions with no
-information (all-zero displacements), a compliance ~10^3 off the nominal C0 (units: um
-for mm, mN for N; both at once: forces scattering over 30x the noise prior's scale) or
-off by a smaller usual slip (kgf or lbf for N, cm or inches for mm), a
+information (all-zero displacements), noise-free forces (residuals at rounding level:
+NUTS and emcee are then not started), rows copied whatever their point ids, a
+compliance ~10^3 off the nominal C0 (units: um for mm, mN for N; both at once: forces
+scattering over 30x the noise prior's scale; along the pinned directions when the design
+leaves some unidentified) or off by a smaller usual slip (kgf or lbf for N, cm or inches
+for mm), a sensor much softer than C0 (told from swapped columns by C0's pattern), a
 prior that contradicts the data (prior-data conflict: widen --rel-sd or check C0), a
 compliance C[i,i] whose sign the data do not pin (forces that do not follow the
 displacements), and posterior predictive checks (lack of fit at replicated points,
@@ -49,7 +52,8 @@ def register(parser) -> None:
                         help="nominal C₀ row by row, mm/N (overrides the dataset's scene.toml)")
     parser.add_argument("--rel-sd", type=float, default=None, help="prior sd per entry / largest entry")
     parser.add_argument("--predict", type=float, nargs=3, action="append", default=[],
-                        metavar=("FX", "FY", "FZ"), help="print the 90 %% predictive interval of U for this force, N")
+                        metavar=("FX", "FY", "FZ"), help="print the 90 %% predictive interval of U for this force, N "
+                                                         "(|F| at most 10x the largest calibrated force)")
     add_fit_arguments(parser, draws=None, tune=None)
     parser.set_defaults(run=run)
 
@@ -59,32 +63,92 @@ def run(args) -> int:
 
     import numpy as np
 
+    _check_options(args)
+
     from feeler.calib.fit import DiagnosticWarning
-    from feeler.calib.matrix import fit_matrix, predict_u, read_calibration_csv
+    from feeler.calib.matrix import NotSampled, fit_matrix, predict_u, read_calibration_csv
     from feeler.calib.progress import stage
+    from feeler.commands._fit_output import verdict_text
 
     csv, scene = _locate(Path(args.dataset))
     data = read_calibration_csv(csv)
     prior, stage_sd, source = _prior(args, scene)
+    f_max = float(np.max(np.linalg.norm(data.f_n, axis=1)))
+    _check_predict_range(args.predict, f_max)
     rng = np.random.default_rng(args.seed)
     model = "eiv" if args.eiv else args.model
     emcee = args.backend == "emcee"               # emcee: run until converged unless --draws
     draws = args.draws if args.draws is not None else (None if emcee else 1000)
     tune = args.tune if args.tune is not None else (3000 if emcee else 1000)
     stage(f"fitting M1 ({args.backend} backend, {data.n} points)", args.progress)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DiagnosticWarning)     # the verdict is printed below
-        result = fit_matrix(data, prior, model=model, noise=args.noise, backend=args.backend,
-                            rng=rng, student_nu=args.nu, stage_sd_mm=stage_sd, chains=args.chains,
-                            draws=draws, tune=tune, progress=args.progress)
-    print(f"M1 force→displacement matrix: {data.n} points from {csv}, model {model}, "
-          f"noise {args.noise}, backend {args.backend}; nominal C0 from {source}")
+    header = (f"M1 force→displacement matrix: {data.n} points from {csv}, model {model}, "
+              f"noise {args.noise}, backend {args.backend}; nominal C0 from {source}")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DiagnosticWarning)     # the verdict is printed below
+            result = fit_matrix(data, prior, model=model, noise=args.noise, backend=args.backend,
+                                rng=rng, student_nu=args.nu, stage_sd_mm=stage_sd, chains=args.chains,
+                                draws=draws, tune=tune, progress=args.progress)
+    except NotSampled as exc:                  # noise-free data: nothing for NUTS or emcee to sample
+        print(header)
+        print(f"backend {args.backend} not run: these data leave it nothing to sample"
+              + (f"; nothing written to {args.out}" if args.out else ""))
+        print(verdict_text(exc.verdict))
+        return 1
+    print(header)
     for f in args.predict:
         p = predict_u(result, f, rng=rng, prob=0.9)
         cells = ", ".join(f"u{a} {m:.4f} [{lo:.4f}, {hi:.4f}]" for a, m, lo, hi in
                           zip("xyz", p["mean_mm"][0], p["lb_mm"][0], p["ub_mm"][0]))
         print(f"predicted U for F = {list(f)} N (90 %): {cells} mm")
+        size = float(np.linalg.norm(f))
+        if size > f_max:
+            print(f"note: |F| = {size:.3g} N lies beyond the calibrated forces (the largest |F| {f_max:.3g} N): "
+                  f"the prediction extrapolates the linear matrix to {size / f_max:.2g} times it")
     return finish_fit(result, args)
+
+
+# --predict beyond this many times the largest calibrated |F| is refused: the matrix is linear
+# only as far as the campaign pressed (an elastomer stiffens, and the data say nothing past their
+# largest force), so a modest extrapolation is allowed with a note, while ×10 and more is no
+# prediction but a slip: mN typed for N is ×1000, and 1e30 printed 30-digit displacements
+PREDICT_RANGE = 10.0
+
+
+def _check_options(args) -> None:
+    """The options' values and combinations, before the data are read (one line each)."""
+    import math
+
+    from feeler.errors import ArgumentError
+
+    if not (math.isfinite(args.nu) and args.nu > 0):
+        raise ArgumentError("--nu", args.nu, "Student-t degrees of freedom: a finite number > 0")
+    if args.stage_sd_mm is not None and not (math.isfinite(args.stage_sd_mm) and args.stage_sd_mm > 0):
+        raise ArgumentError("--stage-sd-mm", args.stage_sd_mm, "the stage error sd: a finite number > 0 (mm)")
+    if args.backend == "exact" and (args.noise != "gaussian" or args.eiv):
+        raise ArgumentError("--backend", args.backend, "exact needs noise=gaussian and no --eiv; use --backend "
+                                                       "nuts for --noise student or --eiv")
+    if args.backend == "emcee" and args.eiv:
+        raise ArgumentError("--backend", args.backend, "emcee cannot sample --eiv's latent stage errors; use "
+                                                       "--backend nuts")
+    for f in args.predict:
+        if not all(math.isfinite(v) for v in f):
+            raise ArgumentError("--predict", list(f), "three finite forces FX FY FZ, N")
+
+
+def _check_predict_range(forces, f_max: float) -> None:
+    """Each --predict force within :data:`PREDICT_RANGE` times the largest calibrated |F|."""
+    import numpy as np
+
+    from feeler.errors import ArgumentError
+
+    for f in forces:
+        size = float(np.linalg.norm(f))
+        if size > PREDICT_RANGE * f_max:
+            raise ArgumentError("--predict", list(f), f"a force within {PREDICT_RANGE:g} times the calibrated "
+                                                      f"ones (|F| <= {PREDICT_RANGE * f_max:.3g} N; the data's "
+                                                      f"largest is {f_max:.3g} N): the matrix is untested beyond "
+                                                      f"(forces in mN for N?)")
 
 
 def _locate(path: Path):
