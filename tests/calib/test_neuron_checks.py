@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from feeler.calib.neuron import fit_neuron
-from feeler.calib.neuron.checks import _scale_problem, data_problems, posterior_problems, unit_problems
+from feeler.calib.neuron.checks import data_problems, posterior_problems, unit_problems
+from feeler.calib.neuron.units import _scale_problem
 from feeler.calib.neuron.grid import sample_grid
 from feeler.calib.neuron.model import PeakTable, Plates, make_priors
 from feeler.calib.neuron.synth import Truth, scene_scans, simulate_peaks
