@@ -38,12 +38,28 @@ def thresholds_table(inv, part) -> Table:
             v = parse_value(r[m])
             cells.append(f"{v.bound} {fmt(v.value, 3)}" if v.bound else
                          interval(v.value, *(parse_value(r[c]).value if c in r else np.nan for c in (lo, hi))))
-        cells += [fmt(parse_value(r[c]).value, 4) if np.isfinite(parse_value(r[c]).value) else str(r[c]) for c in extra]
+        cells += [_cell(r, c) for c in extra]
         rows.append(tuple(cells))
     return Table("Thresholds per subject and condition (95 % intervals)",
                  ("subject", "standard / comparison mm/s", *(p[0] for p in _PAIRS), *(SHOWN[c] for c in extra)), tuple(rows), (rel,),
                  caption="The 'all' rows are the pooled estimates (their estimand column, where present, says "
                          "which)." + (f" Also in {rel}: {', '.join(rest)}." if rest else ""))
+
+
+def _cell(r, c: str) -> str:
+    """One :data:`SHOWN` cell: a number, a word as written, a bound "> lb" for a threshold
+    the lapse keeps some draws from reaching (its mean undefined, its upper end inf), else
+    "—"; never "nan" (an audit's --pc 0.99 printed it)."""
+    v = parse_value(r[c]).value
+    if np.isfinite(v):
+        return fmt(v, 4)
+    if isinstance(r[c], str) and r[c].strip().lower() not in ("", "nan", "inf", "-inf"):
+        return r[c]
+    if c == "threshold_um" and "threshold_lb_um" in r and "threshold_ub_um" in r:
+        lb, ub = parse_value(r["threshold_lb_um"]).value, parse_value(r["threshold_ub_um"]).value
+        if np.isfinite(lb) and ub == np.inf:
+            return f"> {fmt(lb, 4)}"
+    return "—"
 
 
 def curves_gallery(inv, part) -> Gallery | None:

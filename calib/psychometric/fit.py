@@ -52,7 +52,7 @@ BACKENDS = ("exact", "laplace", "nuts")
 ESTIMANDS = {"pooled": "pooled trials", "population": "population mean"}
 
 
-def _check_args(backend, chains, draws, tune, target_accept, lapse_per, all_estimand, hierarchical, pc):
+def _check_args(backend, chains, draws, tune, target_accept, lapse_per, all_estimand, hierarchical, pc, nafc):
     if backend not in BACKENDS:
         raise ArgumentError("backend", backend, f"allowed: {', '.join(BACKENDS)}")
     for name, value, low in (("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 0)):
@@ -67,8 +67,8 @@ def _check_args(backend, chains, draws, tune, target_accept, lapse_per, all_esti
     if all_estimand == "population" and not (backend == "nuts" and hierarchical):
         raise ArgumentError("all", all_estimand, "a population mean needs the hierarchical model "
                                                  "(--backend nuts without --separate)")
-    if pc is not None and not (isinstance(pc, (int, float)) and 0.0 < float(pc) < 1.0):
-        raise ArgumentError("pc", pc, "proportion must be in (0, 1)")
+    if pc is not None:
+        Task(nafc).check_pc(pc)
 
 
 def fit_psychometric(trials: pd.DataFrame, *, rng: np.random.Generator, backend: str = "exact",
@@ -96,7 +96,7 @@ def fit_psychometric(trials: pd.DataFrame, *, rng: np.random.Generator, backend:
         ArgumentError: a bad argument, a table without trials, a hierarchical model with
             fewer than two subjects.
     """
-    _check_args(backend, chains, draws, tune, target_accept, lapse_per, all_estimand, hierarchical, pc)
+    _check_args(backend, chains, draws, tune, target_accept, lapse_per, all_estimand, hierarchical, pc, nafc)
     task = Task(nafc)
     pc = task.default_pc if pc is None else float(pc)
     cells = make_cells(trials, task).canonical()
@@ -180,8 +180,12 @@ def _rows_and_checks(cells: Cells, r, fitted, task: Task, pc: float, label: str,
             problems += checks.bracket_problems(name, what, stats["pse"]["lb"], stats["pse"]["ub"], lo[c], hi[c])
             problems += checks.conflict_problems(name, c, r, d)
             if np.isfinite(dev) and not (o < 0 and len(cells.subjects) == 1):      # 'all' = the one subject
-                problems += checks.spread_problems(name, task, x, n, k, dev, point["lapse"],
-                                                   standard_um=float(cells.conditions[c][0]))
+                spread = checks.spread_problems(name, task, x, n, k, dev, point["lapse"],
+                                                standard_um=float(cells.conditions[c][0]))
+                if not spread and n_levels >= checks.MIN_LEVELS:     # fewer: level_problems said it
+                    spread = checks.interior_problems(name, task, x, n, k)
+                problems += spread
+        problems += checks.threshold_problems(name, task, pc, stats)
     if len(cells.subjects) == 1:                   # 'all' is the one subject: the same check
         first = {(rw["standard_um"], rw["standard_speed_mm_s"], rw["comparison_speed_mm_s"]): rw
                  for rw in rows if rw["subject"] != POOLED}

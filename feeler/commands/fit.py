@@ -180,7 +180,11 @@ _SHOW = ("subject", "standard_um", "standard_speed_mm_s", "comparison_speed_mm_s
 
 def run_psychophysics(args) -> int:
     from feeler.calib.progress import stage
+    from feeler.calib.psychometric.model.task import Task
 
+    task = Task(args.nafc)                     # --nafc and --pc checked before any work
+    if args.pc is not None:
+        task.check_pc(args.pc, "--pc")
     stage(f"fit psychophysics: reading {args.data}", args.progress)     # stderr: stdout is the result
     import warnings
 
@@ -188,6 +192,7 @@ def run_psychophysics(args) -> int:
     import pandas as pd
 
     from feeler.calib.psychometric.fit import fit_psychometric, save_psychometric, threshold_table
+    from feeler.calib.psychometric.outputs.display import display_table
     from feeler.psydata import MatrixDesign, read_trials, synthetic_note
     from feeler.rundir import prepare_out_dir
 
@@ -215,15 +220,15 @@ def run_psychophysics(args) -> int:
     print_summary(result)
     table = threshold_table(result)
     pc = float(table["pc"].iloc[0])
-    print(f"thresholds (µm; posterior mean and 95 % interval; DT = PSE → 75 % point; threshold and slope "
+    shown, notes = display_table(table, _SHOW)
+    location = ("DT = PSE → 75 % point" if not task.is_nafc else
+                "pse = the location m, where Φ = ½; no DT in nAFC: see the threshold")
+    print(f"thresholds (µm; posterior mean and 95 % interval; {location}; threshold and slope "
           f"at P = {pc:g}; 'all' = {table['estimand'].iloc[-1]}):")
     with pd.option_context("display.width", 200, "display.max_columns", 30):
-        print(table[list(_SHOW)].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
-    for r in table.itertuples(index=False):
-        if r.threshold_unreached > 0:
-            print(f"note: {r.subject} at {r.standard_speed_mm_s:g}/{r.comparison_speed_mm_s:g} mm/s: "
-                  f"{100 * r.threshold_unreached:.1f} % of the posterior never reaches P = {pc:g} (lapse); "
-                  f"bounds past it are inf")
+        print(shown.to_string(index=False))
+    for line in notes:
+        print(f"note: {line}")
     _report_warnings(caught)
     if args.out:
         out = save_psychometric(result, trials, args.out, force=True, note=note, plots=not args.no_plots)

@@ -281,3 +281,18 @@ def test_the_neuron_fit_section_says_how_its_training_scans_read(report, run_dir
     by_mode = json.loads(attrs.get("mode_decoders", "{}"))
     for k, v in by_mode.items():
         assert f"{k}s {100 * v['loo']['accuracy']:.0f} % (the most common plate alone" in page
+
+
+def test_m4_thresholds_never_show_nan():
+    """A threshold the lapse keeps most draws from reaching (fit psychophysics --nafc 2 --pc
+    0.99: mean NaN, upper end inf) showed "nan" in the report's table; now a bound, and a
+    slope or p it cannot give shows a dash."""
+    import pandas as pd
+
+    from feeler.reports.m4_extras import _cell
+
+    r = pd.Series({"threshold_um": float("nan"), "threshold_lb_um": 2.625, "threshold_ub_um": float("inf"),
+                   "slope_per_um": float("nan"), "gof_p": 0.41, "backend": "nuts"})
+    assert _cell(r, "threshold_um") == "> 2.625"
+    assert _cell(r, "slope_per_um") == "—" and _cell(r, "backend") == "nuts" and _cell(r, "gof_p") == "0.41"
+    assert _cell(pd.Series({**r.to_dict(), "threshold_lb_um": float("nan")}), "threshold_um") == "—"

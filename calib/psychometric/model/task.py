@@ -66,6 +66,34 @@ class Task:
         """0.75 (the DT convention) for comparison; halfway from guess to 1 for nAFC."""
         return 0.75 if self.n_alternatives is None else 0.5 * (1.0 + self.guess)
 
+    def check_pc(self, pc, name: str = "pc") -> float:
+        """``pc`` as a float when P can reach it, else :class:`~feeler.errors.ArgumentError`.
+
+        P runs from ``base`` to ``base + scale``: above the guess rate γ (0 for the
+        comparison design, 1/n in nAFC, where P stays however small the stimulus) and
+        below 1 (a lapse-free ceiling). A proportion at or below γ is never a threshold,
+        whatever the data: refused before any work. How close to 1 the curve gets depends on
+        the fitted lapse, so that side is the verdict's (``threshold_unreached``)."""
+        from feeler.errors import ArgumentError
+        ok = isinstance(pc, (int, float, np.floating)) and not isinstance(pc, bool) and np.isfinite(pc)
+        if ok and self.guess < float(pc) < 1.0:
+            return float(pc)
+        if self.n_alternatives is None:
+            raise ArgumentError(name, pc, "proportion must be in (0, 1)")
+        n = self.n_alternatives
+        raise ArgumentError(name, pc, f"proportion correct must be in (1/{n}, 1) = ({self.guess:.4g}, 1): "
+                                      f"{n}AFC guessing alone gives 1/{n}, so P never falls to it")
+
+    def ceiling(self, lapse):
+        """base + scale: the largest P at lapse ``lapse`` (1 − λ/2, resp. 1 − λ(1 − γ))."""
+        base, scale, _ = self.base_scale_rest(lapse)
+        return base + scale
+
+    @property
+    def ceiling_text(self) -> str:
+        """The ceiling as a formula, for messages."""
+        return "1 − λ/2" if self.n_alternatives is None else f"1 − λ·(1 − 1/{self.n_alternatives})"
+
     def base_scale_rest(self, lapse):
         """(base, scale, rest) arrays for lapse rates ``lapse (...)`` in [0, 0.5)."""
         lapse = np.asarray(lapse, dtype=float)

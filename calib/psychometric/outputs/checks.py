@@ -14,7 +14,9 @@ are the heights in µm, can the data pin the function down.
   range of fingertip step heights: likely mm or nm. Scan speeds whose median lies outside
   1–1000 mm/s (:func:`speed_problems`): m/s below; above, mm/min (a stage's feed rate,
   ×60) or µm/s (×10³), each named with what it converts to.
-- **Identifiability**: fewer than two tested levels, a 95 % interval of the location
+- **Identifiability**: fewer than three tested levels (:func:`level_problems`), fewer
+  than two with responses strictly between none and all (:func:`interior_problems`), a
+  threshold at ``pc`` the lapse keeps P from reaching (:func:`threshold_problems`), a 95 % interval of the location
   reaching more than the tested range beyond the tested levels, and the boundary models
   of the spread (:func:`spread_problems`): a step at or between two adjacent levels
   (σ → 0) or a flat line (σ → ∞) that the likelihood-ratio test cannot reject against the
@@ -32,7 +34,8 @@ from scipy.stats import beta as beta_dist
 from feeler.models.psychometric import LAPSE_MAX
 
 __all__ = ["deviance", "gof", "worst_cell", "unit_problems", "conflict_problems", "level_problems",
-           "bracket_problems", "gof_problems", "spread_problems", "one_answer_problem", "GOF_ALPHA", "CONFLICT_Z",
+           "bracket_problems", "gof_problems", "interior_problems", "threshold_problems", "MIN_LEVELS",
+           "MIN_INTERIOR", "spread_problems", "one_answer_problem", "GOF_ALPHA", "CONFLICT_Z",
            "CONFLICT_TAIL", "PLAUSIBLE_UM", "BOUNDARY_LR", "FALLING_LR", "speed_problems", "PLAUSIBLE_SPEED_MM_S"]
 
 GOF_ALPHA = 0.05
@@ -47,6 +50,10 @@ _FAST_SPEED_UNITS = (("mm/min, a stage's feed-rate unit", 1 / 60), ("µm/s", 1e-
 # 5 % critical value of a likelihood ratio for a parameter on its boundary (σ → 0 or ∞):
 # ½χ²₀ + ½χ²₁ (Self & Liang 1987), i.e. the 90 % point of χ²₁
 BOUNDARY_LR = 2.71
+# identifiability of a curve (location, spread and lapse): tested levels, and levels whose
+# responses lie strictly between none and all (see level_problems, interior_problems)
+MIN_LEVELS = 3
+MIN_INTERIOR = 2
 # a falling curve beating the flat line by the 1 % point of χ²₁: responses that fall, not noise
 FALLING_LR = 6.63
 
@@ -175,11 +182,79 @@ def conflict_problems(label: str, c: int, r, draws: dict) -> list[str]:
 
 
 def level_problems(label: str, n_levels: int, x_um: np.ndarray) -> list[str]:
-    """Fewer than two tested levels: location and spread come from the prior alone."""
-    if n_levels >= 2:
+    """Fewer than :data:`MIN_LEVELS` tested levels: location and spread follow the prior.
+
+    One level gives one proportion: any location and spread reproduce it. Two levels give
+    two proportions, and the curve has three parameters (location m, spread σ, lapse λ):
+    for every lapse some (m, σ) passes exactly through both, so the data leave a ridge
+    along which m and σ follow the lapse's prior, and the fit has no degree of freedom
+    left for its goodness-of-fit test (2 levels 2/20 and 20/20 printed a PSE and a DT as
+    estimates with a verdict of ok). Three levels are the fewest with one to spare."""
+    if n_levels >= MIN_LEVELS:
         return []
-    return [f"{label}: a single tested level ({float(x_um[0]):.4g} µm): the data cannot pin down "
-            f"the location and the spread (they follow the prior)"]
+    levels = np.unique(np.asarray(x_um, float))
+    if n_levels < 2:
+        return [f"{label}: a single tested level ({float(levels[0]):.4g} µm): the data cannot pin down "
+                f"the location and the spread (they follow the prior)"]
+    shown = ", ".join(f"{v:.4g}" for v in levels)
+    return [f"{label}: {n_levels} tested levels ({shown} µm), and the curve needs at least {MIN_LEVELS}: through "
+            f"{n_levels} proportions a curve passes exactly for every lapse, so the data cannot pin down the "
+            f"location and the spread (they follow the prior) nor test the fit; test more levels across the "
+            f"transition"]
+
+
+def interior_problems(label: str, task, x: np.ndarray, n: np.ndarray, k: np.ndarray) -> list[str]:
+    """Fewer than :data:`MIN_INTERIOR` levels whose responses lie strictly between none
+    and all counted.
+
+    A level where every trial, or none, gives the response counted only bounds the curve
+    (P is near an asymptote there: any location far enough and any spread small enough
+    fit); a level in between fixes one point of it, Φ⁻¹ of its proportion. The location
+    and the spread are two unknowns: they need two such levels. With one (0/20, 10/20,
+    20/20) the location is near it but the spread is bounded above only. Rows without
+    any such level are :func:`spread_problems`' (a step or one answer throughout)."""
+    x, n, k = (np.asarray(v, float) for v in (x, n, k))
+    levels, at = np.unique(x, return_inverse=True)
+    n_l, k_l = np.bincount(at, n, levels.size), np.bincount(at, k, levels.size)
+    inside = (n_l > 0) & (k_l > 0) & (k_l < n_l)
+    if inside.sum() >= MIN_INTERIOR:
+        return []
+    where = f" (only at {levels[inside][0]:.4g} µm)" if inside.any() else ""
+    what = "PSE" if not task.is_nafc else "threshold"
+    return [f"{label}: the responses lie strictly between none and all '{task.response}' at {int(inside.sum())} "
+            f"of the {levels.size} tested levels{where}, and the location and the spread need at least "
+            f"{MIN_INTERIOR} (a level where all or none of the trials give it only bounds the curve): the spread "
+            f"is not pinned down; test levels closer together around the {what}"]
+
+
+def threshold_problems(label: str, task, pc: float, stats: dict) -> list[str]:
+    """The threshold at ``pc`` where the posterior gives it no finite bound.
+
+    P never exceeds the ceiling base + scale (:meth:`Task.ceiling`, 1 − λ/2 in the
+    comparison design) nor falls below the floor λ/2: the lapse decides whether P ever
+    reaches ``pc``. Where it does not, the threshold is +inf (above the ceiling) or −inf
+    (below the floor). With more than 97.5 % of the posterior beyond the ceiling not even
+    the lower 95 % bound is finite: nothing holds but "not reached". Below the floor the
+    grid's quantiles count the unreached mass on the wrong side (+inf): no number is
+    shown, and the verdict fails. Between, the threshold is reported as a bound (see
+    :mod:`feeler.calib.psychometric.outputs.display`)."""
+    th = stats["threshold"]
+    unreached = float(th.get("unreached", 0.0))
+    if np.isfinite(th["mean"]) or unreached <= 0:
+        return []
+    lam_ub = float(stats["lapse"]["ub"])
+    top = float(task.ceiling(lam_ub))
+    if not task.is_nafc and pc < 0.5:
+        low = math.ceil(1000 * (1.0 - top) - 1e-9) / 1000
+        return [f"{label}: the threshold at P = {pc:g} is not pinned down: for {100 * unreached:.1f} % of the "
+                f"posterior P stays above {pc:g} at every height (the lapse keeps P above λ/2); choose --pc "
+                f">= {low:g}, which 97.5 % of it reaches"]
+    if np.isfinite(th["lb"]):
+        return []
+    reach = math.floor(1000 * top + 1e-9) / 1000
+    return [f"{label}: the threshold at P = {pc:g} is not pinned down: {100 * unreached:.1f} % of the posterior "
+            f"never reaches P = {pc:g} (the lapse keeps P below {task.ceiling_text}, {top:.3f} at the lapse's "
+            f"97.5 % point {lam_ub:.3g}); choose --pc <= {reach:g}, which 97.5 % of it reaches"]
 
 
 def bracket_problems(label: str, what: str, lb: float, ub: float, lo: float, hi: float) -> list[str]:

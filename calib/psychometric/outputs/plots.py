@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from feeler.calib.psychometric.outputs.display import threshold_cells
 from feeler.calib.psychometric.outputs.table import threshold_table
 from feeler.calib.psychometric.model.task import Task
 
@@ -90,9 +91,11 @@ def _plot(path: Path, task: Task, row, data, draws, synthetic: bool) -> None:
            title=f"{row.subject}{tag}: standard {row.standard_um:g} µm, {row.standard_speed_mm_s:g}/"
                  f"{row.comparison_speed_mm_s:g} mm/s")
     what = "PSE" if not task.is_nafc else "m"
+    th = threshold_cells(row)                  # a bound or "—" where draws never reach pc, never NaN
+    fit = (f"deviance {row.deviance:.3g}, GOF p {row.gof_p:.3g}" if np.isfinite(row.gof_p)
+           else "population mean: no deviance")
     text = (f"{what} {row.pse_um:.3g} [{row.pse_lb_um:.3g}, {row.pse_ub_um:.3g}] µm\n"
-            f"threshold@{row.pc:g} {row.threshold_um:.3g} µm, slope {row.slope_per_um:.3g}/µm\n"
-            f"deviance {row.deviance:.3g}, GOF p {row.gof_p:.3g}")
+            f"threshold@{row.pc:g} {th['threshold_um']} µm, slope {th['slope_per_um']}/µm\n{fit}")
     ax.text(0.02, 0.98, text, transform=ax.transAxes, va="top", fontsize=6.5)
     ax.legend(fontsize=6.5, loc="lower right")
     ax.title.set_fontsize(8)
