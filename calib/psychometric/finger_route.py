@@ -31,7 +31,7 @@ from feeler.calib.diagnostics import Thresholds
 from feeler.calib.fit import FitResult, make_result, posterior_from_draws
 from feeler.calib.psychometric.model.cells import make_cells
 from feeler.calib.psychometric.fit import with_problems
-from feeler.calib.psychometric.outputs.checks import speed_problems
+from feeler.calib.psychometric.outputs.checks import speed_problems, unit_problems
 from feeler.errors import ArgumentError
 from feeler.models.neuron import peak_pulse_density, peak_window_sum
 from feeler.models.observer import conversion_factor, log_choice_prob
@@ -159,7 +159,9 @@ def fit_finger_route(trials: pd.DataFrame, *, rng: np.random.Generator, grid: Ro
     result = make_result(tree, backend=f"grid ({level})", priors=priors,
                          seconds=time.perf_counter() - start)
     speeds = sorted(set(zip(trials["standard_speed_mm_s"], trials["comparison_speed_mm_s"])))
-    return with_problems(result, speed_problems(np.ravel(speeds)) + _edge_problems(prob, taus, sigmas)
+    heights = np.concatenate([trials["standard_um"].to_numpy(float), trials["comparison_um"].to_numpy(float)])
+    return with_problems(result, unit_problems(heights) + speed_problems(np.ravel(speeds))     # as fit psychophysics
+                         + _edge_problems(prob, taus, sigmas)
                          + _pinned_problems(prob, taus, speeds))
 
 

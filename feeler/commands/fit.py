@@ -264,6 +264,8 @@ def run_finger_route(args) -> int:
                               level=args.level, chains=args.chains, draws=args.draws)
     print_summary(result)
     report = tau_report(result) | {"synthetic_data": bool(note), "data_note": note}
+    if not result.verdict.ok:     # a failed fit agrees or disagrees with nothing (heights in mm 'agreed', P = 0.99)
+        report["paper"] = "not compared: the verdict failed (its problems above)"
     if args.check_level:
         mean = result.summary.set_index("name")["mean"]
         kw = dict(tau_s=float(mean["tau_s"]), sigma_d_um=float(mean["sigma_d_um"]),

@@ -117,6 +117,23 @@ def test_fit_finger_route_reports_tau_beside_the_paper(data, tmp_path, capsys):
     assert report["tau_eti95_s"][0] < report["tau_mean_s"] < report["tau_eti95_s"][1]
 
 
+def test_fit_finger_route_names_heights_in_mm_and_compares_nothing_when_it_fails(data, tmp_path, capsys):
+    """Heights written in mm in the µm columns: fit psychophysics named it, finger-route
+    failed on grid bounds only and still printed "these data agree" with the paper."""
+    import pandas as pd
+
+    t = pd.read_csv(data, comment="#")
+    t[["standard_um", "comparison_um"]] /= 1000
+    t.to_csv(tmp_path / "mm.csv", index=False)
+    code = main(["fit", "finger-route", str(tmp_path / "mm.csv"), "--n-tau", "61", "--draws", "300",
+                 "--out", str(tmp_path / "r")])
+    text = capsys.readouterr().out
+    assert code == 1 and "heights: the tested levels" in text and "were they given in mm" in text, text
+    assert "paper: not compared: the verdict failed" in text and "agree" not in text
+    report = json.loads((tmp_path / "r" / "tau_report.json").read_text())
+    assert report["paper"].startswith("not compared")
+
+
 @pytest.mark.parametrize("argv, match", [
     (["fit", "psychophysics", "MISSING.csv"], "no such file"),
     (["fit", "finger-route", "MISSING.csv"], "no such file"),
