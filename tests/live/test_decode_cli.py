@@ -115,6 +115,23 @@ def test_follow_rows_keeps_a_partial_line_and_drops_a_cut_one(tmp_path):
     assert [r["uy_mm"] for r in rows] == ["0.1", "0.2", "0.3"] and stats["partial_lines_dropped"] == 1
 
 
+def test_follow_on_a_finished_run_says_so_at_once(tmp_path):
+    """--follow on a run that has its scans.csv and no writer waited --wait-s (30 s by
+    default), then said only "no such file" (an outside audit): a finished run is named at
+    once, with what to do; a run still to be written is waited for as before."""
+    from feeler.errors import DataFileError
+
+    (tmp_path / "scans.csv").write_text("scan_id,t_s,uy_mm\n0,0.5,0.1\n")
+    naps = []
+    with pytest.raises(DataFileError, match="holds a finished run .scans.csv.*decode it without --follow"):
+        list(follow_rows(tmp_path, poll_s=1.0, wait_s=30.0, active=lambda: False, sleep=naps.append))
+    assert naps == []
+    (tmp_path / "scans.csv").unlink()
+    with pytest.raises(DataFileError, match="no such file after 3 s"):
+        list(follow_rows(tmp_path, poll_s=1.0, wait_s=3.0, active=lambda: False, sleep=naps.append))
+    assert naps == [1.0, 1.0, 1.0]
+
+
 def test_follow_rows_of_a_decimal_comma_logger(tmp_path):
     """A lab's own logger in a German locale: ';' between columns, ',' as decimal mark, a BOM."""
     (tmp_path / "samples.csv").write_text("\ufeffscan_id;t_s;uy_mm\n0;0,5;0,1\n0;1;0,25\n", encoding="utf-8")

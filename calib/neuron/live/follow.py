@@ -56,6 +56,9 @@ def follow_rows(run: str | Path, *, poll_s: float = 0.2, wait_s: float = 30.0, a
     active = active or (lambda: writer_active(run))
     waited = 0.0
     while not path.exists():
+        if (run / "scans.csv").is_file() and not active():   # a finished run: nothing will be written
+            raise DataFileError(path, f"no such file, and {run} holds a finished run (scans.csv) that no "
+                                      f"acquisition is writing: decode it without --follow")
         if waited >= wait_s and not active():
             raise DataFileError(path, f"no such file after {wait_s:g} s, and no acquisition is writing {run}")
         sleep(poll_s)
