@@ -94,6 +94,8 @@ def load(directory: str | Path) -> FitResult:
     from feeler.calib.lazy_dask import install
     install()
     d = Path(directory)
+    if d.name in FIT_FILES and d.is_file():      # the fit's own posterior.nc (or summary.csv) given: its directory
+        d = d.parent
     for name in FIT_FILES:
         if not (d / name).is_file():
             from feeler.rundir import what_it_is

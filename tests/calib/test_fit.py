@@ -189,6 +189,9 @@ def test_save_load_round_trip(tmp_path):
     with pytest.raises(OverwriteError, match="posterior.nc"):
         res.save(tmp_path)
     res.save(tmp_path, force=True)
+    # the fit's posterior.nc named instead of its directory (classify FIT/posterior.nc said
+    # "FIT/posterior.nc/posterior.nc: missing"): read as its directory
+    assert load(tmp_path / "posterior.nc").verdict == res.verdict
 
 
 @pytest.fixture
