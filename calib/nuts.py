@@ -38,7 +38,7 @@ import time
 
 import numpy as np
 
-from feeler.calib.progress import bar_width, show_progress
+from feeler.calib.progress import bar_width, show_progress, stage
 
 __all__ = ["sample_model", "stats_of", "SampleStats", "available_cores"]
 
@@ -77,7 +77,8 @@ def sample_model(model, *, draws: int, tune: int, chains: int, seed: int, target
         draws, tune, chains (int): kept draws and warm-up steps per chain, chains.
         seed (int): the run's seed; the same seed gives the same draws.
         target_accept (float): step-size target in (0, 1).
-        progress (bool | None): progress bar on stderr (None: when it is a terminal).
+        progress (bool | None): progress bar on stderr (None: on a terminal; off one a
+            line as the model is built and one as sampling starts; False: silent).
         var_names (list[str] | None): variables to keep (None: every free and
             deterministic variable).
         cores (int | None): chains run at once in threads (None: the CPUs available).
@@ -93,10 +94,15 @@ def sample_model(model, *, draws: int, tune: int, chains: int, seed: int, target
     except ImportError:  # the sampler of last resort: same layout, slower
         return _sample_pymc(model, draws=draws, tune=tune, chains=chains, seed=seed,
                             target_accept=target_accept, progress=progress, var_names=var_names)
+    lines = progress is None and not show_progress(None)     # off a terminal: a line per stage
+    if lines:
+        stage("NUTS: building the model (numba compiles it on a first run, then it is cached)")
     t0 = time.perf_counter()
     compiled, cache = compile_model(model, var_names)
     compile_s = time.perf_counter() - t0
     cores = min(chains, cores or available_cores())
+    if lines:
+        stage(f"NUTS: sampling {chains} chain(s) of {tune} warm-up and {draws} kept draws")
     t0 = time.perf_counter()
     bar = _Progress(chains * (draws + tune)) if show_progress(progress) else None
     try:

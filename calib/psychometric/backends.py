@@ -141,14 +141,13 @@ def run_nuts(cells: Cells, r, *, hierarchical: bool, pooled: bool, lapse_per: st
              rng: np.random.Generator, chains: int, draws: int, tune: int, target_accept: float,
              pc: float, progressbar: bool | None) -> Fitted:
     """PyMC NUTS; summaries from the draws, modes for the separate model."""
-    from feeler.calib.progress import show_progress
     from feeler.calib.psychometric.nuts import nuts_fit
 
     one = len(cells.subjects) == 1
     out, sample_stats = nuts_fit(cells, r, hierarchical=hierarchical, pooled=pooled and not one,
                                  lapse_per=lapse_per, overdispersion=overdispersion, rng=rng,
                                  chains=chains, draws=draws, tune=tune, target_accept=target_accept,
-                                 progressbar=show_progress(progressbar))
+                                 progressbar=progressbar)          # None: a bar on a terminal, lines off it
     if one and pooled:                                  # 'all' is the one subject
         out |= {f"{v}_all": out[v][:, :, 0] for v in ("pse", "sigma", "lapse", "phi") if v in out}
     stats, maps = {}, None if hierarchical else {}

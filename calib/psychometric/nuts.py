@@ -81,7 +81,7 @@ def _build(cells: Cells, r: Resolved, *, hierarchical: bool, pooled: bool, lapse
 
 def nuts_fit(cells: Cells, priors: Resolved, *, hierarchical: bool, pooled: bool, lapse_per: str,
              overdispersion: bool, rng: np.random.Generator, chains: int, draws: int, tune: int,
-             target_accept: float = 0.99, progressbar: bool = False) -> tuple[dict, dict]:
+             target_accept: float = 0.99, progressbar: bool | None = False) -> tuple[dict, dict]:
     """Sample M4 with NUTS.
 
     Args:

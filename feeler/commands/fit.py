@@ -208,8 +208,9 @@ def run_psychophysics(args) -> int:
     note = synthetic_note(trials)
     _banner(note)
     rows = trials.attrs.get("trial_rows", 0)
-    print(f"fitting {trials['subject'].nunique()} subject(s), {int(trials['n_trials'].sum())} trials"
-          f"{f' (aggregated from {rows} trial rows)' if rows else ''}, backend {args.backend} ...", flush=True)
+    what = (f"{trials['subject'].nunique()} subject(s), {int(trials['n_trials'].sum())} trials"
+            f"{f' (aggregated from {rows} trial rows)' if rows else ''}, backend {args.backend}")
+    stage(f"fitting {what}", args.progress)                 # stderr; the result's header below on stdout
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = fit_psychometric(trials, rng=np.random.default_rng(args.seed), backend=args.backend,
@@ -217,6 +218,7 @@ def run_psychophysics(args) -> int:
                                   priors=priors, lapse_per=args.lapse, all_estimand=args.all_estimand,
                                   nafc=args.nafc, pc=args.pc, chains=args.chains, draws=args.draws,
                                   tune=args.tune, target_accept=args.target_accept, progressbar=args.progress)
+    print(f"M4 psychometric functions: {what}")
     print_summary(result)
     table = threshold_table(result)
     pc = float(table["pc"].iloc[0])

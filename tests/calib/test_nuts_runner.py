@@ -139,3 +139,15 @@ def test_without_nutpie_pymc_samples(data, monkeypatch):
 
 def test_available_cores_is_the_affinity_mask():
     assert 1 <= available_cores() <= (len(__import__("os").sched_getaffinity(0)))
+
+
+def test_off_a_terminal_a_line_as_the_model_is_built_and_one_as_sampling_starts(data, capsys):
+    """A NUTS psychophysics fit of 13-17 s printed nothing on stderr off a terminal (an
+    outside audit): the first compile can take a minute. --no-progress (False) silences it."""
+    capsys.readouterr()
+    sample_model(_model(data), draws=50, tune=50, chains=1, seed=3)
+    assert capsys.readouterr().err.splitlines() == [
+        "NUTS: building the model (numba compiles it on a first run, then it is cached) ...",
+        "NUTS: sampling 1 chain(s) of 50 warm-up and 50 kept draws ..."]
+    sample_model(_model(data), draws=50, tune=50, chains=1, seed=3, progress=False)
+    assert capsys.readouterr().err == ""

@@ -165,7 +165,7 @@ def test_a_psignifit_data_matrix_with_its_design_on_the_command_line(tmp_path, c
     assert "psignifit data matrix" in err and "--standard-um and --speed-mm-s" in err
     code = main(["fit", "psychophysics", path, "--standard-um", "0", "--speed-mm-s", "20", "--nafc", "2",
                  "--out", str(tmp_path / "o"), "--no-plots"])
-    assert code == 0 and "fitting 1 subject(s), 240 trials" in capsys.readouterr().out
+    assert code == 0 and "fitting 1 subject(s), 240 trials" in capsys.readouterr().err         # a stage: stderr
     table = pd.read_csv(tmp_path / "o" / "thresholds.csv", comment="#")
     assert set(table.subject) == {"observer3", "all"} and set(table.design) == {"2AFC"}
     assert (table.standard_um == 0).all() and (table.standard_speed_mm_s == 20).all()
