@@ -8,9 +8,16 @@ with --scheduler serial. Element i uses seed SEED + i, so the results are identi
 whichever way they are computed. OUT/<dataset name>/ receives each element's
 posterior.nc, summary.csv and verdict.json; the closing table lists every verdict and
 the exit status is 1 when any failed.
+
+Every DATASET is read and its prior built before the first fit starts: a missing path, a
+bad calibration.csv or a dataset without its nominal C0 (scene.toml) stops the command
+with one line naming it (exit 2) before any work. An element that still raises during its
+fit (a file changed meanwhile, a bug) is named in one line below the table; the elements
+that finished are written all the same (exit 2 for bad input, else 1).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
@@ -39,18 +46,82 @@ def fit_element(index: int, *, datasets: tuple[str, ...], seed: int):
     import numpy as np
 
     from feeler.calib.fit import DiagnosticWarning
-    from feeler.calib.matrix import fit_matrix, read_calibration_csv
+    from feeler.calib.matrix import fit_matrix
     from feeler.calib.matrix.data import DesignWarning
-    from feeler.commands._calibrate_sensor import _locate, _prior
 
-    csv, scene = _locate(Path(datasets[index]))
-    data = read_calibration_csv(csv)
-    prior, _, _ = _prior(_Defaults(), scene)
+    data, prior = _read_element(datasets[index])
     with warnings.catch_warnings():                 # both are in the element's verdict, printed below the table;
         warnings.simplefilter("ignore", DiagnosticWarning)       # in a dask worker they would print raw, with
         warnings.simplefilter("ignore", DesignWarning)           # their source line (no one-line formatter there)
         return fit_matrix(data, prior, backend="exact", rng=np.random.default_rng(seed + index),
                           progress=False)
+
+
+@dataclass(frozen=True)
+class ElementError:
+    """What an element's fit raised, in place of its result (picklable, whatever the exception)."""
+    message: str
+    bad_input: bool            # an InputError: the CLI's 'feeler: error:' (exit 2); else 'feeler: failed:' (exit 1)
+
+
+def _fit_or_error(index: int, *, datasets: tuple[str, ...], seed: int):
+    """:func:`fit_element`, or an :class:`ElementError` when it raises: one element's exception
+    no longer takes the finished ones with it (map_seeds re-raised it and nothing was written)."""
+    from feeler.errors import FeelerError, InputError
+
+    try:
+        return fit_element(index, datasets=datasets, seed=seed)
+    except Exception as exc:                        # noqa: BLE001 - reported below the table, with its kind
+        text = str(exc) if isinstance(exc, FeelerError) else f"{exc.__class__.__name__}: {exc}"
+        return ElementError(" ".join(text.split()), isinstance(exc, InputError))
+
+
+def _read_element(dataset: str):
+    """The dataset's calibration data and prior, as `calibrate sensor` reads them at its defaults.
+
+    Raises:
+        InputError: a missing path or file, a bad calibration.csv, no scene.toml (this command
+            has no --c0) or one that is not a sensor-calibration scene; one line naming the file.
+    """
+    from feeler.calib.matrix import read_calibration_csv
+    from feeler.commands._calibrate_sensor import _locate, _prior
+    from feeler.errors import DataFileError
+
+    path = Path(dataset)
+    if not path.exists():
+        raise DataFileError(path, "no such dataset (a directory with calibration.csv and scene.toml)")
+    csv, scene = _locate(path)
+    data = read_calibration_csv(csv)
+    if scene is None:
+        raise DataFileError(csv.with_name("scene.toml"), "no such file: `calibrate sensors` takes each element's "
+                                                         "nominal C0 from the scene.toml beside its calibration.csv "
+                                                         "(a sensor-calibration scene, as `feeler simulate` writes)")
+    prior, _, _ = _prior(_Defaults(), scene)
+    return data, prior
+
+
+def _check_datasets(datasets) -> None:
+    """Read every dataset and build its prior before any fit: all problems at once, in one line.
+
+    Raises:
+        InputError: the first problem, followed by how many other datasets have problems and which.
+    """
+    from feeler.errors import InputError
+
+    problems = []
+    for d in datasets:
+        try:
+            _read_element(d)
+        except InputError as exc:
+            problems.append((d, exc))
+    if not problems:
+        return
+    first = problems[0][1]
+    if len(problems) == 1:
+        raise first
+    others = ", ".join(str(d) for d, _ in problems[1:])
+    raise InputError(f"{first} (and {len(problems) - 1} more bad DATASET{'s' if len(problems) > 2 else ''}: "
+                     f"{others}; nothing was fitted)") from None
 
 
 class _Defaults:
@@ -59,6 +130,8 @@ class _Defaults:
 
 
 def run(args) -> int:
+    import sys
+
     from feeler.calib.runner import map_seeds
     from feeler.errors import ArgumentError
     from feeler.rundir import prepare_out_dir
@@ -66,20 +139,32 @@ def run(args) -> int:
     names = [Path(d).resolve().name for d in args.datasets]
     if len(set(names)) != len(names):
         raise ArgumentError("DATASET", names, "dataset directories must have distinct names")
+    _check_datasets(args.datasets)
     out = prepare_out_dir(args.out, [f"{n}/verdict.json" for n in names], force=args.force)
-    job = partial(fit_element, datasets=tuple(str(d) for d in args.datasets), seed=args.seed)
+    job = partial(_fit_or_error, datasets=tuple(str(d) for d in args.datasets), seed=args.seed)
     results = map_seeds(job, range(len(names)), scheduler=args.scheduler, n_workers=args.workers,
                         desc="elements", progress_bar=args.progress)
+    done = [(name, res) for name, res in zip(names, results) if not isinstance(res, ElementError)]
+    errors = [(name, res) for name, res in zip(names, results) if isinstance(res, ElementError)]
     print(f"{'element':24s} {'verdict':8s} {'cond(C)':>8s}   C diagonal (mm/N)")
     for name, res in zip(names, results):
+        if isinstance(res, ElementError):
+            print(f"{name:24s} {'ERROR':8s} {'-':>8s}   -")
+            continue
         res.save(out / name, force=args.force)
         s = res.summary.set_index("name")["mean"]
         diag = ", ".join(f"{s[f'C[{i},{i}]']:.4f}" for i in range(3))
         print(f"{name:24s} {'ok' if res.verdict.ok else 'FAILED':8s} {s['cond_C']:8.3f}   {diag}")
-    for name, res in zip(names, results):               # why each failed: its first problem, and where the rest are
+    for name, res in done:                              # why each failed: its first problem, and where the rest are
         if not res.verdict.ok:
             problems = res.verdict.problems
             more = f"and {len(problems) - 1} more: " if len(problems) > 1 else ""
             print(f"{name}: {problems[0]} ({more}{out / name / 'verdict.json'})")
-    print(f"wrote {len(names)} posteriors under {out}")
-    return 0 if all(r.verdict.ok for r in results) else 1
+    print(f"wrote {len(done)} posteriors under {out}")
+    for name, err in errors:                            # one line each, as the CLI prints an error
+        kind = "error" if err.bad_input else "failed"
+        print(f"feeler: {kind}: element {name}: {err.message} (not fitted; nothing written for it)",
+              file=sys.stderr)
+    if errors:
+        return 2 if any(err.bad_input for _, err in errors) else 1
+    return 0 if all(r.verdict.ok for _, r in done) else 1
