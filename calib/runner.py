@@ -47,7 +47,8 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
     if scheduler == "serial":
         return [func(s) for s in progress(seeds, desc=desc, enabled=progress_bar, lines=True)]
     if scheduler is not None and not _is_tcp_address(scheduler):
-        raise ArgumentError("scheduler", scheduler, "must be tcp://HOST:PORT (or omitted for a LocalCluster)")
+        raise ArgumentError("--scheduler", scheduler, "tcp://HOST:PORT of a running dask scheduler, 'serial' "
+                                                      "(in this process), or omitted for a LocalCluster here")
     from distributed import Client, KilledWorker, LocalCluster, as_completed
 
     from feeler.calib.dask_logging import cluster_options

@@ -37,6 +37,24 @@ def test_every_subcommand_has_help(path, capsys):
     assert len(out.splitlines()) > 2
 
 
+@pytest.mark.parametrize("argv, words", [
+    (["validate", "sbc", "--model", "matrix", "--n", "abc"], "argument --n: invalid int value: 'abc' (see "
+                                                            "`feeler validate sbc --help`)"),
+    (["classify", "--bogus"], "the following arguments are required: POSTERIOR, SCANS"),
+    (["validate", "sbc", "--model", "matrix", "--draws", "0"], "--draws=0: at least 9 posterior draws"),
+])
+def test_argument_errors_are_one_line(argv, words, capsys):
+    """argparse printed its usage block and 'feeler validate sbc: error:'; validate's --draws 0
+    said '>= 1' where its own check wants 9 (an outside audit)."""
+    try:
+        code = main(argv)                   # the suite's own checks return 2
+    except SystemExit as info:              # argparse's exit
+        code = info.code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err[-1].startswith("feeler: error: ") and words in err[-1], err
+    assert not any(ln.startswith("usage:") for ln in err)
+
+
 def test_no_command_prints_help_and_exits_2(capsys):
     assert main([]) == 2
     assert "commands" in capsys.readouterr().out

@@ -55,8 +55,9 @@ def test_existing_scheduler_by_address():
 
 
 @pytest.mark.parametrize("kw, match", [
-    ({"scheduler": "localhost:8786"}, "scheduler='localhost:8786': must be tcp://HOST:PORT"),
-    ({"scheduler": "tcp://host:port"}, "must be tcp://HOST:PORT"),
+    ({"scheduler": "localhost:8786"}, "--scheduler='localhost:8786': tcp://HOST:PORT of a running dask scheduler, "
+                                      "'serial' \\(in this process\\), or omitted"),
+    ({"scheduler": "tcp://host:port"}, "tcp://HOST:PORT"),
     ({"n_workers": 0}, "n_workers=0: must be >= 1"),
 ])
 def test_bad_arguments(kw, match):
