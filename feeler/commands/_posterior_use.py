@@ -33,4 +33,9 @@ def load_checked(args):
         names = ", ".join(list(post.data_vars)[:4])
         raise DataFileError(args.posterior, f"a fit of {names}, not a neuron (M2) fit; POSTERIOR must be "
                                             f"the --out directory of `feeler calibrate neuron`")
+    available = int(post.sizes.get("chain", 1) * post.sizes.get("draw", 1))
+    if args.n_draws > available:                  # every draw is used: say so, and print the true count
+        print(f"note: --n-draws {args.n_draws} is more than the fit's {available} posterior draws: all "
+              f"{available} are used")
+        args.n_draws = available
     return require_ok(result, accept_failed=args.accept_failed, what="neuron calibration")

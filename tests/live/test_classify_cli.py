@@ -240,3 +240,17 @@ def test_labels_that_contradict_the_fit_are_a_warning(fit_dir, fresh_frame, tmp_
     assert len(warnings) == 2, warnings
     assert "labels inside their 90 % interval" in warnings[0] and "over-confident" in warnings[1]
     assert "labels that are wrong" in warnings[1]
+
+
+def test_more_draws_than_the_fit_has_is_a_note_with_the_true_count(fit_dir, scans_frame, tmp_path, capsys):
+    """--n-draws 100000 on a fit of 4000 draws ran silently (an outside audit)."""
+    import xarray as xr
+
+    with xr.open_datatree(fit_dir / "posterior.nc", engine="h5netcdf") as tree:
+        have = int(tree["posterior"].sizes["chain"] * tree["posterior"].sizes["draw"])
+    scans_frame.to_csv(tmp_path / "lab.csv", index=False)
+    assert main(["classify", str(fit_dir), str(tmp_path / "lab.csv"), "--n-draws", str(10 * have)]) == 0
+    out = capsys.readouterr().out
+    assert f"note: --n-draws {10 * have} is more than the fit's {have} posterior draws: all {have} are used" in out
+    assert main(["classify", str(fit_dir), str(tmp_path / "lab.csv"), "--n-draws", "40"]) == 0
+    assert "note: --n-draws" not in capsys.readouterr().out
