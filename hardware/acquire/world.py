@@ -31,7 +31,11 @@ def plan_layout(plan, plan_path: str | Path) -> Layout:
     """The plan's camera layout (file relative to the plan, or the default 4×4 grid),
     checked to hold the scanning element ``optics.element``."""
     name = plan.optics.layout
-    layout = load_layout(Path(plan_path).parent / name) if name else grid_layout()
+    path = Path(plan_path).parent / name if name else None
+    if path is not None and not path.is_file():      # name the plan and its key, not only the path it made
+        raise SceneError(plan_path, "optics.layout", f"{name!r}: no such layout file ({path}; a path relative to "
+                                                     f"the plan's directory)")
+    layout = load_layout(path) if path is not None else grid_layout()
     if plan.optics.element >= len(layout.elements):
         raise SceneError(plan_path, "optics.element", f"{plan.optics.element}: the layout "
                          f"{layout.name!r} has {len(layout.elements)} elements")

@@ -100,6 +100,17 @@ def test_impossible_plans_are_refused_naming_the_key(tmp_path, replace, key):
     assert key in str(err.value) and str(path) in str(err.value)
 
 
+def test_a_plan_moved_away_from_its_layout_names_the_plan_and_the_key(tmp_path):
+    """A copy of the shipped plan elsewhere: its relative layout path breaks, and the error
+    named only the layout's path, not the plan or optics.layout (an outside audit)."""
+    moved = tmp_path / "plan.toml"
+    moved.write_text(SHIPPED.read_text())
+    with pytest.raises(SceneError) as err:
+        plan_layout(load_plan(moved), moved)
+    text = str(err.value)
+    assert str(moved) in text and "optics.layout" in text and "'../layouts/sensor-16.toml': no such layout file" in text
+
+
 def test_emulation_needs_the_virtual_table(tmp_path):
     text = TINY.read_text()
     path = tmp_path / "plan.toml"
