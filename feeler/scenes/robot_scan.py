@@ -115,6 +115,11 @@ class Scene:
         check_optics(self.optics, self.sensor.fidelity, path)
         if s.profile == "step" and s.count != 1:
             raise SceneError(path, "surface.count", f"{s.count}: a single step has count = 1")
+        twice = sorted({h for h in s.heights_mm if list(s.heights_mm).count(h) > 1})
+        if s.profile == "step" and twice:        # one plate per entry: two entries alike are one plate, mislabelled
+            raise SceneError(path, "surface.heights_mm",
+                             f"{list(s.heights_mm)}: {', '.join(f'{h:g}' for h in twice)} more than once; one entry "
+                             f"per plate (repeats.scans_per_plate sets its touches)")
         if m.traverse_mm < 2 * m.speed_mm_s * m.dt_s:
             raise SceneError(path, "motion.traverse_mm",
                              f"{m.traverse_mm}: shorter than two samples (speed_mm_s*dt_s*2 = {2 * m.speed_mm_s * m.dt_s:g} mm)")
