@@ -155,6 +155,8 @@ def read_csv_file(path: Path, *, comment: str | None = None):
     repeats = _repeated_header(text, header)
     if repeats:
         raise DataFileError(path, repeated_header_problem(repeats))
+    if not text.strip():                          # pandas says "No columns to parse from file"
+        raise DataFileError(path, "empty: no header and no rows")
     remarks = comment_lines(text)
     data = "\n".join(ln for ln in text.splitlines() if not ln.lstrip().startswith("#")) if remarks else text
     try:

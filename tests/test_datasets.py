@@ -363,6 +363,13 @@ def test_excel_unicode_text_and_windows_1252_files_read_as_the_utf8_file(tmp_pat
         read_scans(tmp_path / "broken.csv")
 
 
+def test_an_empty_file_says_so(tmp_path):
+    """An empty scans.csv said pandas' "not a readable CSV: No columns to parse from file"."""
+    (tmp_path / "scans.csv").write_text("\n \n")
+    with pytest.raises(DataFileError, match="scans.csv: empty: no header and no rows$"):
+        read_scans(tmp_path / "scans.csv")
+
+
 def test_a_binary_file_is_not_read_as_windows_1252_text(tmp_path):
     (tmp_path / "scans.csv").write_bytes(b"\x00\xff\xfe" + ",".join(COLUMNS).encode())
     with pytest.raises(DataFileError, match="not a readable CSV: .*a NUL byte: not a text file"):

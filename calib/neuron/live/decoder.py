@@ -137,7 +137,7 @@ class LiveDecoder:
         from feeler.calib.neuron.live.sums import WindowSums
 
         if not (0.0 < threshold <= 1.0):
-            raise ArgumentError("threshold", threshold, "a probability in (0, 1]")
+            raise ArgumentError("--threshold", threshold, "a probability in (0, 1]")
         if not (0.0 < drop < 1.0):
             raise ArgumentError("drop", drop, "a fraction in (0, 1)")
         if not (isinstance(n_draws, int) and n_draws > 0):
@@ -147,7 +147,7 @@ class LiveDecoder:
         self.dec = DecoderDraws.from_result(fit, rng=np.random.default_rng(seed), n_draws=n_draws)
         top = 1.0 - self.dec.floor * (self.dec.steps_mm.size - 1) / self.dec.steps_mm.size
         if threshold > top:       # the floor ε/C of every plate caps the top probability
-            raise ArgumentError("threshold", threshold, f"a probability in (0, {top:.6g}]: this fit's plate "
+            raise ArgumentError("--threshold", threshold, f"a probability in (0, {top:.6g}]: this fit's plate "
                                 f"probabilities never exceed it (floor {self.dec.floor:g} over the plates)")
         attrs = post["posterior"].attrs
         self.length_mm = float(attrs["length_mm"])
