@@ -5,7 +5,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+import feeler.calib.matrix as matrix
 from feeler.cli import main
+from feeler.errors import DataFileError
 
 SCENE = Path(__file__).resolve().parents[2] / "datasets-synthetic" / "sensor-calibration.toml"
 
@@ -83,3 +85,116 @@ def test_an_element_with_an_unidentified_design_prints_no_raw_warning(elements, 
     assert err == "", err
     (why,) = [ln for ln in out.splitlines() if ln.startswith("y-only: ")]
     assert "the data do not pin K along the displacement direction" in why
+
+
+# A bad dataset among good ones (an outside audit):
+# The audit's run reported 'elements: 3/3 done', then the bad calibration.csv's error, and
+# left OUT empty: the good posteriors were lost. Now every dataset is read and its prior built
+# before the first fit, and an element that still raises during its fit no longer takes the
+# finished ones with it.
+
+
+def _copy(src, dst: Path, *, files=("calibration.csv", "scene.toml")) -> Path:
+    dst.mkdir()
+    for name in files:
+        (dst / name).write_bytes((Path(src) / name).read_bytes())
+    return dst
+
+
+@pytest.fixture
+def fits(monkeypatch):
+    """Counts the fits started (the serial scheduler runs them in this process)."""
+    calls = []
+    real = matrix.fit_matrix
+
+    def counted(*a, **kw):
+        calls.append(1)
+        return real(*a, **kw)
+
+    monkeypatch.setattr(matrix, "fit_matrix", counted)
+    return calls
+
+
+def _errors(err: str) -> list[str]:
+    """stderr without the command's first status line ('feeler calibrate sensors: ...', a terminal's)."""
+    return [ln for ln in err.splitlines() if not ln.startswith("feeler calibrate sensors: ")]
+
+
+def _bad_copy(src, dst: Path) -> Path:
+    """The audit's sc_bad: fx_n in row 4 set to 'oops'."""
+    bad = _copy(src, dst)
+    table = pd.read_csv(bad / "calibration.csv", comment="#", dtype=str)
+    table.loc[3, "fx_n"] = "oops"
+    table.to_csv(bad / "calibration.csv", index=False)
+    return bad
+
+
+@pytest.mark.parametrize("scheduler", [[], ["--scheduler", "serial"]], ids=["local-cluster", "serial"])
+def test_a_bad_dataset_among_good_ones_is_refused_before_any_fit(elements, tmp_path, capsys, fits, scheduler):
+    """The audit's command: before, 'elements: 3/3 done' (serial: 1/3) and then the error, with
+    nothing written; now the error comes before any fit starts (no cluster either)."""
+    bad = _bad_copy(elements[1], tmp_path / "sc_bad")
+    out = tmp_path / "out"
+    assert main(["calibrate", "sensors", elements[0], str(bad), elements[1], "--out", str(out), *scheduler,
+                 "--progress"]) == 2
+    err = capsys.readouterr().err
+    assert _errors(err) == [f"feeler: error: {bad / 'calibration.csv'}: column fx_n, row 4: 'oops' is not a finite number"]
+    assert "done" not in err
+    assert fits == []
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_every_bad_dataset_is_found_before_any_fit(elements, tmp_path, capsys, fits):
+    """A bad CSV, a missing path and a dataset without scene.toml (this command has no --c0):
+    the first in full, the others counted and named, in one line. Before, the first fit ran,
+    and a dataset without scene.toml was 'argument --c0: ... give --c0', an option this
+    command does not have, naming no dataset."""
+    bad = _bad_copy(elements[1], tmp_path / "sc_bad")
+    missing = tmp_path / "nope"
+    no_scene = _copy(elements[1], tmp_path / "no_scene", files=("calibration.csv",))
+    assert main(["calibrate", "sensors", elements[0], str(no_scene), "--out", str(tmp_path / "a"),
+                 "--scheduler", "serial", "--no-progress"]) == 2
+    (line,) = _errors(capsys.readouterr().err)
+    assert line.startswith(f"feeler: error: {no_scene / 'scene.toml'}: no such file: ") and "nominal C0" in line
+    assert main(["calibrate", "sensors", elements[0], str(bad), str(missing), str(no_scene), elements[1],
+                 "--out", str(tmp_path / "b"), "--scheduler", "serial", "--no-progress"]) == 2
+    (line,) = _errors(capsys.readouterr().err)
+    assert line.startswith(f"feeler: error: {bad / 'calibration.csv'}: column fx_n, row 4: 'oops'")
+    assert line.endswith(f"(and 2 more bad DATASETs: {missing}, {no_scene}; nothing was fitted)")
+    assert fits == []
+
+
+@pytest.mark.parametrize("exc, status, kind", [(RuntimeError("a bug"), 1, "failed: element elem2: RuntimeError: a bug"),
+                                               (DataFileError("x.csv", "changed"), 2, "error: element elem2: x.csv: "
+                                                                                      "changed")],
+                         ids=["bug", "bad-input"])
+def test_an_element_that_raises_keeps_the_finished_ones(elements, tmp_path, capsys, monkeypatch, exc, status, kind):
+    """Defence in depth: an element whose fit raises (not a failed verdict) after the checks
+    passed. Before, the exception left OUT empty (or a traceback); now the other elements are
+    written, the failing one is named in one line and the exit status is not 0."""
+    calls, real = [], matrix.fit_matrix
+
+    def second_raises(*a, **kw):
+        calls.append(1)
+        if len(calls) == 2:
+            raise exc
+        return real(*a, **kw)
+
+    monkeypatch.setattr(matrix, "fit_matrix", second_raises)
+    third = _copy(elements[0], tmp_path / "elem3")
+    out = tmp_path / "out"
+    assert main(["calibrate", "sensors", elements[0], elements[1], str(third), "--out", str(out),
+                 "--scheduler", "serial", "--no-progress"]) == status
+    std = capsys.readouterr()
+    for name in ("elem1", "elem3"):
+        assert {p.name for p in (out / name).iterdir()} >= {"posterior.nc", "summary.csv", "verdict.json"}
+    assert not (out / "elem2").exists()
+    assert _errors(std.err) == [f"feeler: {kind} (not fitted; nothing written for it)"]
+    assert re.search(r"(?m)^elem2 +ERROR ", std.out) and f"wrote 2 posteriors under {out}" in std.out
+    # the finished ones are those a run without the failure computes (element i, seed SEED + i)
+    monkeypatch.setattr(matrix, "fit_matrix", real)
+    assert main(["calibrate", "sensors", elements[0], elements[1], str(third), "--out", str(tmp_path / "ref"),
+                 "--scheduler", "serial", "--no-progress"]) == 0
+    for name in ("elem1", "elem3"):
+        pd.testing.assert_frame_equal(pd.read_csv(out / name / "summary.csv"),
+                                      pd.read_csv(tmp_path / "ref" / name / "summary.csv"))
