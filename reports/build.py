@@ -6,7 +6,9 @@
 calibrations first —, the appendix, and renders the jinja2 template with autoescaping on
 (text from the run's files appears as text). Figures are numbered in order; the manifest
 names each with its section, the files it came from and any layout problem found when
-it was drawn. Reports are derived files and are rewritten on every call.
+it was drawn. Reports are derived files and are rewritten on every call. A directory
+holding nothing the report can show is refused (one line naming what it holds and what
+the report reads), before anything is written.
 """
 from __future__ import annotations
 
@@ -19,10 +21,13 @@ from typing import Callable
 
 from feeler.reports.discover import Inventory, discover
 
-__all__ = ["Report", "build_report", "render_html", "write_pdf", "BUILDERS", "section_id"]
+__all__ = ["Report", "build_report", "render_html", "write_pdf", "BUILDERS", "section_id", "nothing_to_show",
+           "OWN_FILES"]
 
 TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
 MANIFEST = "report-manifest.json"
+OWN_FILES = ("report.html", "report.pdf", MANIFEST)          # what a report writes (not the run's)
+_LISTED = 6                                                  # files named in the error, at most
 
 #: builder name of a section spec -> "module:function" (imported when used)
 BUILDERS = {"robot": "sec_robot:robot_section", "fit": "sec_fits:fit_section",
@@ -92,6 +97,27 @@ def _manifest(sections) -> list[dict]:
     return entries
 
 
+def nothing_to_show(inv: Inventory):
+    """The one-line error for a run directory with no part the report can show: what it
+    holds (files the report does not read named with what they are) and what it reads.
+
+    Returns:
+        DataFileError
+    """
+    from feeler.errors import DataFileError
+    from feeler.reports.parts import READS, walk
+
+    what = dict(inv.unread)
+    found = [f"{rel}/{p.name}" if rel else p.name for d, rel in walk(inv.run_dir) for p in sorted(d.iterdir())
+             if p.is_file() and p.name not in OWN_FILES]
+    found.sort(key=lambda f: f not in what)                   # the ones we can say something about first
+    named = [f"{f} ({what[f]})" if f in what else f for f in found[:_LISTED]]
+    more = f" and {len(found) - _LISTED} more" if len(found) > _LISTED else ""
+    holds = f"it holds {', '.join(named)}{more}" if found else "it holds no files"
+    return DataFileError(inv.run_dir, f"nothing the report can show: {holds}; `feeler report` reads "
+                                      f"{', '.join(READS)} (here or two directory levels down)")
+
+
 def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf: bool = True,
                  progress: Callable[[str], None] = lambda stage: None) -> Report:
     """Write the report of ``run_dir`` into ``out_dir`` (default ``run_dir``).
@@ -100,8 +126,8 @@ def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf:
     "html", and the PDF's own steps ("pdf: laying out page p", ... :mod:`~feeler.reports.pdf_steps`).
 
     Raises:
-        DataFileError: ``run_dir`` is not a directory, or a file of the run is corrupt
-            (one line naming it).
+        DataFileError: ``run_dir`` is not a directory, holds nothing the report can show
+            (:func:`nothing_to_show`), or a file of the run is corrupt (one line naming it).
     """
     from feeler.reports.model import on_figure, report_style
     from feeler.reports.sec_appendix import appendix_section
@@ -109,6 +135,8 @@ def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf:
 
     progress("reading the run")
     inv = discover(run_dir)
+    if not inv.parts:
+        raise nothing_to_show(inv)
     sections, drawn, where = [], [0], [""]
 
     def figure(title: str) -> None:

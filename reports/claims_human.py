@@ -18,11 +18,9 @@ __all__ = ["claim_faster_felt_higher", "claim_tau", "claim_threshold", "claim_we
 
 def _verdict_ok(inv, part) -> bool | None:
     """The verdict of the fit in ``part``'s directory (None when there is none)."""
-    from feeler.reports.readers import read_json
+    from feeler.reports.readers import verdict_ok
 
-    if part is None or not inv.has(part.path("verdict.json")):
-        return None
-    return bool(read_json(inv.run_dir / part.path("verdict.json"), ("ok",))["ok"])
+    return verdict_ok(inv, part)
 
 
 def _synthetic(human) -> str:
@@ -133,7 +131,12 @@ def claim_weber(inv) -> Claim:
         word = "the robot is coarser"
     else:
         word = "no difference resolved"
+    fits = (("the robot's M2 fit", inv.first("fit", "m2", prefer="m2")), ("the human's M4 fit", human.m4))
+    failed = [who for who, part in fits if _verdict_ok(inv, part) is False]
+    if failed:
+        word = f"not compared: {' and '.join(failed)} FAILED its verdict"
     run = (f"robot {rw.text(3)} at {fmt(disc.reference_um, 3)} µm; human {interval(*hw)} "
            f"(DT {interval(*dt)} µm at {fmt(std)} µm, {float(r['standard_speed_mm_s']):g} mm/s)"
            f"{_synthetic(human)}: {word}")
-    return Claim(key, claim, paper, run, crit, "finding", (disc.part.path("discrimination.json"), human.thresholds_rel))
+    return Claim(key, claim, paper, run, crit, "inconclusive" if failed else "finding",
+                 (disc.part.path("discrimination.json"), human.thresholds_rel))

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from feeler.reports.parts import FIT_FILES, Part, find_parts
+from feeler.reports.parts import FIT_FILES, Part, find_parts, unread_files
 
 __all__ = ["SectionSpec", "Missing", "Inventory", "discover", "FIT_FILES", "FIT_TITLES", "EXPECTED"]
 
@@ -71,12 +71,15 @@ class Inventory:
         parts (tuple[Part, ...]): every recognised part, in directory order.
         present (tuple[SectionSpec, ...]): the sections to draw, in report order.
         missing (tuple[Missing, ...]): expected sections the run cannot fill.
+        unread (tuple[tuple[str, str], ...]): (run-relative path, what it is) of files
+            other commands wrote that the report does not read (named, not shown).
         cache (dict): what sections computed from the run's files, shared between them.
     """
     run_dir: Path
     parts: tuple[Part, ...]
     present: tuple[SectionSpec, ...]
     missing: tuple[Missing, ...]
+    unread: tuple[tuple[str, str], ...] = ()
     cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def cached(self, key, compute: Callable):
@@ -178,4 +181,4 @@ def discover(run_dir: str | Path) -> Inventory:
     missing = tuple(Missing(title, needs.replace("{run}", str(run_dir))) for title, any_of, needs in EXPECTED
                     if not kinds & set(any_of))
     return Inventory(run_dir=run_dir, parts=tuple(parts), present=tuple(_sections(run_dir, parts)),
-                     missing=missing)
+                     missing=missing, unread=tuple(unread_files(run_dir)))

@@ -20,11 +20,32 @@ import numpy as np
 
 from feeler.reports.model import Figure, Note, log_axis, make_figure, subplots
 
-__all__ = ["labels_of", "plots_of", "finger_route_fig6", "conditions_of"]
+__all__ = ["labels_of", "plots_of", "finger_route_fig6", "conditions_of", "split_finite", "NO_FINITE"]
 
 _UNITS = {"a": "a (mm per unit strain)", "tau_s": "τ (s)", "h": "h (mm)", "sigma_mm": "σ (mm)",
           "sigma_d_um": "σ_d (µm)", "lapse": "lapse", "cond_C": "cond(C)", "lapse_all": "lapse (pooled)"}
 _PER_FIG = 6
+#: what stands in for the figure of an entry whose draws are all NaN or infinite
+NO_FINITE = "no finite draws: the fit failed, see its verdict"
+
+
+def split_finite(draws: dict) -> tuple[dict, list[str]]:
+    """(the entries of ``draws`` with at least one finite draw, the names of those with
+    none): a failed fit may leave some parameters undefined, and their histograms cannot
+    be drawn."""
+    kept, empty = {}, []
+    for name, x in draws.items():
+        if np.isfinite(np.asarray(x, float)).any():
+            kept[name] = x
+        else:
+            empty.append(name)
+    return kept, empty
+
+
+def _finite(x) -> np.ndarray:
+    """The finite values of ``x``, flattened."""
+    x = np.ravel(np.asarray(x, float))
+    return x[np.isfinite(x)]
 
 
 def _json(value, default):
@@ -89,8 +110,10 @@ def _marginals(draws, names, labels, *, per_chain: bool, title: str, src) -> Fig
     for ax, name in zip(axes.ravel(), names):
         x = np.asarray(draws[name], float).reshape(-1, np.shape(draws[name])[-1])
         for chain in (x if per_chain else x.reshape(1, -1)):
-            ax.hist(chain, bins=30, histtype="step", density=True, lw=0.9)
-        lo, hi = np.quantile(x, [0.025, 0.975])
+            chain = _finite(chain)                           # a chain of a failed fit may hold NaN
+            if chain.size:
+                ax.hist(chain, bins=30, histtype="step", density=True, lw=0.9)
+        lo, hi = np.quantile(_finite(x), [0.025, 0.975])
         ax.axvspan(lo, hi, color="0.85", zorder=0)
         ax.set_title(labels.get(name, name), fontsize=7)
         ax.xaxis.set_major_locator(MaxNLocator(3))
@@ -172,11 +195,11 @@ def _m4(result, draws, attrs, labels, src) -> list:
         for c, cond in enumerate(conds):
             name = f"{var}[{c}]"
             if name in draws:
-                ax.hist(np.ravel(draws[name]), bins=40, histtype="step", density=True, label=cond, color=f"C{c}")
+                ax.hist(_finite(draws[name]), bins=40, histtype="step", density=True, label=cond, color=f"C{c}")
         ax.set(xlabel=xl, yticks=[])
         ax.legend(fontsize=5)
     if "lapse_all" in draws:
-        axes[2].hist(np.ravel(draws["lapse_all"]), bins=40, histtype="step", density=True, color="C2")
+        axes[2].hist(_finite(draws["lapse_all"]), bins=40, histtype="step", density=True, color="C2")
     axes[2].set(xlabel="lapse rate (pooled)", yticks=[])
     for ax in axes:
         ax.tick_params(labelsize=6)
@@ -216,15 +239,15 @@ def _finger_route(draws, attrs, src) -> list:
     if grid and len(grid) == len(dens):
         g, d = np.asarray(grid, float) * 1e3, np.asarray(dens, float)
         axes[0].plot(g, d / d.max(), color="C0", label="grid marginal")
-    else:
-        axes[0].hist(np.ravel(draws["tau_s"]) * 1e3, bins=40, histtype="step", color="C0", label="draws")
+    elif "tau_s" in draws:
+        axes[0].hist(_finite(draws["tau_s"]) * 1e3, bins=40, histtype="step", color="C0", label="draws")
     axes[0].axvline(300.0, color="C3", ls="--", lw=0.8, label="300 ms (paper)")
     axes[0].set(xlabel="τ (ms)", yticks=[])
     log_axis(axes[0], "x")
     axes[0].legend(fontsize=5)
     for ax, name in zip(axes[1:], ("sigma_d_um", "lapse")):
         if name in draws:
-            ax.hist(np.ravel(draws[name]), bins=40, histtype="step", density=True, color="C1")
+            ax.hist(_finite(draws[name]), bins=40, histtype="step", density=True, color="C1")
         ax.set(xlabel=_UNITS[name], yticks=[])
     for ax in axes:
         ax.tick_params(labelsize=6)
@@ -234,11 +257,12 @@ def _finger_route(draws, attrs, src) -> list:
 
 
 def plots_of(inv, part, result, attrs, *, sampler: bool) -> list:
-    """The figures of one fit (see the module docstring)."""
-    draws = result.draws()
+    """The figures of one fit (see the module docstring); entries without a finite draw
+    are named in a note instead of drawn (:data:`NO_FINITE`)."""
+    draws, empty = split_finite(result.draws())
     src = (part.path("posterior.nc"),)
-    labels = labels_of(part.model, attrs, list(draws))
-    if part.model == "m1" and "C[0,0]" in draws:
+    labels = labels_of(part.model, attrs, list(draws) + empty)
+    if part.model == "m1" and all(f"C[{i},{j}]" in draws for i in range(3) for j in range(3)):
         out = _m1(inv, result, draws, sampler, src)
         key = ["C[0,0]", "C[1,1]", "C[2,2]", "sigma_n[0]", "sigma_n[1]", "sigma_n[2]"]
     elif part.model == "m4":
@@ -253,6 +277,9 @@ def plots_of(inv, part, result, attrs, *, sampler: bool) -> list:
                           title="Marginal posteriors" + (f" ({i // _PER_FIG + 1})" if len(names) > _PER_FIG else ""))
                for i in range(0, len(names), _PER_FIG)]
         key = names[:_PER_FIG]
+    if empty:
+        out.insert(0, Note(f"{', '.join(labels.get(n, n) for n in empty)}: {NO_FINITE}.", level="failed",
+                           sources=src))
     if sampler and key:
         out.append(_traces(draws, [k for k in key if k in draws], labels, src))
     elif not sampler:

@@ -23,6 +23,11 @@ ladder             trade.csv                                   feeler skin ladde
 benchmarks         ratios.csv or <module>.csv with "benchmark"  make bench
 speed              speed.json                                  feeler demo (measured while it ran)
 =================  ==========================================  ============================
+
+Files that other commands write and the report does not read — ``decode``'s
+decisions.csv, ``validate sbc``'s ranks.csv and sbc.csv, a posterior.nc without the
+verdict.json of its fit — are listed by :func:`unread_files`, so that the report names
+them instead of passing over them in silence.
 """
 from __future__ import annotations
 
@@ -30,7 +35,7 @@ import csv
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["Part", "find_parts", "SKIP_DIRS", "FIT_FILES", "fit_model"]
+__all__ = ["Part", "find_parts", "walk", "SKIP_DIRS", "FIT_FILES", "fit_model", "unread_files", "UNREAD", "READS"]
 
 FIT_FILES = ("posterior.nc", "summary.csv", "verdict.json")
 SKIP_DIRS = {"logs", "video", "frames", "__pycache__"}
@@ -38,6 +43,12 @@ _SINGLE = (("calibration-data", "calibration.csv"), ("psychophysics", "trials.cs
            ("thresholds", "thresholds.csv"), ("tau-report", "tau_report.json"),
            ("classify", "classification.csv"), ("discriminate", "discrimination.json"),
            ("finger", "strain.csv"), ("ladder", "trade.csv"), ("speed", "speed.json"))
+#: files of other commands' outputs that the report does not read -> what they are
+UNREAD = {"decisions.csv": "decode output", "ranks.csv": "validate sbc output", "sbc.csv": "validate sbc output"}
+#: what the report reads, in words (for the error on a directory holding none of it)
+READS = ("scans.csv", "calibration.csv", "trials.csv", "posterior.nc with summary.csv and verdict.json",
+         "thresholds.csv", "tau_report.json", "classification.csv", "discrimination.json", "strain.csv",
+         "fig5_peaks.csv", "fig6_accepted.csv", "trade.csv", "speed.json", "benchmark tables")
 
 
 @dataclass(frozen=True)
@@ -108,15 +119,34 @@ def _parts_of(directory: Path, rel: str) -> list[Part]:
     return found
 
 
-def find_parts(run_dir: Path, depth: int = 2) -> list[Part]:
-    """Every part of ``run_dir`` and its sub-directories up to ``depth`` levels, in
-    directory order (the run directory first, then sorted names)."""
-    parts, todo = [], [(run_dir, "", 0)]
+def walk(run_dir: Path, depth: int = 2):
+    """(directory, run-relative name) of ``run_dir`` and its sub-directories up to
+    ``depth`` levels, the run directory first, then sorted names (hidden, ``_`` and
+    :data:`SKIP_DIRS` directories left out)."""
+    todo = [(run_dir, "", 0)]
     while todo:
         directory, rel, level = todo.pop(0)
-        parts += _parts_of(directory, rel)
+        yield directory, rel
         if level < depth:
             subs = sorted(p for p in directory.iterdir() if p.is_dir() and not p.name.startswith((".", "_"))
                           and p.name not in SKIP_DIRS)
             todo += [(p, f"{rel}/{p.name}" if rel else p.name, level + 1) for p in subs]
-    return parts
+
+
+def find_parts(run_dir: Path, depth: int = 2) -> list[Part]:
+    """Every part of ``run_dir`` and its sub-directories up to ``depth`` levels, in
+    directory order (the run directory first, then sorted names)."""
+    return [part for directory, rel in walk(run_dir, depth) for part in _parts_of(directory, rel)]
+
+
+def unread_files(run_dir: Path, depth: int = 2) -> list[tuple[str, str]]:
+    """(run-relative path, what it is) of every file the report does not read that a
+    command wrote (:data:`UNREAD`), and of fit files without their verdict.json."""
+    out = []
+    for directory, rel in walk(run_dir, depth):
+        names = {p.name for p in directory.iterdir() if p.is_file()}
+        where = (lambda name: f"{rel}/{name}" if rel else name)
+        out += [(where(n), UNREAD[n]) for n in sorted(names & set(UNREAD))]
+        if "verdict.json" not in names:
+            out += [(where(n), "a fit's file without its verdict.json") for n in FIT_FILES if n in names]
+    return out

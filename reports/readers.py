@@ -12,7 +12,7 @@ from pathlib import Path
 
 from feeler.errors import DataFileError
 
-__all__ = ["read_json", "read_table", "load_fit", "scene_text"]
+__all__ = ["read_json", "read_table", "load_fit", "scene_text", "verdict_ok"]
 
 
 def read_json(path: str | Path, keys: tuple[str, ...] = ()) -> dict:
@@ -59,6 +59,13 @@ def load_fit(directory: str | Path, inv=None):
     if inv is None:
         return load(directory)
     return inv.cached(("fit", str(directory)), lambda: load(directory))
+
+
+def verdict_ok(inv, part) -> bool | None:
+    """The verdict of the fit in ``part``'s directory (None when there is none)."""
+    if part is None or not inv.has(part.path("verdict.json")):
+        return None
+    return bool(read_json(inv.run_dir / part.path("verdict.json"), ("ok",))["ok"])
 
 
 def scene_text(path: str | Path) -> str:

@@ -11,8 +11,14 @@ Weber fraction), with their difference thresholds (75 % correct) marked:
   exact), and for same-speed conditions the pooled data folded about the standard
   (P(correct) of comparisons |Δ| above or below it). Cross-speed conditions are drawn
   against the difference from their PSE.
+
+Numbers from a fit that failed its verdict (the human's M4 fit, or the M2 fit behind the
+robot's discrimination) are not results: their curves are not drawn, their table rows
+are marked ``failed`` and say so (:data:`FAILED_FIT`), and a note names the fit.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -20,9 +26,37 @@ from feeler.reports.discdata import pairs_frame, robot_disc
 from feeler.reports.humandata import condition_words, human_data
 from feeler.reports.model import Note, Section, Table, fmt, interval, make_figure, subplots
 
-__all__ = ["compare_section", "Z75", "human_curve", "folded_points"]
+__all__ = ["compare_section", "Z75", "human_curve", "folded_points", "FAILED_FIT", "Shown"]
 
 Z75 = 0.6744897501960817            # Φ⁻¹(0.75): DT = σ·z₇₅ for a cumulative normal
+FAILED_FIT = "from a failed fit: see its verdict"
+
+
+@dataclass(frozen=True)
+class Shown:
+    """Which fits' numbers are results: ``robot``/``human`` False when the fit they come
+    from (M2 for the robot, M4 for the human) failed its verdict; ``notes`` say which."""
+    robot: bool = True
+    human: bool = True
+    notes: tuple = ()
+
+
+def _shown(inv, disc, human) -> Shown:
+    from feeler.reports.readers import verdict_ok
+
+    notes, robot, people = [], True, True
+    m2 = inv.first("fit", "m2", prefer="m2")
+    if disc is not None and verdict_ok(inv, m2) is False:
+        robot = False
+        notes.append(Note(f"The robot's threshold comes from the M2 fit in {m2.label}, which FAILED its "
+                          f"verdict (see its section): its numbers below are marked '{FAILED_FIT}' and its curve "
+                          "is not drawn.", level="failed", sources=(m2.path("verdict.json"),)))
+    if human.pooled is not None and verdict_ok(inv, human.m4) is False:
+        people = False
+        notes.append(Note(f"The human thresholds come from the M4 fit in {human.m4.label}, which FAILED its "
+                          f"verdict (see its section): their numbers below are marked '{FAILED_FIT}' and its curves "
+                          "are not drawn.", level="failed", sources=(human.m4.path("verdict.json"),)))
+    return Shown(robot, people, tuple(notes))
 
 
 def human_curve(delta_um, dt_um):
@@ -53,13 +87,13 @@ def _wilson(k, n, z=1.96):
     return c - h, c + h
 
 
-def _thresholds(disc, human) -> tuple[float, float]:
+def _thresholds(disc, human, shown: Shown) -> tuple[float, float]:
     """The largest threshold shown, in µm and as a Weber fraction (to scale the axes)."""
     um, weber = [1.0], [0.05]
-    if disc is not None and np.isfinite(disc.threshold_um.value):
+    if disc is not None and shown.robot and np.isfinite(disc.threshold_um.value):
         um.append(disc.threshold_um.value)
         weber.append(disc.threshold_um.value / disc.reference_um)
-    if human.pooled is not None:
+    if human.pooled is not None and shown.human:
         for _, r in human.pooled.iterrows():
             dt = human.value(r, "dt_um").value
             if np.isfinite(dt):
@@ -103,14 +137,15 @@ def _human(ax, human, k, r, weber: bool, top_um: float) -> None:
                         lw=0.8)
 
 
-def _draw(axes, disc, human) -> None:
-    """P(correct) against Δ in µm (left) and as a fraction of the reference (right)."""
-    top_um, top_w = _thresholds(disc, human)
+def _draw(axes, disc, human, shown: Shown) -> None:
+    """P(correct) against Δ in µm (left) and as a fraction of the reference (right), the
+    curves of fits that passed their verdict only."""
+    top_um, top_w = _thresholds(disc, human, shown)
     for ax, weber in zip(axes, (False, True)):
         top = 2.5 * (top_w if weber else top_um)
-        if disc is not None:
+        if disc is not None and shown.robot:
             _robot(ax, disc, 1.0 / disc.reference_um if weber else 1.0)
-        if human.pooled is not None:
+        if human.pooled is not None and shown.human:
             for k, (_, r) in enumerate(human.pooled.iterrows()):
                 std = human.standard_um(r)
                 _human(ax, human, k, r, weber, top * (std if weber and np.isfinite(std) else 1.0))
@@ -120,9 +155,10 @@ def _draw(axes, disc, human) -> None:
                title="As Weber fractions" if weber else "In µm")
 
 
-def _human_data_figure(human):
+def _human_data_figure(human, fitted: bool = True):
     """P("comparison higher") against the comparison height per condition, pooled over
-    subjects (Wilson 95 % intervals), with the pooled fit when there is one."""
+    subjects (Wilson 95 % intervals), with the pooled fit when there is one (and
+    ``fitted``: the fit passed its verdict)."""
     from scipy.stats import norm
 
     t = human.trials
@@ -135,7 +171,7 @@ def _human_data_figure(human):
         words = condition_words(vs, vc)
         ax.errorbar(agg.index, k_ / n, yerr=[k_ / n - lo, hi - k_ / n], fmt="o", ms=3, capsize=2, color=f"C{k}",
                     label=f"data, {words}")
-        if human.pooled is not None:
+        if human.pooled is not None and fitted:
             rows = human.pooled[(human.pooled["standard_speed_mm_s"].astype(float) == vs)
                                 & (human.pooled["comparison_speed_mm_s"].astype(float) == vc)]
             for _, r in rows.iterrows():
@@ -148,44 +184,52 @@ def _human_data_figure(human):
     ax.set(xlabel="comparison height (µm)", ylabel="P(comparison judged higher)", ylim=(-0.02, 1.02),
            title="Human 2AFC data, all subjects pooled")
     ax.legend(fontsize=6, loc="upper left")
+    lines = ("lines: the pooled cumulative normal through the PSE and DT (lapse not drawn)." if fitted else
+             "the fit's curves are not drawn: it failed its verdict.")
     return make_figure("Human 2AFC data and the pooled psychometric functions", fig,
                        tuple(p for p in (human.trials_rel, human.thresholds_rel) if p),
-                       "Dots: proportion of trials judging the comparison higher (Wilson 95 % intervals); lines: "
-                       "the pooled cumulative normal through the PSE and DT (lapse not drawn).")
+                       "Dots: proportion of trials judging the comparison higher (Wilson 95 % intervals); " + lines)
 
 
-def _table(disc, human) -> Table:
-    rows, src = [], []
+def _table(disc, human, shown: Shown = Shown()) -> Table:
+    rows, src, marks = [], [], []
     if disc is not None:
         pse = (f"{disc.pse_um.text(3, 'µm')} at {fmt(disc.pse_speeds[1])} mm/s"
                if disc.pse_um is not None else "–")
-        rows.append(("robot", f"reference {fmt(disc.reference_um, 3)} µm", disc.threshold_um.text(3),
+        who = "robot" + ("" if shown.robot else f" — {FAILED_FIT}")
+        rows.append((who, f"reference {fmt(disc.reference_um, 3)} µm", disc.threshold_um.text(3),
                      disc.weber.text(3), pse))
+        marks.append("" if shown.robot else "failed")
         src.append(disc.part.path("discrimination.json"))
     if human.pooled is not None:
         for _, r in human.pooled.iterrows():
             std = human.standard_um(r)
             dt = [human.value(r, c).value for c in ("dt_um", "dt_lb_um", "dt_ub_um")]
             pse = [human.value(r, c).value for c in ("pse_um", "pse_lb_um", "pse_ub_um")]
-            who = "human" + (" (SYNTHETIC)" if human.label else "") + f" {r['subject']}"
+            who = ("human" + (" (SYNTHETIC)" if human.label else "") + f" {r['subject']}"
+                   + ("" if shown.human else f" — {FAILED_FIT}"))
+            marks.append("" if shown.human else "failed")
             rows.append((who, f"{fmt(std)} µm, {condition_words(r['standard_speed_mm_s'], r['comparison_speed_mm_s'])}",
                          interval(*dt), interval(*(np.array(dt) / std)) if np.isfinite(std) else "–",
                          interval(*pse) + " µm"))
         src.append(human.thresholds_rel)
     return Table("Difference thresholds (75 % correct), Weber fractions and PSEs, 95 % intervals",
                  ("who", "reference or standard", "DT (µm)", "Weber DT / reference", "PSE"), tuple(rows), tuple(src),
-                 caption="Robot PSE: the step at the faster scan judged equal to the reference at the slower one.")
+                 caption="Robot PSE: the step at the faster scan judged equal to the reference at the slower one."
+                 + ("" if shown.robot and shown.human else f" Rows marked '{FAILED_FIT}' are not results."),
+                 marks=tuple(marks) if any(marks) else ())
 
 
 def compare_section(inv, spec) -> Section:
     """The two psychometric functions on one axis, in µm and as Weber fractions, and tables."""
     disc, human = robot_disc(inv), human_data(inv)
-    blocks = []
+    shown = _shown(inv, disc, human)
+    blocks = list(shown.notes)
     if human.label:
         blocks.append(Note(human.label, level="synthetic", sources=(human.trials_rel or human.thresholds_rel,)))
-    if disc is not None or human.pooled is not None:
+    if (disc is not None and shown.robot) or (human.pooled is not None and shown.human):
         fig, axes = subplots(2, width_in=3.5, height_in=3.1)
-        _draw(axes, disc, human)
+        _draw(axes, disc, human, shown)
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=6, frameon=False)
         src = [p for p in ((disc.part.path("discrimination.json") if disc else ""),
@@ -200,10 +244,11 @@ def compare_section(inv, spec) -> Section:
         blocks.append(make_figure("Robot and human psychometric functions on one axis", fig, tuple(dict.fromkeys(src)),
                                   caption))
     if human.trials is not None:
-        blocks.append(_human_data_figure(human))
-    blocks.append(_table(disc, human))
+        blocks.append(_human_data_figure(human, fitted=shown.human))
+    blocks.append(_table(disc, human, shown))
     if disc is not None and len(disc.pairs):
         pairs = "; ".join(f"{fmt(r[0])} vs {fmt(r[1])} mm: {interval(r[2], r[3], r[4], 4)}" for r in pairs_frame(disc))
-        blocks.append(Note(f"Robot, 2AFC P(correct) [95 %] of pairs of plates: {pairs}.",
+        blocks.append(Note(f"Robot, 2AFC P(correct) [95 %] of pairs of plates"
+                           + ("" if shown.robot else f" ({FAILED_FIT})") + f": {pairs}.",
                            sources=(disc.part.path("discrimination.json"),)))
     return Section(spec.key, spec.title, tuple(blocks))

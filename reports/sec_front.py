@@ -73,6 +73,10 @@ def front_section(inv) -> Section:
     else:
         blocks.append(Note("No fits in this run."))
     blocks.append(Note("This run holds: " + _holds(inv)))
+    if inv.unread:
+        blocks.append(Note("Not reported (the report does not read them): "
+                           + ", ".join(f"{rel} ({what})" for rel, what in inv.unread) + ".",
+                           sources=tuple(rel for rel, _ in inv.unread)))
     if inv.missing:
         rows = tuple((m.title, m.needs) for m in inv.missing)
         blocks.append(Table("Not in this run, and what each would need", ("section", "would need"), rows, ()))

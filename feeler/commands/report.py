@@ -11,7 +11,9 @@ Writes report.html (self-contained: figures inlined, opens offline), report.pdf 
 HTML laid out by WeasyPrint) and report-manifest.json (every figure with the files it
 came from). Progress: a live line on a terminal, otherwise a line per stage: each
 section, each figure drawn, each PDF step and page (--no-progress: none). A corrupt file
-of the run stops with a one-line error naming it (exit 2).
+of the run stops with a one-line error naming it (exit 2), and so does a directory holding
+nothing the report can show. Files of other commands the report does not read (decode's
+decisions.csv, validate sbc's ranks.csv and sbc.csv) are named on stderr: "not reported: ...".
 
 Examples:
     feeler report runs/demo
@@ -80,6 +82,8 @@ def run(args) -> int:
     finally:
         close()
     inv = report.inventory
+    if inv.unread:                                   # named, never passed over in silence
+        print("not reported: " + ", ".join(f"{rel} ({what})" for rel, what in inv.unread), file=sys.stderr)
     for title in report.failed:
         print(f"FAILED calibration shown first: {title}")
     print(f"holds: {len(inv.parts)} part(s) in {len(inv.present)} section(s)"

@@ -134,15 +134,15 @@ def test_a_listed_curve_that_is_not_a_png_is_named(run_dir, tmp_path):
         build_report(tmp_path / "run", tmp_path / "out", pdf=False)
 
 
-def test_an_empty_directory_lists_what_each_section_needs(tmp_path, capsys):
-    (tmp_path / "run").mkdir()
-    assert main(["report", str(tmp_path / "run"), "--no-progress"]) == 0
+def test_a_run_lists_what_each_missing_section_needs(run_dir, tmp_path, capsys):
+    """An empty directory is an error now (tests/reports/test_report_audit_cases.py); one
+    part lists the other 11 expected sections with what each would need."""
+    run = shutil.copytree(run_dir / "psychophysics", tmp_path / "run" / "psychophysics")
+    assert main(["report", str(run.parent), "--no-progress", "--no-pdf"]) == 0
     out = capsys.readouterr().out
-    assert "holds: 0 part(s) in 0 section(s)" in out and out.count("not in this run: ") == 12
+    assert "holds: 1 part(s) in 1 section(s)" in out and out.count("not in this run: ") == 11
     html = (tmp_path / "run" / "report.html").read_text(encoding="utf-8")
-    assert "Nothing this report recognises" in html and html.count("NOT IN THIS RUN") == 8
-    import pypdfium2 as pdfium
-    assert len(pdfium.PdfDocument(tmp_path / "run" / "report.pdf")) == 2          # first page + appendix
+    assert "Not in this run, and what each would need" in html
 
 
 def test_progress_is_a_line_per_stage_and_figure_off_a_terminal(run_dir, tmp_path, capsys):
@@ -172,15 +172,16 @@ def test_figures_are_counted_over_the_report(run_dir, tmp_path, capsys):
     assert {ln.split(",")[0] for ln in drawn} == {"report: section 1/2", "report: section 2/2"}
 
 
-def test_the_pdf_stage_says_each_step_and_page(tmp_path, capsys):
-    (tmp_path / "run").mkdir()
-    assert main(["report", str(tmp_path / "run")]) == 0
+def test_the_pdf_stage_says_each_step_and_page(run_dir, tmp_path, capsys):
+    run = shutil.copytree(run_dir / "psychophysics", tmp_path / "run" / "psychophysics").parent
+    assert main(["report", str(run)]) == 0
     err = capsys.readouterr().err.splitlines()
     pdf = err[err.index("report: html ...") + 1:]
-    assert pdf == ["report: pdf: loading WeasyPrint ...", "report: pdf: parsing the html ...",
-                   "report: pdf: applying the styles ...", "report: pdf: building the boxes ...",
-                   "report: pdf: laying out page 1 ...", "report: pdf: laying out page 2 ...",
-                   "report: pdf: writing the file ..."]                  # the empty report has 2 pages
+    pages = json.loads((run / "report-manifest.json").read_text(encoding="utf-8"))["pages"]
+    assert pages >= 2 and pdf == ["report: pdf: loading WeasyPrint ...", "report: pdf: parsing the html ...",
+                                  "report: pdf: applying the styles ...", "report: pdf: building the boxes ...",
+                                  *[f"report: pdf: laying out page {p} ..." for p in range(1, pages + 1)],
+                                  "report: pdf: writing the file ..."]
     import logging
     steps = logging.getLogger("weasyprint.progress")
     assert steps.handlers == [] and steps.propagate and steps.level == logging.NOTSET     # left as found
