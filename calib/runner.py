@@ -27,8 +27,13 @@ SHUTDOWN_TIMEOUT_S = 30.0    # s a worker (or the client, the scheduler) gets to
 
 
 def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str | None = None,
-              n_workers: int = 2, desc: str = "jobs", progress_bar: bool | None = None) -> list[R]:
+              n_workers: int = 2, desc: str = "jobs", progress_bar: bool | None = None,
+              on_result: Callable[[int, R], None] | None = None) -> list[R]:
     """``[func(s) for s in seeds]``, computed serially or on a dask cluster.
+
+    ``on_result(i, result)`` is called in this process as each job finishes (the i-th seed;
+    on a cluster in the order they finish), so that a caller can keep each result at once:
+    a worker that dies, or a Ctrl-C, then loses only the jobs not yet done.
 
     Progress (:func:`feeler.calib.progress.progress`): a bar on a terminal, else a line
     per finished job with an estimate of the time left; none when ``progress_bar`` is False.
@@ -45,7 +50,12 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
     if n_workers < 1:
         raise ArgumentError("n_workers", n_workers, "must be >= 1")
     if scheduler == "serial":
-        return [func(s) for s in progress(seeds, desc=desc, enabled=progress_bar, lines=True)]
+        out = []
+        for i, s in enumerate(progress(seeds, desc=desc, enabled=progress_bar, lines=True)):
+            out.append(func(s))
+            if on_result is not None:
+                on_result(i, out[-1])
+        return out
     if scheduler is not None and not _is_tcp_address(scheduler):
         raise ArgumentError("--scheduler", scheduler, "tcp://HOST:PORT of a running dask scheduler, 'serial' "
                                                       "(in this process), or omitted for a LocalCluster here")
@@ -70,9 +80,11 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
                                 f"--scheduler out for workers on this machine") from None
     try:
         futures = client.map(func, seeds, pure=False)
-        for _ in progress(as_completed(futures), desc=desc, total=len(futures), enabled=progress_bar,
-                          lines=True):
-            pass
+        place = {f.key: i for i, f in enumerate(futures)}
+        for done in progress(as_completed(futures), desc=desc, total=len(futures), enabled=progress_bar,
+                             lines=True):
+            if on_result is not None:
+                on_result(place[done.key], done.result())
         return client.gather(futures)
     except KilledWorker as exc:                # the process died (memory, a signal): no traceback for that
         raise FeelerError(f"a dask worker died while computing {desc} ({exc}); run with -v to see the "

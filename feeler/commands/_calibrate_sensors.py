@@ -13,7 +13,8 @@ Every DATASET is read and its prior built before the first fit starts: a missing
 bad calibration.csv or a dataset without its nominal C0 (scene.toml) stops the command
 with one line naming it (exit 2) before any work. An element that still raises during its
 fit (a file changed meanwhile, a bug) is named in one line below the table; the elements
-that finished are written all the same (exit 2 for bad input, else 1).
+that finished are written all the same (exit 2 for bad input, else 1). Each element is
+written as it finishes, so a worker that dies or a Ctrl-C keeps the finished ones.
 """
 from __future__ import annotations
 
@@ -142,8 +143,20 @@ def run(args) -> int:
     _check_datasets(args.datasets)
     out = prepare_out_dir(args.out, [f"{n}/verdict.json" for n in names], force=args.force)
     job = partial(_fit_or_error, datasets=tuple(str(d) for d in args.datasets), seed=args.seed)
-    results = map_seeds(job, range(len(names)), scheduler=args.scheduler, n_workers=args.workers,
-                        desc="elements", progress_bar=args.progress)
+    saved = []
+
+    def keep(i: int, res) -> None:             # each element written as it finishes, not after the last
+        if not isinstance(res, ElementError):
+            res.save(out / names[i], force=args.force)
+            saved.append(names[i])
+
+    try:
+        results = map_seeds(job, range(len(names)), scheduler=args.scheduler, n_workers=args.workers,
+                            desc="elements", progress_bar=args.progress, on_result=keep)
+    except BaseException:                      # a worker died, or Ctrl-C: say what is kept, then stop as before
+        if saved:
+            print(f"kept {len(saved)} finished posterior(s) under {out}: {', '.join(saved)}", file=sys.stderr)
+        raise
     done = [(name, res) for name, res in zip(names, results) if not isinstance(res, ElementError)]
     errors = [(name, res) for name, res in zip(names, results) if isinstance(res, ElementError)]
     print(f"{'element':24s} {'verdict':8s} {'cond(C)':>8s}   C diagonal (mm/N)")
@@ -151,7 +164,6 @@ def run(args) -> int:
         if isinstance(res, ElementError):
             print(f"{name:24s} {'ERROR':8s} {'-':>8s}   -")
             continue
-        res.save(out / name, force=args.force)
         s = res.summary.set_index("name")["mean"]
         diag = ", ".join(f"{s[f'C[{i},{i}]']:.4f}" for i in range(3))
         print(f"{name:24s} {'ok' if res.verdict.ok else 'FAILED':8s} {s['cond_C']:8.3f}   {diag}")

@@ -198,3 +198,25 @@ def test_an_element_that_raises_keeps_the_finished_ones(elements, tmp_path, caps
     for name in ("elem1", "elem3"):
         pd.testing.assert_frame_equal(pd.read_csv(out / name / "summary.csv"),
                                       pd.read_csv(tmp_path / "ref" / name / "summary.csv"))
+
+
+def test_a_ctrl_c_mid_run_keeps_the_elements_already_finished(elements, tmp_path, capsys, monkeypatch):
+    """Results were written only after the last element: a Ctrl-C (or a dask worker that
+    died, which map_seeds raises the same way) lost every finished posterior. Each is now
+    written as it finishes; the interrupted run says which it kept."""
+    calls, real = [], matrix.fit_matrix
+
+    def second_interrupted(*a, **kw):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*a, **kw)
+
+    monkeypatch.setattr(matrix, "fit_matrix", second_interrupted)
+    out = tmp_path / "out"
+    assert main(["calibrate", "sensors", elements[0], elements[1], "--out", str(out), "--scheduler", "serial",
+                 "--no-progress"]) == 130
+    err = capsys.readouterr().err
+    assert f"kept 1 finished posterior(s) under {out}: elem1" in err and "feeler: interrupted" in err
+    assert {p.name for p in (out / "elem1").iterdir()} >= {"posterior.nc", "summary.csv", "verdict.json"}
+    assert not (out / "elem2").exists()

@@ -79,3 +79,11 @@ def test_an_address_without_a_scheduler_is_one_line(monkeypatch):
     with pytest.raises(ArgumentError, match=rf"--scheduler='tcp://127.0.0.1:{port}': the address of a running dask "
                                             r"scheduler \(none answered within 1 s"):
         map_seeds(partial(_seeded_job, n=10), [1], scheduler=f"tcp://127.0.0.1:{port}")
+
+
+def test_each_result_is_handed_over_as_it_finishes():
+    """on_result(i, result) per job in this process, serially and on a cluster; the list
+    returned is the same either way."""
+    got = []
+    assert map_seeds(abs, [-3, 4, -5], scheduler="serial", on_result=lambda i, r: got.append((i, r))) == [3, 4, 5]
+    assert got == [(0, 3), (1, 4), (2, 5)]
