@@ -164,14 +164,8 @@ def test_every_bad_dataset_is_found_before_any_fit(elements, tmp_path, capsys, f
     assert fits == []
 
 
-@pytest.mark.parametrize("exc, status, kind", [(RuntimeError("a bug"), 1, "failed: element elem2: RuntimeError: a bug"),
-                                               (DataFileError("x.csv", "changed"), 2, "error: element elem2: x.csv: "
-                                                                                      "changed")],
-                         ids=["bug", "bad-input"])
-def test_an_element_that_raises_keeps_the_finished_ones(elements, tmp_path, capsys, monkeypatch, exc, status, kind):
-    """Defence in depth: an element whose fit raises (not a failed verdict) after the checks
-    passed. Before, the exception left OUT empty (or a traceback); now the other elements are
-    written, the failing one is named in one line and the exit status is not 0."""
+def _second_fit_raises(monkeypatch, exc):
+    """Make the second element's fit raise ``exc``; returns the real fit_matrix."""
     calls, real = [], matrix.fit_matrix
 
     def second_raises(*a, **kw):
@@ -181,6 +175,18 @@ def test_an_element_that_raises_keeps_the_finished_ones(elements, tmp_path, caps
         return real(*a, **kw)
 
     monkeypatch.setattr(matrix, "fit_matrix", second_raises)
+    return real
+
+
+@pytest.mark.parametrize("exc, status, kind", [(RuntimeError("a bug"), 1, "failed: element elem2: RuntimeError: a bug"),
+                                               (DataFileError("x.csv", "changed"), 2, "error: element elem2: x.csv: "
+                                                                                      "changed")],
+                         ids=["bug", "bad-input"])
+def test_an_element_that_raises_keeps_the_finished_ones(elements, tmp_path, capsys, monkeypatch, exc, status, kind):
+    """Defence in depth: an element whose fit raises (not a failed verdict) after the checks
+    passed. Before, the exception left OUT empty (or a traceback); now the other elements are
+    written, the failing one is named in one line and the exit status is not 0."""
+    real = _second_fit_raises(monkeypatch, exc)
     third = _copy(elements[0], tmp_path / "elem3")
     out = tmp_path / "out"
     assert main(["calibrate", "sensors", elements[0], elements[1], str(third), "--out", str(out),
@@ -204,15 +210,7 @@ def test_a_ctrl_c_mid_run_keeps_the_elements_already_finished(elements, tmp_path
     """Results were written only after the last element: a Ctrl-C (or a dask worker that
     died, which map_seeds raises the same way) lost every finished posterior. Each is now
     written as it finishes; the interrupted run says which it kept."""
-    calls, real = [], matrix.fit_matrix
-
-    def second_interrupted(*a, **kw):
-        calls.append(1)
-        if len(calls) == 2:
-            raise KeyboardInterrupt
-        return real(*a, **kw)
-
-    monkeypatch.setattr(matrix, "fit_matrix", second_interrupted)
+    _second_fit_raises(monkeypatch, KeyboardInterrupt)
     out = tmp_path / "out"
     assert main(["calibrate", "sensors", elements[0], elements[1], "--out", str(out), "--scheduler", "serial",
                  "--no-progress"]) == 130
