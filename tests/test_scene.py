@@ -65,6 +65,9 @@ def test_shipped_four_plates_matches_the_paper():
     # a pad wider than the traverse: said as such (it gave an inverted range, "[25.6, -15.6] mm")
     ("pad_width_mm = 1.5", "pad_width_mm = 50", "probe.pad_width_mm", "(51.2 mm) must be shorter than motion.traverse_mm"),
     ("tau_s = 3.0", "tau_s = 25.0", "neuron.tau_s", "shorter than one scan"),
+    # a window shorter than one frame (an outside audit: 1e-9 s against 0.5 s frames was simulated): the
+    # calibration searches windows from one sample up, so such a truth could never be recovered
+    ("tau_s = 3.0", "tau_s = 1e-9", "neuron.tau_s", "one sample (motion.dt_s = 0.5 s)"),
     # one plate listed twice made two 'plates' of one step (an outside audit: it was simulated as asked)
     ("heights_mm = [0.0, 0.05, 0.1, 0.2]", "heights_mm = [0.0, 0.1, 0.1, 0.2]", "surface.heights_mm",
      "0.1 more than once; one entry per plate"),

@@ -143,3 +143,9 @@ class Scene:
         if self.neuron.tau_s >= duration_s:
             raise SceneError(path, "neuron.tau_s",
                              f"{self.neuron.tau_s}: must be shorter than one scan ({duration_s:g} s)")
+        if self.neuron.tau_s < m.dt_s:
+            # calibrate neuron searches windows from one sample up (calib.neuron.data): a shorter truth
+            # could be simulated but never recovered
+            raise SceneError(path, "neuron.tau_s",
+                             f"{self.neuron.tau_s}: shorter than one sample (motion.dt_s = {m.dt_s:g} s); a window "
+                             "must hold at least one frame for a neuron calibration to find it")
