@@ -33,7 +33,9 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
 
     ``on_result(i, result)`` is called in this process as each job finishes (the i-th seed;
     on a cluster in the order they finish), so that a caller can keep each result at once:
-    a worker that dies, or a Ctrl-C, then loses only the jobs not yet done.
+    a Ctrl-C then loses only the jobs not yet done, and a worker that dies only the job it
+    held (once dask's retries are spent): the others run on and are handed over before the
+    error.
 
     Progress (:func:`feeler.calib.progress.progress`): a bar on a terminal, else a line
     per finished job with an estimate of the time left; none when ``progress_bar`` is False.
@@ -44,7 +46,7 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
     Raises:
         ArgumentError: ``scheduler`` neither None, "serial" nor ``tcp://HOST:PORT``, or no
             scheduler answering there; ``n_workers`` < 1.
-        FeelerError: a worker process died (KilledWorker).
+        FeelerError: a worker process died (KilledWorker), after every other job finished.
     """
     seeds = [int(s) for s in seeds]
     if n_workers < 1:
@@ -81,14 +83,22 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
     try:
         futures = client.map(func, seeds, pure=False)
         place = {f.key: i for i, f in enumerate(futures)}
+        lost = []                              # jobs whose worker died (memory, a signal), past dask's retries
         for done in progress(as_completed(futures), desc=desc, total=len(futures), enabled=progress_bar,
                              lines=True):
+            try:
+                result = done.result()
+            except KilledWorker as exc:        # the others go on: their results are still handed over
+                lost.append((place[done.key], exc))
+                continue
             if on_result is not None:
-                on_result(place[done.key], done.result())
+                on_result(place[done.key], result)
+        if lost:
+            first, exc = min(lost, key=lambda item: item[0])
+            raise FeelerError(f"a dask worker died while computing {desc}: {len(lost)} of {len(futures)} lost "
+                              f"(the first, job {first}: {exc}); the other {len(futures) - len(lost)} finished; "
+                              f"run with -v to see the workers' log, or with --scheduler serial")
         return client.gather(futures)
-    except KilledWorker as exc:                # the process died (memory, a signal): no traceback for that
-        raise FeelerError(f"a dask worker died while computing {desc} ({exc}); run with -v to see the "
-                          f"workers' log, or with --scheduler serial") from None
     finally:
         shut_down(client, cluster)
 

@@ -87,3 +87,27 @@ def test_each_result_is_handed_over_as_it_finishes():
     got = []
     assert map_seeds(abs, [-3, 4, -5], scheduler="serial", on_result=lambda i, r: got.append((i, r))) == [3, 4, 5]
     assert got == [(0, 3), (1, 4), (2, 5)]
+
+
+def _dies_on_two(seed: int) -> int:
+    import os
+    if seed == 2:
+        os._exit(3)                         # the worker process dies, as when the kernel kills it for memory
+    return 10 * seed
+
+
+def test_a_worker_that_dies_loses_only_its_job():
+    """The job whose worker died is the only one lost: the others run on, each is handed
+    over, and the error comes after them, saying how many were lost (it stopped at the
+    first death, and a caller kept only what had finished by then)."""
+    import dask
+
+    from feeler.errors import FeelerError
+
+    got = []
+    # no retries: dask's default reruns the job on a fresh worker three times before giving up
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        with pytest.raises(FeelerError, match=r"a dask worker died while computing jobs: 1 of 5 lost "
+                                              r"\(the first, job 2: .*the other 4 finished"):
+            map_seeds(_dies_on_two, range(5), on_result=lambda i, r: got.append((i, r)))
+    assert sorted(got) == [(0, 0), (1, 10), (3, 30), (4, 40)]
