@@ -36,30 +36,13 @@ from feeler.calib.neuron.conjugate import G_NODES, growth_log_density
 from feeler.calib.neuron.live.envelope import UNIT_FACTOR
 from feeler.calib.neuron.model import PeakTable, PlatePrior, Plates, plate_stats
 from feeler.calib.neuron.modes import Cells, within_noise
+from feeler.calib.neuron.odd_scans import mm_text, odd_scan_problems, scan_name
 from feeler.calib.neuron.units import unit_problems      # re-exported: the verdict gathers it here
 
 __all__ = ["data_problems", "unit_problems", "posterior_problems", "loo_pit", "ALPHA", "UNIT_FACTOR",
            "MIN_SCANS_PER_PLATE"]
 
 ALPHA = 0.01          # family-wise level of each check (Bonferroni over plates)
-# family-wise level of the per-scan check over all scans: clean training sets of the nine hard
-# scenes and four-plates (200 each) are flagged at most 1 % of the time at 0.001 (tilted 2 of 200:
-# a touch on a lifted corner, which real plates make too), up to 4 % at 0.01
-ODD_ALPHA = 0.001
-
-
-def _mm(v) -> str:
-    return f"{v + 0.0:g} mm"                   # + 0.0: a step of -0 reads 0
-
-
-def scan_name(k: int, scan_names=None) -> str:
-    """How a check names scan ``k`` (0-based place in the data): by the data's own name for
-    it (:attr:`~feeler.calib.neuron.data.NeuronData.scan_names`: its scan_id as written,
-    or its file), else by its place in file order."""
-    if scan_names is not None and 0 <= k < len(scan_names):
-        return str(scan_names[k])
-    return f"scan {k + 1} in file order"
-
 
 #: scans a plate needs for an ok verdict (ten training sets of four-plates, 50 fresh scans a
 #: plate: 2 a plate put 0.78 of fresh labels inside their 90 % intervals, 9 of 10 fits ok;
@@ -76,15 +59,15 @@ def data_problems(table: PeakTable, plates: Plates, strain: np.ndarray | None = 
     scans (:func:`scan_name`)."""
     out = []
     if plates.steps_mm.size < 2:
-        out.append(f"a, h, tau_s: one plate ({_mm(plates.steps_mm[0])}) in the data: the decoder's gain, offset "
+        out.append(f"a, h, tau_s: one plate ({mm_text(plates.steps_mm[0])}) in the data: the decoder's gain, offset "
                    f"and window need scans of at least two different steps")
     single = plates.steps_mm[plates.counts < 2]
     if single.size:
-        out.append(f"plate_sd_mm: plate(s) {', '.join(_mm(v) for v in single)} have one scan; a plate's spread "
+        out.append(f"plate_sd_mm: plate(s) {', '.join(mm_text(v) for v in single)} have one scan; a plate's spread "
                    f"needs at least 2")
     few = (plates.counts >= 2) & (plates.counts < MIN_SCANS_PER_PLATE)
     if few.any():
-        named = ", ".join(f"{_mm(v)} ({n} scans)" for v, n in zip(plates.steps_mm[few], plates.counts[few]))
+        named = ", ".join(f"{mm_text(v)} ({n} scans)" for v, n in zip(plates.steps_mm[few], plates.counts[few]))
         out.append(f"plate_sd_mm, tau_s: plate(s) {named} have fewer than {MIN_SCANS_PER_PLATE}: the spreads "
                    f"and the window are then fitted to a few chance-tight scans and checked by predicting each "
                    f"from one or two others (2 a plate of four-plates: 78 % of fresh scans inside their 90 % "
@@ -95,7 +78,7 @@ def data_problems(table: PeakTable, plates: Plates, strain: np.ndarray | None = 
     tiny = (1e-9 * np.max(np.abs(p), axis=1, keepdims=True)) ** 2 * plates.counts
     flat = np.all(ss <= tiny, axis=0) & (plates.counts >= 2)
     if flat.any():
-        out.append(f"plate_sd_mm: the scans of plate(s) {', '.join(_mm(v) for v in plates.steps_mm[flat])} are "
+        out.append(f"plate_sd_mm: the scans of plate(s) {', '.join(mm_text(v) for v in plates.steps_mm[flat])} are "
                    f"identical at every window (zero spread, noise-free data): the decoder noise cannot be estimated")
     if strain is not None:
         from feeler.calib.neuron.live.envelope import spike_problem
@@ -195,24 +178,24 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
             z = (np.mean(u) - 0.5) / np.sqrt(1 / (12 * m))
             pvals += [special.bdtr(k, m, 0.85), special.bdtrc(k - 1, m, 0.95), 2 * special.ndtr(-abs(z))]
             if special.bdtr(k, m, 0.85) < level:
-                out.append(f"plate_sd_mm: plate {_mm(step)}: only {k} of {m} scans inside their 90 % interval "
+                out.append(f"plate_sd_mm: plate {mm_text(step)}: only {k} of {m} scans inside their 90 % interval "
                            f"(leave-one-out); the decoder's {noise} noise is too narrow for this plate")
             elif special.bdtrc(k - 1, m, 0.95) < level:
-                out.append(f"plate_sd_mm: plate {_mm(step)}: all but {m - k} of {m} scans inside their 90 % "
+                out.append(f"plate_sd_mm: plate {mm_text(step)}: all but {m - k} of {m} scans inside their 90 % "
                            f"interval (leave-one-out); the decoder's {noise} noise is too wide for this plate")
             if 2 * special.ndtr(-abs(z)) < level:
                 side = "high" if z > 0 else "low"
-                out.append(f"plate_mean_mm: plate {_mm(step)}: its scans sit {side} in their predictive "
+                out.append(f"plate_mean_mm: plate {mm_text(step)}: its scans sit {side} in their predictive "
                            f"(mean leave-one-out PIT {np.mean(u):.2f}): the decoder is biased for this plate")
         info.update(loo_coverage90=cover, loo_mean_pit=bias, p_min=float(min(pvals)))
-        out += _odd_scans(table, plates, pit, log_w, scan_names,
+        out += odd_scan_problems(table, plates, pit, log_w, scan_names,
                           refit=lambda keep: loo_pit(PeakTable(log_tau=table.log_tau, peak=table.peak[keep]),
                                                      plates.subset(keep), noise, log_w,
                                                      growth_max=growth_max))
     sd = np.median(np.asarray(post["plate_sd_mm"]).reshape(-1, C), axis=0)
     flat = sd < 1e-6 * (plates.steps_mm[-1] - plates.steps_mm[0])
     if flat.any():
-        out.append(f"plate_sd_mm, tau_s: plate(s) {', '.join(_mm(v) for v in plates.steps_mm[flat])} decode with "
+        out.append(f"plate_sd_mm, tau_s: plate(s) {', '.join(mm_text(v) for v in plates.steps_mm[flat])} decode with "
                    f"(numerically) zero spread at the windows the fit uses (noise-free data): neither the decoder "
                    f"noise nor the window can be pinned")
     means = np.asarray(post["plate_mean_mm"]).reshape(-1, C)
@@ -225,7 +208,7 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
                  else np.zeros(C - 1, bool))
     info["p_ordered"] = order.tolist()
     for j in np.flatnonzero(order < 0.9):
-        lo, hi = _mm(plates.steps_mm[j]), _mm(plates.steps_mm[j + 1])
+        lo, hi = mm_text(plates.steps_mm[j]), mm_text(plates.steps_mm[j + 1])
         if reversed_[j]:
             out.append(f"plate_mean_mm: plate {hi}'s scans decode below plate {lo}'s (P = {order[j]:.2f} that they "
                        f"are in order): their labels are probably swapped")
@@ -240,72 +223,6 @@ def posterior_problems(table: PeakTable, plates: Plates, noise: str, log_w: np.n
         out.append(f"tau_s: not pinned by these data: windows from {lo:.3g} to {hi:.3g} s decode them about "
                    f"equally well (posterior spread {100 * np.std(lt) / prior_sd:.0f} % of the prior's)")
     return out, info
-
-
-MAX_ODD = 5           # far-out scans looked for one after another (each hides the next: see _odd_scans)
-
-
-def _odd_scans(table: PeakTable, plates: Plates, pit: np.ndarray, log_w: np.ndarray, scan_names=None, *,
-               refit=None) -> list[str]:
-    """Training scans far outside the other touches of their plate: a two-sided
-    leave-one-out tail 2·min(PIT, 1 − PIT) below ``ODD_ALPHA`` over the scans (Bonferroni).
-    One mislabelled or corrupted scan widens its plate and bends the noise model, but moves
-    no per-plate check (1 scan in 24 outside the band is chance). It also hides the next:
-    three mislabels in one file showed one at a time. So with ``refit(keep) -> PIT of the
-    kept scans``, the worst scan is set aside and the rest tested again, up to
-    :data:`MAX_ODD` times. The line names the worst scan (:func:`scan_name`), the plate its
-    reading matches at the heaviest window if there is one (within 3 of that plate's sds,
-    the set-aside scans left out: a wrong label), then the others."""
-    n = pit.size
-    keep = np.ones(n, bool)
-    found, tails, extra = [], {}, []
-    current = pit
-    for _ in range(MAX_ODD):
-        tail = np.full(n, np.nan)
-        tail[keep] = np.clip(2 * np.minimum(current, 1 - current), 0.0, 1.0)
-        known = np.isfinite(tail)
-        odd = np.flatnonzero(known & (tail < ODD_ALPHA / max(int(known.sum()), 1)))
-        if odd.size == 0:
-            break
-        k = int(odd[np.nanargmin(tail[odd])])
-        found.append(k)
-        tails[k] = float(tail[k])
-        keep[k] = False
-        left = np.bincount(plates.group[keep], minlength=plates.steps_mm.size)
-        if refit is None or left.min() < 3:
-            extra = [int(j) for j in odd[np.argsort(tail[odd])] if j != k]     # not tested again: named as seen
-            break
-        current = refit(keep)
-    if not found:
-        return []
-    k = found[0]
-    own = int(plates.group[k])
-    p = table.peak[:, int(np.argmax(log_w))]
-    clean = np.ones(n, bool)
-    clean[found] = False
-    dist = np.full(plates.steps_mm.size, np.inf)
-    for c in range(dist.size):
-        v = p[clean & (plates.group == c)]
-        if v.size >= 2 and np.std(v, ddof=1) > 0:
-            dist[c] = abs(p[k] - v.mean()) / np.std(v, ddof=1)
-    near = int(np.argmin(dist))
-    if near != own and dist[near] < 3:
-        like = (f"its reading matches plate {_mm(plates.steps_mm[near])} ({dist[near]:.1f} sds from that plate's "
-                f"mean), so it is probably mislabelled: fix its label or remove it")
-    else:
-        like = ("its reading matches no plate: a corrupted scan (its scale or offset) or a touch unlike the rest "
-                "(a tilted or slipping contact), which the decoder's plates do not describe; check it, and remove it "
-                "if it is not a touch of this plate")
-    rest = found[1:] + extra
-    more = ""
-    if rest:
-        names = ", ".join(scan_name(j, scan_names) for j in rest[:3]) + (", ..." if len(rest) > 3 else "")
-        lie = "scan lies outside its plate" if len(rest) == 1 else "scans lie outside their plates"
-        more = f"; {len(rest)} more {lie} too ({names})"
-    shown = f"= {tails[k]:.1g}" if tails[k] >= 1e-15 else "< 1e-15"      # 1 − PIT resolves no finer
-    return [f"step_mm: {scan_name(k, scan_names)} (labelled {_mm(plates.steps_mm[own])}) lies far outside the "
-            f"other touches of its plate (leave-one-out p {shown}, below {ODD_ALPHA:g} over "
-            f"{n} scans); {like}{more}"]
 
 
 def window_edge_notes(tau_s, priors) -> list[str]:

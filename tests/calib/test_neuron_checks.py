@@ -351,7 +351,8 @@ def test_clean_training_sets_are_not_called_mislabelled_beyond_the_level():
     sets of the four-plates scene (10 touches per plate) at most one set may be flagged
     (measured on 200 sets of each of four-plates and the nine hard scenes: none on seven,
     1 on three-exponential, 2 on tilted)."""
-    from feeler.calib.neuron.checks import _odd_scans, loo_pit
+    from feeler.calib.neuron.checks import loo_pit
+    from feeler.calib.neuron.odd_scans import odd_scan_problems
     from feeler.calib.neuron.window import tau_log_weights
 
     flagged = 0
@@ -360,12 +361,13 @@ def test_clean_training_sets_are_not_called_mislabelled_beyond_the_level():
         table, plates = d.table(n_grid=64), Plates.of(d.step_mm)
         noise, _, elpd = choose_noise(table, plates)
         lw = tau_log_weights(elpd, np.random.default_rng(seed))
-        flagged += bool(_odd_scans(table, plates, loo_pit(table, plates, noise, lw), lw))
+        flagged += bool(odd_scan_problems(table, plates, loo_pit(table, plates, noise, lw), lw))
     assert flagged <= 1, flagged
 
 
 def test_odd_scans_beyond_the_worst_are_counted_and_named():
-    from feeler.calib.neuron.checks import _odd_scans, loo_pit
+    from feeler.calib.neuron.checks import loo_pit
+    from feeler.calib.neuron.odd_scans import odd_scan_problems
 
     rng = np.random.default_rng(11)
     plates = Plates.of(np.repeat([0.0, 0.05, 0.1], 30))
@@ -373,7 +375,7 @@ def test_odd_scans_beyond_the_worst_are_counted_and_named():
     p[[3, 40, 70]] += [-0.6, 0.8, 1.0]                      # 6-10 sds outside their plates, the last the furthest
     table, lw = _table(p), np.zeros(2)
     names = tuple(f"scan_id 'T{k}'" for k in range(90))
-    (line,) = _odd_scans(table, plates, loo_pit(table, plates, "per-plate", lw), lw, names)
+    (line,) = odd_scan_problems(table, plates, loo_pit(table, plates, "per-plate", lw), lw, names)
     assert line.startswith("step_mm: scan_id 'T70' (labelled 0.1 mm) lies far outside the other touches")
     assert line.endswith("; 2 more scans lie outside their plates too (scan_id 'T40', scan_id 'T3')"), line
 
@@ -382,7 +384,8 @@ def test_a_far_out_scan_hidden_by_a_further_one_is_found_once_that_one_is_set_as
     """Two odd scans on one plate: the furthest inflates the plate's spread in the other's
     leave-one-out predictive, so one pass names only the furthest (three mislabels in one
     file showed one at a time). Set aside and tested again, the second is named too."""
-    from feeler.calib.neuron.checks import _odd_scans, loo_pit
+    from feeler.calib.neuron.checks import loo_pit
+    from feeler.calib.neuron.odd_scans import odd_scan_problems
 
     rng = np.random.default_rng(11)
     plates = Plates.of(np.repeat([0.0, 0.05, 0.1], 20))
@@ -390,13 +393,13 @@ def test_a_far_out_scan_hidden_by_a_further_one_is_found_once_that_one_is_set_as
     p[[2, 5]] += [3.0, 0.8]                          # 30 and 8 sds out
     lw = np.zeros(2)
     pit = loo_pit(_table(p), plates, "per-plate", lw)
-    (once,) = _odd_scans(_table(p), plates, pit, lw)
+    (once,) = odd_scan_problems(_table(p), plates, pit, lw)
     assert once.startswith("step_mm: scan 3 in file order (labelled 0 mm)") and "more scan" not in once
 
     def refit(keep):
         return loo_pit(_table(p[keep]), Plates.of(plates.steps_mm[plates.group[keep]]), "per-plate", lw)
 
-    (line,) = _odd_scans(_table(p), plates, pit, lw, refit=refit)
+    (line,) = odd_scan_problems(_table(p), plates, pit, lw, refit=refit)
     assert line.startswith("step_mm: scan 3 in file order (labelled 0 mm)")
     assert line.endswith("; 1 more scan lies outside its plate too (scan 6 in file order)"), line
 
