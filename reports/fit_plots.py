@@ -48,6 +48,25 @@ def _finite(x) -> np.ndarray:
     return x[np.isfinite(x)]
 
 
+def _density(ax, x, bins: int, **kw) -> None:
+    """A step histogram of the finite draws ``x``; draws that are one value (to rounding: a
+    parameter the model pins, such as a two-plate decoder's plate means) are a vertical line,
+    where a histogram has no width to divide into bins (numpy raised 'Too many bins'), or
+    whose bins would be rounding error (ticks 1e-17 apart)."""
+    x = _finite(x)
+    if not x.size:
+        return
+    if np.ptp(x) <= max(1e-9 * float(np.max(np.abs(x))), 1e-12):     # 1e-12: a zero that rounding spreads
+        kw = {k: v for k, v in kw.items() if k in ("color", "label", "lw")}
+        v = float(np.median(x))
+        v = v if abs(v) > 1e-12 else 0.0           # a zero that rounding left at 1e-17
+        ax.axvline(v, **kw)
+        half = 0.05 * abs(v) if v else 1.0         # else the axis spans the rounding: ticks 1e-14 apart
+        ax.set_xlim(v - half, v + half)
+        return
+    ax.hist(x, bins=bins, histtype="step", density=True, **kw)
+
+
 def _json(value, default):
     if isinstance(value, str):
         try:
@@ -110,9 +129,7 @@ def _marginals(draws, names, labels, *, per_chain: bool, title: str, src) -> Fig
     for ax, name in zip(axes.ravel(), names):
         x = np.asarray(draws[name], float).reshape(-1, np.shape(draws[name])[-1])
         for chain in (x if per_chain else x.reshape(1, -1)):
-            chain = _finite(chain)                           # a chain of a failed fit may hold NaN
-            if chain.size:
-                ax.hist(chain, bins=30, histtype="step", density=True, lw=0.9)
+            _density(ax, chain, 30, lw=0.9)                 # a chain of a failed fit may hold NaN
         lo, hi = np.quantile(_finite(x), [0.025, 0.975])
         ax.axvspan(lo, hi, color="0.85", zorder=0)
         ax.set_title(labels.get(name, name), fontsize=7)
@@ -195,11 +212,11 @@ def _m4(result, draws, attrs, labels, src) -> list:
         for c, cond in enumerate(conds):
             name = f"{var}[{c}]"
             if name in draws:
-                ax.hist(_finite(draws[name]), bins=40, histtype="step", density=True, label=cond, color=f"C{c}")
+                _density(ax, draws[name], 40, label=cond, color=f"C{c}")
         ax.set(xlabel=xl, yticks=[])
         ax.legend(fontsize=5)
     if "lapse_all" in draws:
-        axes[2].hist(_finite(draws["lapse_all"]), bins=40, histtype="step", density=True, color="C2")
+        _density(axes[2], draws["lapse_all"], 40, color="C2")
     axes[2].set(xlabel="lapse rate (pooled)", yticks=[])
     for ax in axes:
         ax.tick_params(labelsize=6)
@@ -240,14 +257,14 @@ def _finger_route(draws, attrs, src) -> list:
         g, d = np.asarray(grid, float) * 1e3, np.asarray(dens, float)
         axes[0].plot(g, d / d.max(), color="C0", label="grid marginal")
     elif "tau_s" in draws:
-        axes[0].hist(_finite(draws["tau_s"]) * 1e3, bins=40, histtype="step", color="C0", label="draws")
+        _density(axes[0], _finite(draws["tau_s"]) * 1e3, 40, color="C0", label="draws")
     axes[0].axvline(300.0, color="C3", ls="--", lw=0.8, label="300 ms (paper)")
     axes[0].set(xlabel="τ (ms)", yticks=[])
     log_axis(axes[0], "x")
     axes[0].legend(fontsize=5)
     for ax, name in zip(axes[1:], ("sigma_d_um", "lapse")):
         if name in draws:
-            ax.hist(_finite(draws[name]), bins=40, histtype="step", density=True, color="C1")
+            _density(ax, draws[name], 40, color="C1")
         ax.set(xlabel=_UNITS[name], yticks=[])
     for ax in axes:
         ax.tick_params(labelsize=6)

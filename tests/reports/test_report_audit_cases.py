@@ -51,6 +51,21 @@ def _section(html: str, title: str) -> str:
 
 # F1 ---------------------------------------------------------------------------------
 
+@pytest.mark.parametrize("per_chain", [False, True])
+def test_draws_of_one_value_are_a_line_not_a_crash(per_chain):
+    """Audit 3: a neuron fit of two plates pins both plate means (their draws spread by
+    3e-17) and a snap offset of exactly 0. numpy raised 'Too many bins for data range' and
+    `feeler demo`'s report ended in a traceback; a zero spread by rounding drew ticks
+    1e-17 apart ('0.000000000000000000' twice)."""
+    from feeler.reports.fit_plots import _marginals
+
+    rng = np.random.default_rng(3)
+    draws = {"a": rng.normal(3.3, 0.04, (2, 400)), "plate_mean_mm[0]": rng.normal(0.0, 1e-17, (2, 400)),
+             "plate_mean_mm[1]": 0.1 + rng.normal(0.0, 2e-17, (2, 400)), "plate_snap_mm[0]": np.zeros((2, 400))}
+    fig = _marginals(draws, list(draws), {}, per_chain=per_chain, title="Marginal posteriors", src=("posterior.nc",))
+    assert fig.problems == ()
+
+
 def test_split_finite_names_entries_without_a_finite_draw():
     from feeler.reports.fit_plots import split_finite
 
