@@ -57,6 +57,31 @@ def test_a_scene_of_ones_own_is_filed_under_its_own_name(tmp_path, small):
         run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1])
 
 
+@pytest.mark.parametrize("name, edit, key, words", [
+    # an outside audit: a finger-steps or sensor-calibration scene ran its simulation for 12 s, then
+    # failed on '.../scans.csv: no such file'; one plate ran every stage (32 s) to a failed verdict
+    ("finger-steps.toml", None, "scene.kind", "'finger-steps': demo --scene takes a robot-scan scene"),
+    ("sensor-calibration.toml", None, "scene.kind", "'sensor-calibration': demo --scene takes a robot-scan"),
+    ("plans/four-plates-plan.toml", None, "scene.kind", "'scan-plan': demo --scene takes a robot-scan scene"),
+    ("four-plates.toml", ("heights_mm = [0.0, 0.05, 0.1, 0.2]", "heights_mm = [0.1]"), "surface.heights_mm",
+     "[0.1]: one plate; the demo calibrates the neuron on at least 2 plates"),
+])
+def test_a_scene_the_demo_cannot_run_is_refused_before_any_stage(tmp_path, name, edit, key, words):
+    from feeler.errors import SceneError
+
+    path = SHIPPED.parent / name
+    if edit is not None:
+        text = path.read_text(encoding="utf-8")
+        assert edit[0] in text
+        path = tmp_path / "edited.toml"
+        path.write_text(text.replace(*edit), encoding="utf-8")
+    printed = []
+    with pytest.raises(SceneError) as info:
+        run_demo(tmp_path / "demo", scene_path=path, echo=printed.append)
+    assert info.value.key == key and words in info.value.problem
+    assert printed == [] and not (tmp_path / "demo").exists()
+
+
 def test_demo_refuses_to_overwrite_without_force(tmp_path, small):
     run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None, stages=STAGES[:1])
     with pytest.raises(OverwriteError):

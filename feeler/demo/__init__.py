@@ -133,6 +133,29 @@ def _results(scene_path: Path) -> tuple[str, ...]:
     return ("robot_table.json", *FIGURES, f"{robot_dir(scene_path)}/scans.csv")
 
 
+def _check_robot_scene(scene_path: Path) -> None:
+    """The demo's robot scene read before any stage: a robot-scan scene with at least two
+    plates (the neuron calibration pins nothing from one). A finger-steps or sensor-calibration
+    scene ran a stage and then failed on a missing scans.csv; one plate ran all the stages.
+
+    Raises:
+        SceneError: the file does not validate, is another kind, or has one plate.
+    """
+    from feeler.errors import SceneError
+    from feeler.scene import load_scene
+
+    scene = load_scene(scene_path)
+    kind = scene.scene.kind
+    if kind != "robot-scan":
+        raise SceneError(scene_path, "scene.kind", f"{kind!r}: demo --scene takes a robot-scan scene (as "
+                                                   "datasets-synthetic/four-plates.toml); the demo simulates the "
+                                                   "sensor-calibration, finger-steps and psychophysics scenes itself")
+    heights = scene.surface.heights_mm
+    if len(heights) < 2:
+        raise SceneError(scene_path, "surface.heights_mm", f"{list(heights)}: one plate; the demo calibrates the "
+                                                           "neuron on at least 2 plates (4 as in the paper)")
+
+
 def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | None = None,
              stages=None, echo: Callable[[str], None] = print, scenes: dict | None = None,
              discriminate_scans: int | None = None, progress: bool | None = None) -> dict:
@@ -158,6 +181,7 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
     # two demos into one directory (two `make demo` on a shared machine) would overwrite each
     # other's files stage by stage: the second is refused, naming the first one's PID
     scene_path = Path(scene_path or DEFAULT_SCENE)
+    _check_robot_scene(scene_path)
     if not force:                # refused before anything in ``out`` changes (the lock file included)
         prepare_out_dir(out, _results(scene_path), force=False)
     lock = lock_run_dir(out, then="")
