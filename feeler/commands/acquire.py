@@ -19,7 +19,8 @@ camera renders the optical sensor for the stage's position over the plan's plate
 RUN/samples.csv receives every sample as it arrives (flushed and fsync-ed), RUN/scans.csv
 every complete scan in the format of `feeler simulate` (scan_id, plate, step_mm, speed_mm_s,
 t_s, x_mm, ux_mm, uy_mm, uz_mm, then the schedule, the status query's round trip, the late
-flag, stage position, frame time, areas and forces), and RUN/scene.toml is the plan:
+flag, stage position, frame time, areas and forces), and RUN/scene.toml is the plan
+(RUN/layout.toml its camera layout, so that `--resume --plan RUN/scene.toml` works):
 `feeler calibrate neuron RUN` reads the run directly. t_s is when the position was read,
 from the start of the traverse; a sample read more than --late-fraction of a period after its
 schedule is counted late (never relabelled). One process writes RUN at a time (a second one

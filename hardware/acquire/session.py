@@ -22,7 +22,7 @@ from feeler.scene import load_scene, scene_as_dict
 from .campaign import LATE_FRACTION, Setup, run_campaign
 from .plan import check_moves
 from .store import RunStore
-from .world import VirtualWorld, optics_of_plan, plan_layout
+from .world import VirtualWorld, layout_file, optics_of_plan, plan_layout
 
 __all__ = ["load_plan", "c_from_calibration", "acquire"]
 
@@ -118,7 +118,8 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
                                     "has it disabled (pass --unlock, or nothing, instead)") from None
             raise
         check_moves(plan, plan_path, stage.limits, stage.port, stage.target_mm)
-        store = RunStore.resume(out, plan_path) if resume else RunStore.create(out, plan_path, force=force)
+        store = RunStore.resume(out, plan_path) if resume else RunStore.create(
+            out, plan_path, force=force, layout_path=layout_file(plan, plan_path))
         stack.callback(store.close)
         store.observers.extend(observers)
         if world is not None:

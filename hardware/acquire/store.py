@@ -9,6 +9,9 @@ sample is taken):
 - ``journal.jsonl``: one JSON event per line (run start, scan start, bad frame, bad line,
   late sample, scan done): which scans are done, and the counts of ``summary.json``;
 - ``scene.toml``: a byte copy of the plan (its ``[neuron]`` table serves ``calibrate``);
+- ``layout.toml``: a byte copy of the plan's camera layout file, if it names one: the
+  plan's copy refers to it by a path relative to the plan, which the run directory does
+  not reach, so ``--resume --plan RUN/scene.toml`` reads this one;
 - ``summary.json``: the counts, rewritten atomically after every scan.
 
 A scan is complete when its ``scan_done`` event is in the journal. On resume a line cut
@@ -39,7 +42,7 @@ EXTRA = ("repeat", "t_sched_s", "status_rtt_s", "late", "t_frame_s", "stage_x_mm
          "area2_px2", "area3_px2", "fx_n", "fy_n", "fz_n")
 SCAN_COLUMNS = CSV_COLUMNS + EXTRA
 SAMPLE_COLUMNS = SCAN_COLUMNS + ("attempt",)
-FILES = ("scene.toml", "samples.csv", "scans.csv", "journal.jsonl", "summary.json", "truth.json")
+FILES = ("scene.toml", "samples.csv", "scans.csv", "journal.jsonl", "summary.json", "truth.json", "layout.toml")
 
 
 def _append(path: Path, text: str) -> None:
@@ -77,7 +80,8 @@ class RunStore:
         self._lock_fd = lock_fd
 
     @classmethod
-    def create(cls, out, plan_path: str | Path, *, force: bool = False) -> "RunStore":
+    def create(cls, out, plan_path: str | Path, *, force: bool = False,
+               layout_path: str | Path | None = None) -> "RunStore":
         """A new run directory, locked for this process (refuses to overwrite an earlier
         run without ``force``; with it, the earlier run's files and ``video/`` are removed).
 
@@ -97,6 +101,8 @@ class RunStore:
             (out / name).unlink(missing_ok=True)
         shutil.rmtree(out / "video", ignore_errors=True)
         shutil.copyfile(plan_path, out / "scene.toml")
+        if layout_path is not None:
+            shutil.copyfile(layout_path, out / "layout.toml")
         store = cls(out, fd)
         for name, cols in (("samples.csv", SAMPLE_COLUMNS), ("scans.csv", SCAN_COLUMNS)):
             _append(out / name, ",".join(cols) + "\n")

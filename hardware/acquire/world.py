@@ -24,14 +24,33 @@ from feeler.models.optics import (CameraParams, Layout, OpticsParams, areas_from
 
 from .plan import scans_of
 
-__all__ = ["VirtualWorld", "plan_layout", "optics_of_plan", "tip_displacement_mm"]
+__all__ = ["VirtualWorld", "plan_layout", "layout_file", "RUN_LAYOUT", "optics_of_plan", "tip_displacement_mm"]
+
+
+RUN_LAYOUT = "layout.toml"      # a run directory's copy of its plan's layout file (:mod:`.store`)
+
+
+def layout_file(plan, plan_path: str | Path) -> Path | None:
+    """The plan's layout file: ``optics.layout`` relative to the plan's directory; for a run
+    directory's copy of its plan (``RUN/scene.toml``, which ``--resume`` is told to pass),
+    the run's copy of the layout when the relative path does not reach the original. None:
+    the plan names no layout (the default grid)."""
+    name = plan.optics.layout
+    if not name:
+        return None
+    here = Path(plan_path).parent
+    path = here / name
+    if not path.is_file() and Path(plan_path).name == "scene.toml" and (here / "journal.jsonl").is_file() \
+            and (here / RUN_LAYOUT).is_file():
+        return here / RUN_LAYOUT
+    return path
 
 
 def plan_layout(plan, plan_path: str | Path) -> Layout:
-    """The plan's camera layout (file relative to the plan, or the default 4×4 grid),
-    checked to hold the scanning element ``optics.element``."""
+    """The plan's camera layout (:func:`layout_file`, or the default 4×4 grid), checked to
+    hold the scanning element ``optics.element``."""
     name = plan.optics.layout
-    path = Path(plan_path).parent / name if name else None
+    path = layout_file(plan, plan_path)
     if path is not None and not path.is_file():      # name the plan and its key, not only the path it made
         raise SceneError(plan_path, "optics.layout", f"{name!r}: no such layout file ({path}; a path relative to "
                                                      f"the plan's directory)")

@@ -359,3 +359,24 @@ def test_two_uninterrupted_runs_agree_to_the_emulators_noise_model(reference, tm
     du = a[["ux_mm", "uy_mm", "uz_mm"]].to_numpy() - b[["ux_mm", "uy_mm", "uz_mm"]].to_numpy()
     residual = np.abs(du - (truth[0] - truth[1]))
     assert np.all(residual <= 4 * np.sqrt(2) * sd + 1e-12)
+
+
+def test_the_runs_own_copy_of_its_plan_resumes_with_its_layout(tmp_path, capsys):
+    """`--resume` with another plan says to pass RUN/scene.toml, the run's copy of its plan;
+    that copy named its layout by a path relative to the plan ('../layouts/...'), which the
+    run directory does not reach: 'no such layout file' (an outside audit). The run keeps a
+    copy of the layout, and its plan copy reads it."""
+    layouts, plans = tmp_path / "layouts", tmp_path / "plans"
+    layouts.mkdir()
+    plans.mkdir()
+    shipped = Path(__file__).resolve().parents[2] / "datasets-synthetic" / "layouts" / "sensor-16.toml"
+    (layouts / "sensor-16.toml").write_bytes(shipped.read_bytes())
+    plan = plans / "plan.toml"
+    plan.write_text(one_scan_plan(tmp_path).read_text().replace("[optics]\n", '[optics]\nlayout = "../layouts/sensor-16.toml"\n'))
+    run = tmp_path / "runs" / "run"                 # RUN/../layouts does not exist
+    assert main(["acquire", "--emulate", "--plan", str(plan), "--out", str(run), "--no-progress"]) == 0
+    assert (run / "layout.toml").read_bytes() == shipped.read_bytes()
+    capsys.readouterr()
+    assert main(["acquire", "--emulate", "--plan", str(run / "scene.toml"), "--out", str(run), "--resume",
+                 "--no-progress"]) == 0, capsys.readouterr().err
+    assert "no such layout file" not in capsys.readouterr().err
