@@ -45,6 +45,18 @@ def _robot(inv):
     return None if part is None else robot_data(inv, part)
 
 
+#: scans a plate needs before a bootstrap interval over them is evidence: with 1 a plate it is
+#: [1, 1] (one pair, resampled), and an emulated run of one scan a plate was marked "not reproduced"
+MIN_SCANS = 5
+
+
+def _too_few(key, claim, paper, crit, sizes, rd) -> Claim:
+    """A claim marked inconclusive because a plate has fewer than :data:`MIN_SCANS` scans."""
+    run = (f"too few scans for an interval ({' + '.join(str(n) for n in sizes)} scans; at least {MIN_SCANS} "
+           f"a plate)")
+    return Claim(key, claim, paper, run, crit, "inconclusive", (rd.part.path("scans.csv"),))
+
+
 def _by_plate(rd, values):
     return {s: np.asarray(values)[rd.scans.step_mm == s] for s in sorted(rd.steps)}
 
@@ -62,6 +74,8 @@ def claim_jump_ratio(inv) -> Claim:
     if len(plates) < 2 or any(not np.all(np.isfinite(v)) for v in plates.values()):
         return absent(key, claim, paper, crit, "scans of two or more non-zero plates long enough for the jump")
     steps = sorted(plates)
+    if min(plates[s].size for s in steps) < MIN_SCANS:
+        return _too_few(key, claim, paper, crit, [plates[s].size for s in steps], rd)
     base = plates[steps[0]]
     texts, inside, outside = ["1"], True, False
     means = [float(np.mean(plates[s])) for s in steps]
@@ -97,6 +111,8 @@ def claim_rate_vs_z(inv) -> Claim:
         return absent(key, claim, paper, crit, "scans of two non-zero plates")
     lo_s, hi_s = nonzero[:2]
     rate, z = _by_plate(rd, rd.peak_rate_uy_mm_s), _by_plate(rd, rd.peak_z)
+    if min(rate[lo_s].size, rate[hi_s].size) < MIN_SCANS:
+        return _too_few(key, claim, paper, crit, [rate[lo_s].size, rate[hi_s].size], rd)
     pc_r, pc_z = proportion_correct(rate[lo_s], rate[hi_s]), proportion_correct(z[lo_s], z[hi_s])
     ci_r = bootstrap_interval(proportion_correct, [rate[lo_s], rate[hi_s]])
     ci_z = bootstrap_interval(proportion_correct, [z[lo_s], z[hi_s]])

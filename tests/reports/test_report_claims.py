@@ -18,7 +18,7 @@ SEED = 20040616
 
 def _robot_inv(tmp_path, steps, jump, rate, z):
     """An inventory whose robot part holds the given per-scan features."""
-    (tmp_path / "scans").mkdir()
+    (tmp_path / "scans").mkdir(parents=True)
     (tmp_path / "scans" / "scans.csv").write_text("scan_id\n0\n", encoding="utf-8")
     inv = discover(tmp_path)
     part = inv.first("robot")
@@ -56,6 +56,22 @@ def test_rate_against_z_marks(tmp_path, rate_gap, z_gap, mark):
     claim = claim_rate_vs_z(_robot_inv(tmp_path, steps, steps, rate, z))
     assert claim.mark == mark, claim.run
     assert claim.run.startswith("0.05 vs 0.1 mm: U̇_y peak ")
+
+
+@pytest.mark.parametrize("n", [1, 4])
+def test_a_few_scans_a_plate_are_inconclusive_not_a_verdict(tmp_path, n):
+    """An emulated run of one scan a plate showed 'U̇_y peak 1 [1, 1], peak z 1 [1, 1]
+    (1 + 1 scans)' marked NOT REPRODUCED (an outside audit): a bootstrap over one pair
+    is no interval. The same data with 5 scans a plate give a mark."""
+    steps = _plates(n=n)
+    level = np.select([steps == 0.05, steps == 0.1], [0.0, 1.0], 2.0)
+    for claim in (claim_jump_ratio(_robot_inv(tmp_path / "j", steps, steps, steps, steps)),
+                  claim_rate_vs_z(_robot_inv(tmp_path / "r", steps, steps, level * 3.0, level * 5.0))):
+        assert claim.mark == "inconclusive", claim.run
+        assert claim.run.startswith(f"too few scans for an interval ({n} + {n}") and "at least 5 a plate" in claim.run
+    steps = _plates(n=5)
+    level = np.select([steps == 0.05, steps == 0.1], [0.0, 1.0], 2.0)
+    assert claim_rate_vs_z(_robot_inv(tmp_path / "r5", steps, steps, level * 3.0, level * 5.0)).mark == "not reproduced"
 
 
 def test_claims_without_data_say_what_they_need(tmp_path):
