@@ -102,6 +102,8 @@ def check_moves(plan, plan_path: str | Path, limits, port: str, start_mm=None) -
                 lo, hi = limits.range_of(axis)
                 if not math.isnan(target[i]) and target[i] != start[i] and not lo <= target[i] <= hi:
                     where = "plates.y_mm" if axis == "y_mm" else key
+                    if axis == "z_mm" and not lo <= plan.plates.surface_z_mm <= hi:
+                        where = "plates.surface_z_mm"       # the plate itself is out of reach, not the clearance
                     raise SceneError(plan_path, where, f"scan {scan.scan_id} moves {axis[0]} to {target[i]:g} mm, "
                                      f"beyond the soft limits [{lo:g}, {hi:g}] mm of {port} ({limits.source})")
             known = not any(math.isnan(v) for v in start + target)

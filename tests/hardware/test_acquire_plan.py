@@ -58,6 +58,8 @@ FAST = {"max_rate_mm_min": (1e4,) * 3}
     (StageLimits(x_mm=(-200.0, -16.5), **FAST), "plates.origin_x_mm[1]", "moves x to -16 mm"),
     (StageLimits(z_mm=(-20.04, 0.0), **FAST), "scan.press_mm", "moves z to -20.05 mm"),
     (StageLimits(z_mm=(-200.0, -19.9), **FAST), "scan.clearance_mm", "moves z to -19.8 mm"),
+    # the plates themselves below the stage's reach: the clearance move was blamed (an outside audit)
+    (StageLimits(z_mm=(-10.0, 0.0), **FAST), "plates.surface_z_mm", "moves z to -19.8 mm"),
     (StageLimits(y_mm=(-5.0, 0.0), **FAST), "plates.y_mm", "moves y to -10 mm"),
     (StageLimits(max_rate_mm_min=(5000.0, 1e4, 1e4)), "scan.move_feed_mm_min",
      "6000 mm/min is above the ceiling of 5000 mm/min of /dev/pts/9 for this move ($110, the x axis' maximum rate, is "
