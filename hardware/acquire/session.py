@@ -55,6 +55,23 @@ def c_from_calibration(directory: str | Path | None, *, accept_failed: bool = Fa
     return c, f"posterior mean of {directory}"
 
 
+def _note_a_default_board(plan, plan_path, start_mm) -> None:
+    """With --emulate, a line on stderr when a board at Grbl's default settings would refuse
+    the plan: the emulated stage allows 6000 mm/min per axis (:data:`~.emulated.FAST_STAGE`),
+    so a dry run of a plan with a 600 mm/min traverse ran to the end, though Grbl's default
+    $110 = 500 mm/min refuses it on the real board (an outside audit)."""
+    import sys
+
+    from feeler.errors import SceneError
+    from feeler.hardware.stage.limits import StageLimits
+
+    try:
+        check_moves(plan, plan_path, StageLimits(), "a board at Grbl's default settings", start_mm)
+    except SceneError as exc:
+        print(f"feeler: note: the emulated stage (6000 mm/min per axis) runs this plan, but a board at Grbl's "
+              f"default settings would refuse it: {exc.key}: {exc.problem}", file=sys.stderr)
+
+
 def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = None,
             camera_src: str | None = None, emulate: bool = False, resume: bool = False,
             force: bool = False, calibration: str | Path | None = None, accept_failed: bool = False,
@@ -118,6 +135,8 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
                                     "has it disabled (pass --unlock, or nothing, instead)") from None
             raise
         check_moves(plan, plan_path, stage.limits, stage.port, stage.target_mm)
+        if emulate:
+            _note_a_default_board(plan, plan_path, stage.target_mm)
         store = RunStore.resume(out, plan_path) if resume else RunStore.create(
             out, plan_path, force=force, layout_path=layout_file(plan, plan_path))
         stack.callback(store.close)

@@ -26,6 +26,8 @@ TINY = DATA / "tiny-plan.toml"
 AREAS = [f"area{i}_px2" for i in range(4)]
 EXACT = ["scan_id", "plate", "step_mm", "speed_mm_s", "t_sched_s", "repeat"]
 
+NOTE = "feeler: note: the emulated stage (6000 mm/min per axis) runs this plan"
+
 
 def one_scan_plan(tmp_path: Path) -> Path:
     path = tmp_path / "one.toml"
@@ -196,7 +198,7 @@ def test_corrupt_video_mid_run_is_one_line_and_keeps_what_was_written(reference,
     out = tmp_path / "run"
     code = main(["acquire", "--emulate", "--camera", str(bad), "--plan", str(one_scan_plan(tmp_path)),
                  "--out", str(out)])
-    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:") and not ln.startswith(NOTE)]
     assert code == 2 and len(err) == 1 and str(bad) in err[0] and "truncated or corrupt" in err[0]
     samples = table(out, "samples.csv")
     assert len(samples) >= 1 and list(samples["t_sched_s"]) == [0.1 * k for k in range(len(samples))]
@@ -208,7 +210,7 @@ def test_plan_beyond_the_soft_limits_is_refused_before_writing(tmp_path, capsys)
     plan = tmp_path / "far.toml"
     plan.write_text(TINY.read_text().replace("origin_x_mm = [-20.0, -16.0]", "origin_x_mm = [-20.0, -2.0]"))
     code = main(["acquire", "--emulate", "--plan", str(plan), "--out", str(tmp_path / "run")])
-    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:") and not ln.startswith(NOTE)]
     assert code == 2 and len(err) == 1
     assert "scan.traverse_mm: scan 2 moves x to 1 mm, beyond the soft limits [-200, 0] mm" in err[0]
     assert not (tmp_path / "run").exists()
@@ -304,7 +306,9 @@ def test_ctrl_c_at_a_terminal_is_one_line_not_the_emulators_traceback(tmp_path):
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 130
-    assert err.strip().splitlines() == ["feeler: interrupted (run the same command with --resume to continue)"]
+    # the tiny plan's 6000 mm/min moves get a note that a board at Grbl's defaults would refuse them
+    assert [ln for ln in err.strip().splitlines() if not ln.startswith(NOTE)] == [
+        "feeler: interrupted (run the same command with --resume to continue)"]
 
 
 def test_missing_camera_on_resume_changes_nothing(reference, tmp_path, capfd):
@@ -312,7 +316,7 @@ def test_missing_camera_on_resume_changes_nothing(reference, tmp_path, capfd):
     before = {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()}
     code = main(["acquire", "--emulate", "--camera", "57", "--plan", str(TINY), "--out", str(run), "--resume"])
     lines = capfd.readouterr().err.splitlines()       # file descriptors: OpenCV writes its log there itself
-    err = [ln for ln in lines if ln.startswith("feeler:")]
+    err = [ln for ln in lines if ln.startswith("feeler:") and not ln.startswith(NOTE)]
     assert code == 2 and err == ["feeler: error: camera 57: no camera device at this index"]
     assert not [ln for ln in lines if "WARN" in ln or "VIDEOIO" in ln], lines     # OpenCV's own log line
     assert {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()} == before
@@ -380,3 +384,25 @@ def test_the_runs_own_copy_of_its_plan_resumes_with_its_layout(tmp_path, capsys)
     assert main(["acquire", "--emulate", "--plan", str(run / "scene.toml"), "--out", str(run), "--resume",
                  "--no-progress"]) == 0, capsys.readouterr().err
     assert "no such layout file" not in capsys.readouterr().err
+
+
+def test_a_dry_run_says_when_a_board_at_grbls_defaults_would_refuse_the_plan(tmp_path, capsys):
+    """--emulate's stage allows 6000 mm/min per axis: a plan with a 600 mm/min traverse ran
+    to the end in silence, though a board at Grbl's default $110 = 500 mm/min refuses it
+    (an outside audit). The shipped plan, within the defaults, gets no note."""
+    plan = tmp_path / "fast.toml"
+    plan.write_text(one_scan_plan(tmp_path).read_text().replace("move_feed_mm_min = 6000.0", "move_feed_mm_min = 500.0")
+                    .replace("press_feed_mm_min = 3000.0", "press_feed_mm_min = 500.0"))
+    assert "speed_mm_s = 10.0" in plan.read_text()
+    assert main(["acquire", "--emulate", "--plan", str(plan), "--out", str(tmp_path / "run"), "--no-progress"]) == 0
+    (note,) = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith(NOTE)]
+    assert note.endswith("would refuse it: scan.speed_mm_s: 10 mm/s (600 mm/min) is above the ceiling of 500 mm/min "
+                         "of a board at Grbl's default settings for this move ($110, the x axis' maximum rate, is 500 "
+                         "mm/min): lower scan.speed_mm_s or raise $110")
+    from feeler.hardware.acquire import load_plan
+    from feeler.hardware.acquire.emulated import emulated_stage
+    from feeler.hardware.acquire.session import _note_a_default_board
+
+    shipped = Path(__file__).resolve().parents[2] / "datasets-synthetic" / "plans" / "four-plates-plan.toml"
+    _note_a_default_board(load_plan(shipped), shipped, emulated_stage(load_plan(shipped)).start_mm)
+    assert capsys.readouterr().err == ""
