@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from feeler.errors import ArgumentError
 from feeler.models.neuron import peak_window_sum, pulse_density
 
 __all__ = ["Fig5Fit", "FigureData", "figure_data", "plot_figures"]
@@ -63,15 +64,16 @@ def figure_data(runs, neuron, press_s: float) -> FigureData:
             z = pulse_density(e, t, a=neuron.a, tau=neuron.tau_s, h=neuron.h, kernel=neuron.kernel)
             z_runs.append((t, z))
             peaks[i, j] = z.max()
+    if heights.size < 2:
+        raise ArgumentError("heights_um", heights.tolist(), "Fig 5 fits a line: needs at least 2 distinct heights")
     ref = peaks[-1, -1]
+    if not ref > 0:
+        raise ArgumentError("neuron.h", neuron.h, f"the pulse density never rises above the threshold h at the "
+                                                  f"tallest step and fastest speed (tau = {neuron.tau_s:g} s): "
+                                                  f"nothing to normalise Figs 4-5 by; lower neuron.h")
     z_norm = [(t, z / ref) for t, z in z_runs]
     peaks = peaks / ref
-    fits = []
-    for j, v in enumerate(speeds):
-        slope, icpt = np.polyfit(heights, peaks[:, j], 1)
-        resid = peaks[:, j] - (slope * heights + icpt)
-        r2 = 1 - np.sum(resid ** 2) / np.sum((peaks[:, j] - peaks[:, j].mean()) ** 2)
-        fits.append(Fig5Fit(float(v), float(slope), float(icpt), float(r2)))
+    fits = [_line_fit(float(v), heights, peaks[:, j]) for j, v in enumerate(speeds)]
     taus = np.asarray(neuron.tau_sweep_s, dtype=float)
     accepted, kappa, ratio = np.zeros((len(taus), len(heights), len(speeds))), np.zeros(len(taus)), np.zeros(len(taus))
     for k, tau in enumerate(taus):
@@ -81,10 +83,23 @@ def figure_data(runs, neuron, press_s: float) -> FigureData:
                 t, e = _hold_on(index[(h, v)], press_s)
                 pk[i, j] = max(neuron.a * peak_window_sum(e, t, tau=tau, kernel=neuron.kernel) - neuron.h, 0.0)
         slopes = heights @ pk / (heights @ heights)          # least squares through the origin
+        if not np.all(slopes > 0):
+            slow = speeds[int(np.argmin(slopes))]
+            raise ArgumentError("neuron.h", neuron.h, f"at tau = {tau:g} s the window sum at {slow:g} mm/s never "
+                                                      f"rises above the threshold h: no Fig 6 slope; lower neuron.h")
         kappa[k] = 1.0 / slopes.mean()
         accepted[k] = kappa[k] * pk
         ratio[k] = slopes[-1] / slopes[0]
     return FigureData(heights, speeds, z_norm, peaks, fits, taus, accepted, kappa, ratio)
+
+
+def _line_fit(speed_mm_s: float, heights: np.ndarray, peaks: np.ndarray) -> Fig5Fit:
+    """Least-squares line of peak on height; R² NaN when the peaks do not vary (undefined)."""
+    slope, icpt = np.polyfit(heights, peaks, 1)
+    resid = peaks - (slope * heights + icpt)
+    spread = np.sum((peaks - peaks.mean()) ** 2)
+    r2 = 1 - np.sum(resid ** 2) / spread if spread > 0 else np.nan
+    return Fig5Fit(speed_mm_s, float(slope), float(icpt), float(r2))
 
 
 def _labelled(fig, label: str):

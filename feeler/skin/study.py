@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import csv
+import math
 from dataclasses import asdict
 from pathlib import Path
 
@@ -115,6 +116,19 @@ def _plot_trade(trade, path: Path) -> None:
     plt.close(fig)
 
 
+def _finite_or_null(obj):
+    """``obj`` with every non-finite number (NaN, ±inf: not JSON) as None (JSON null)."""
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {k: _finite_or_null(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple, np.ndarray)):
+        return [_finite_or_null(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    return obj
+
+
 def write_figures(scene, out: Path, *, level: str | None = None, progress: bool | None = False) -> list[str]:
     """Figs 3–6 for a finger-steps scene into ``out``; returns printable summary lines.
     ``progress`` as in :func:`run_ladder_study`."""
@@ -144,8 +158,10 @@ def write_figures(scene, out: Path, *, level: str | None = None, progress: bool 
     summary = {"level": level, "fig5": [asdict(f) for f in data.fits],
                "fig6": {"tau_s": data.taus_s, "conversion_um": data.conversion,
                         "speed_slope_ratio": data.speed_ratio}}
-    write_json(out / "figures.json", summary)
-    lines = [f"Fig 5 at {f.speed_mm_s:g} mm/s: slope {f.slope_per_um:.4g} per µm, R² = {f.r2:.4f}" for f in data.fits]
+    write_json(out / "figures.json", _finite_or_null(summary))
+    lines = [f"Fig 5 at {f.speed_mm_s:g} mm/s: slope {f.slope_per_um:.4g} per µm, "
+             + (f"R² = {f.r2:.4f}" if math.isfinite(f.r2) else "R² undefined (the peaks do not vary with height)")
+             for f in data.fits]
     lines += [f"Fig 6 tau = {t * 1e3:g} ms: conversion {c:.4g} µm per unit z, slope ratio "
               f"{data.speeds_mm_s[-1]:g}/{data.speeds_mm_s[0]:g} mm/s = {r:.3f}"
               for t, c, r in zip(data.taus_s, data.conversion, data.speed_ratio)]

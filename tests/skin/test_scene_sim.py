@@ -105,3 +105,54 @@ def test_simulators_registry_entry_point(tmp_path):
     scene_path = _scene(tmp_path)
     simulate_finger_scene(load_scene(scene_path), scene_path, tmp_path / "r", False)
     assert {p.name for p in (tmp_path / "r").iterdir()} == {"strain.csv", "truth.json", "scene.toml"}
+
+
+@pytest.mark.parametrize("extra, key, words", [
+    ("[steps]\nposition_mm = 20.0", "steps.position_mm", "must lie inside the slide"),   # beyond a 10 mm slide
+    ("[steps]\nposition_mm = 0.0", "steps.position_mm", "must lie inside the slide"),    # its edge starts at -0.025
+    ("[loading]\nslide_mm = 4.0", "steps.position_mm", "loading.slide_mm = 4 mm"),       # the step at 5 mm
+    ("[steps]\nheights_um = [10.0]", "steps.heights_um", "at least 2 distinct heights"),
+    ("[steps]\nheights_um = [10.0, 10.0]", "steps.heights_um", "at least 2 distinct heights"),
+    ("[steps]\nheights_um = [500.0, 750.0, 1000.0]", "steps.heights_um", "a tenth of the press depth"),
+    ("[loading]\npress_mm = 0.1", "steps.heights_um", "15 µm: at most 10 µm"),           # the paper's steps
+])
+def test_scenes_whose_figures_would_be_meaningless_are_refused_at_load(tmp_path, extra, key, words):
+    """A step beyond the slide gave slope -2.5e-17, R² = -inf and conversion 4e17 with exit 0;
+    one height R² = -inf (and "r2": -Infinity in figures.json); steps of 500-1000 µm under a
+    1 mm press ran the linear models far outside what they describe."""
+    with pytest.raises(SceneError, match=key.replace(".", r"\.")) as err:
+        load_scene(_scene(tmp_path, "[scene]\nkind = \"finger-steps\"\n" + extra))
+    assert words in str(err.value) and "\n" not in str(err.value)
+
+
+def test_steps_up_to_a_tenth_of_the_press_and_inside_the_slide_load(tmp_path):
+    scene = load_scene(_scene(tmp_path, "[scene]\nkind = \"finger-steps\"\n[steps]\nheights_um = [5.0, 100.0]\n"
+                                        "position_mm = 9.9\nedge_um = 0.0\n"))
+    assert scene.steps.heights_um == (5.0, 100.0)
+
+
+def test_a_threshold_no_peak_reaches_is_one_line_exit_2(tmp_path, capsys):
+    """All peaks zero divided by zero: 'feeler: warning: divide by zero' and non-finite numbers."""
+    path = _scene(tmp_path, TINY + "[neuron]\nh = 1000.0\n")
+    assert main(["skin", "figures", str(path), "--out", str(tmp_path / "f"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("feeler: error: argument neuron.h=1000.0: ") and "warning" not in err
+
+
+def test_figures_json_holds_no_non_finite_number(tmp_path):
+    from feeler.skin.figures import _line_fit
+    from feeler.skin.study import _finite_or_null
+
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                   # no raw 'invalid value' or 'poorly conditioned'
+        flat = _line_fit(20.0, np.array([5.0, 15.0]), np.array([0.5, 0.5]))
+    assert np.isnan(flat.r2) and flat.slope_per_um == pytest.approx(0.0, abs=1e-12)
+    assert _finite_or_null({"r2": [flat.r2, 1.0, np.inf], "k": np.array([-np.inf, 2.0])}) == \
+        {"r2": [None, 1.0, None], "k": [None, 2.0]}
+    out = tmp_path / "f"
+    assert main(["skin", "figures", str(_scene(tmp_path)), "--out", str(out), "--no-progress"]) == 0
+
+    def refuse(name):
+        raise AssertionError(f"{name} in figures.json")
+    json.loads((out / "figures.json").read_text(), parse_constant=refuse)
