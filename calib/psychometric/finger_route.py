@@ -15,6 +15,11 @@ sigma_d_max_um], λ = 0.5·B with B ~ Beta(lapse_a, lapse_b) represented by equa
 quantile nodes. Draws for the FitResult are sampled from the grid (jittered within the
 τ and σ_d cells); the exact τ marginal is kept in the posterior's attrs and reported
 beside the paper's "τ ≤ 300 ms fits best" as P(τ ≤ 0.3 s | data).
+
+The draws are independent, so the verdict judges their number, not R-hat
+(:mod:`feeler.calib.psychometric.independent`). Subjects are pooled into one (τ, σ_d, λ);
+the verdict fails when a subject's own decision noise lies far from the pooled one (at
+chance, or always right: :func:`subject_fit_problems`).
 """
 from __future__ import annotations
 
@@ -26,21 +31,27 @@ import numpy as np
 import pandas as pd
 from scipy.special import logsumexp
 from scipy.stats import beta as beta_dist
+from scipy.stats import chi2
 
 from feeler.calib.diagnostics import Thresholds
-from feeler.calib.fit import FitResult, make_result, posterior_from_draws
+from feeler.calib.fit import FitResult, posterior_from_draws
 from feeler.calib.psychometric.model.cells import make_cells
 from feeler.calib.psychometric.fit import with_problems
-from feeler.calib.psychometric.outputs.checks import speed_problems, unit_problems
+from feeler.calib.psychometric.independent import check_draw_counts, independent_result
+from feeler.calib.psychometric.outputs.checks import GOF_ALPHA, speed_problems, unit_problems
 from feeler.errors import ArgumentError
 from feeler.models.neuron import peak_pulse_density, peak_window_sum
 from feeler.models.observer import conversion_factor, log_choice_prob
 from feeler.models.psychometric import LAPSE_MAX
 
-__all__ = ["RouteGrid", "fit_finger_route", "accepted_heights", "predict_p_higher", "tau_report", "paper_verdict",
+__all__ = ["RouteGrid", "fit_finger_route", "subject_fit_problems", "accepted_heights", "predict_p_higher", "tau_report", "paper_verdict",
            "PAPER_TAU_MAX_S"]
 
 PAPER_TAU_MAX_S = 0.3  # paper §4.2: simulations "coincide well ... below τ = 300 msec"
+#: a subject's own σ_d this many times from the pooled one (either way) disagrees with the
+#: pooled fit (when the likelihood ratio also says so): the synthetic observers' thresholds
+#: span 0.95–2.0 µm (about 2 times); chance is σ_d = ∞, an observer always right ~0
+SUBJECT_SIGMA_FACTOR = 4.0
 
 
 @dataclass(frozen=True)
@@ -132,7 +143,11 @@ def _log_lik(trials: pd.DataFrame, s_hat, i_std, i_cmp, sigmas, lapses) -> np.nd
 
 def fit_finger_route(trials: pd.DataFrame, *, rng: np.random.Generator, grid: RouteGrid = RouteGrid(),
                      level: str = "l0", params=None, chains: int = 4, draws: int = 1000) -> FitResult:
-    """Grid posterior of (τ, σ_d, λ) given a validated trial table; see the module doc."""
+    """Grid posterior of (τ, σ_d, λ) given a validated trial table; see the module doc.
+
+    ``chains`` × ``draws`` independent draws from the grid make the summary table (at
+    least 2 chains of 4 draws and 400 in all, checked first: :func:`check_draw_counts`)."""
+    check_draw_counts(chains, draws)
     start = time.perf_counter()
     stim, i_std, i_cmp = _stimuli(trials)
     taus, sigmas, lapses = grid.taus(), grid.sigmas(), grid.lapses()
@@ -156,13 +171,60 @@ def fit_finger_route(trials: pd.DataFrame, *, rng: np.random.Generator, grid: Ro
               "lapse": f"{LAPSE_MAX}·Beta({grid.lapse_a}, {grid.lapse_b}) ({grid.n_lapse} quantile nodes)",
               "kappa": "none of its own: derived, κ(tau_s) in µm per unit z by regression through the origin "
                        f"over the simulated steps {', '.join(f'{h:g}' for h in grid.kappa_heights_um)} µm"}
-    result = make_result(tree, backend=f"grid ({level})", priors=priors,
-                         seconds=time.perf_counter() - start)
+    result = independent_result(tree, backend=f"grid ({level})", priors=priors,
+                                seconds=time.perf_counter() - start)
     speeds = sorted(set(zip(trials["standard_speed_mm_s"], trials["comparison_speed_mm_s"])))
     heights = np.concatenate([trials["standard_um"].to_numpy(float), trials["comparison_um"].to_numpy(float)])
     return with_problems(result, unit_problems(heights) + speed_problems(np.ravel(speeds))     # as fit psychophysics
                          + _edge_problems(prob, taus, sigmas)
-                         + _pinned_problems(prob, taus, speeds))
+                         + _pinned_problems(prob, taus, speeds)
+                         + subject_fit_problems(trials, s_hat, (i_std, i_cmp), prob, sigmas, lapses))
+
+
+def subject_fit_problems(trials: pd.DataFrame, s_hat: np.ndarray, index: tuple, prob: np.ndarray,
+                         sigmas: np.ndarray, lapses: np.ndarray) -> list[str]:
+    """Subjects whose judgements disagree with the pooled fit, as one line (or none).
+
+    The route fits one (τ, σ_d, λ) to every subject's trials. At the posterior mode's τ
+    and λ, each subject's own decision noise is its maximum-likelihood σ_d over the grid's
+    nodes and σ_d = ∞ (a flat line at 0.5: chance at every level). A subject is named
+    when that σ_d lies more than :data:`SUBJECT_SIGMA_FACTOR` times from the pooled one
+    and the likelihood ratio against the pooled σ_d exceeds the χ²₁ point at
+    GOF_ALPHA / (number of subjects): a subject at chance, or one always right, is not
+    described by the pooled curve, while the spread of ordinary observers is
+    (``fit psychophysics`` checks each subject's curve on its own).
+
+    Args:
+        s_hat (ndarray[n_tau, n_stim]): accepted heights; ``index``: each row's (standard,
+            comparison) stimulus index; ``prob`` (ndarray[n_tau, n_sigma, n_lapse]): the
+            grid posterior over ``sigmas`` and ``lapses``.
+    """
+    cells = make_cells(trials)
+    n, k = cells.n.astype(float), cells.k.astype(float)
+    it, isg, il = np.unravel_index(int(np.argmax(prob)), prob.shape)
+    i_std, i_cmp = index
+    log_p, log_q = log_choice_prob(s_hat[it, i_std], s_hat[it, i_cmp], sigmas[:, None], lapses[il])
+    per_row = np.where(k > 0, k * log_p, 0.0) + np.where(n - k > 0, (n - k) * log_q, 0.0)   # (sigma, row)
+    subjects = trials["subject"].to_numpy()
+    names = list(pd.unique(subjects[n > 0]))
+    cut = chi2.isf(GOF_ALPHA / max(len(names), 1), 1)
+    pooled = sigmas[isg]
+    bad = []
+    for name in names:
+        sel = subjects == name
+        ll = per_row[:, sel].sum(axis=1)
+        flat = float(np.sum(n[sel]) * np.log(0.5))
+        own, best = (np.inf, flat) if flat >= ll.max() else (float(sigmas[np.argmax(ll)]), float(ll.max()))
+        ratio = own / pooled
+        if 2 * (best - ll[isg]) > cut and not 1 / SUBJECT_SIGMA_FACTOR <= ratio <= SUBJECT_SIGMA_FACTOR:
+            bad.append(f"{name} (" + ("no rise, as at chance: sigma_d infinite" if own == np.inf else f"sigma_d {own:.3g} µm")
+                       + ")")
+    if not bad:
+        return []
+    return [f"subjects: {', '.join(bad)} disagree with the pooled sigma_d {pooled:.3g} µm (more than "
+            f"{SUBJECT_SIGMA_FACTOR:g} times apart, likelihood ratio above the chi-square point at "
+            f"{GOF_ALPHA}/{len(names)} subjects): the finger route fits one tau, sigma_d and lapse to every subject; "
+            f"check them apart (`feeler fit psychophysics`) or leave {'it' if len(bad) == 1 else 'them'} out"]
 
 
 def _pinned_problems(prob: np.ndarray, taus: np.ndarray, speeds: list) -> list[str]:

@@ -38,6 +38,7 @@ from feeler.calib.psychometric.outputs import checks
 from feeler.calib.psychometric.backends import ApproximationWarning, row_draws, run_nuts, run_per_observer
 from feeler.calib.psychometric.model.cells import POOLED, Cells, make_cells
 from feeler.calib.psychometric.exact.grid import GridSpec
+from feeler.calib.psychometric.independent import check_draw_counts, independent_result
 from feeler.calib.psychometric.model.observer import LAPSE_PER
 from feeler.calib.psychometric.model.priors import Priors, stimulus_ranges
 from feeler.calib.psychometric.outputs.table import THRESHOLD_COLUMNS, table_csv, table_rows, threshold_table
@@ -58,6 +59,7 @@ def _check_args(backend, chains, draws, tune, target_accept, lapse_per, all_esti
     for name, value, low in (("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 0)):
         if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < low:
             raise ArgumentError(name, value, f"must be an integer >= {low}")
+    check_draw_counts(chains, draws)
     if not 0.0 < float(target_accept) < 1.0:
         raise ArgumentError("target_accept", target_accept, "must be in (0, 1)")
     if lapse_per not in LAPSE_PER:
@@ -90,10 +92,12 @@ def fit_psychometric(trials: pd.DataFrame, *, rng: np.random.Generator, backend:
         nafc (int | None): number of alternatives for nAFC proportion-correct data.
         pc (float | None): proportion of the threshold column (default 0.75 for the
             comparison design, halfway from 1/n to 1 for nAFC).
-        chains, draws, tune (int): draws per chain (exact and Laplace: independent draws).
+        chains, draws, tune (int): draws per chain (exact and Laplace: independent draws,
+            judged by their number, not by R-hat); at least 2 chains of 4 draws and
+            400 draws in all (:func:`~feeler.calib.psychometric.independent.check_draw_counts`).
         target_accept (float): NUTS step-size target in (0, 1).
     Raises:
-        ArgumentError: a bad argument, a table without trials, a hierarchical model with
+        ArgumentError: a bad argument (too few chains or draws), a table without trials, a hierarchical model with
             fewer than two subjects.
     """
     _check_args(backend, chains, draws, tune, target_accept, lapse_per, all_estimand, hierarchical, pc, nafc)
@@ -132,7 +136,10 @@ def fit_psychometric(trials: pd.DataFrame, *, rng: np.random.Generator, backend:
     described = resolved.described(cells, hierarchical=hier, overdispersion=overdispersion)
     described["task"] = task.name
     described["all"] = f"'all' is the {ESTIMANDS[estimand]}"
-    result = make_result(tree, backend=label, priors=described, seconds=seconds)
+    if backend == "nuts":
+        result = make_result(tree, backend=label, priors=described, seconds=seconds)
+    else:                                       # independent draws: R-hat does not apply, ESS = their number
+        result = independent_result(tree, backend=label, priors=described, seconds=seconds)
     if fitted.notes:
         more = f" (and {len(fitted.notes) - 1} more)" if len(fitted.notes) > 1 else ""
         warnings.warn(f"Laplace is approximate and its tails disagree with the exact posterior: "

@@ -108,29 +108,88 @@ def register(parser) -> None:
     sub = parser.add_subparsers(title="what to fit", metavar="WHAT")
     _add_psychophysics(sub)
     route = sub.add_parser("finger-route", help="posterior of τ and σ_d through skin → neuron → observer",
-                           description=_own_doc(
-                               "The neuron's window τ and the decision noise σ_d from 2AFC trials, through the\n"
-                               "finger chain (skin → FA-I neuron → observer), reported beside the paper's\n"
-                               "\"τ ≤ 300 ms\".",
-                               "feeler fit finger-route runs/humans/trials.csv --out runs/route",
-                               "The posterior of (τ, σ_d, lapse) is computed exactly on a grid (τ log-uniform, 1 ms–10 s;\n"
-                               "comparison design only). The chain's accepted height is calibrated at each speed, so τ\n"
-                               "shows only in how judgements change with the scan speed: the data need trials at more\n"
-                               "than one speed pair. Exit status 1 when the verdict fails: τ not pinned by the data, or a\n"
-                               "posterior piling against a grid bound.\n"), formatter_class=argparse.RawDescriptionHelpFormatter)
+                           description=ROUTE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     route.add_argument("data", metavar="DATA.csv", help="2AFC trial table (comparison design), or a run "
                                                        "directory holding trials.csv")
     route.add_argument("--level", choices=("l0", "l1", "l2"), default="l0", help="skin fidelity (default l0)")
     route.add_argument("--check-level", choices=("l0", "l1", "l2"), default=None,
                        help="recompute the choice probabilities at the posterior mean with this level")
     route.add_argument("--n-tau", type=int, default=121, help="τ grid nodes, 1 ms–10 s (default 121)")
-    add_fit_arguments(route)
+    _add_route_output(route)
     route.set_defaults(run=run_finger_route)
 
     def no_target(args) -> int:
         parser.print_help()
         return 2
     parser.set_defaults(run=no_target)
+
+
+ROUTE_HELP = """\
+The neuron's window τ and the decision noise σ_d from 2AFC trials, through the finger
+chain (skin → FA-I neuron → observer), reported beside the paper's "τ ≤ 300 ms".
+
+DATA.csv: subject, standard_um, standard_speed_mm_s, comparison_um, comparison_speed_mm_s
+and either counts (n_trials with n_comparison_higher) or one row per trial
+(comparison_higher as 1/0), aggregated on reading; '#' lines are comments; a run
+directory is read as its trials.csv. Comparison design only: no nAFC (n_correct) data,
+no psignifit data matrix. Rows with n_trials = 0 are left out, with a note.
+
+Model: each step's accepted height ŝ comes from the skin (--level), the neuron's peak
+window sum over τ and a conversion κ(τ) calibrated at each speed on the paper's 5–15 µm
+steps; P(comparison judged higher) = λ/2 + (1 − λ)·Φ((ŝ_cmp − ŝ_std)/σ_d). One τ, σ_d and
+lapse λ for all subjects pooled. Priors (fixed, stated in the output): τ log-uniform on
+1 ms–10 s (--n-tau nodes), σ_d log-uniform on 0.05–20 µm, λ = 0.5·Beta(2, 18).
+
+The posterior of (τ, σ_d, λ) is computed exactly on a grid; the summary table is made
+of --chains × --draws independent draws from it (no sampler, no warm-up: R-hat and ESS
+are shown, and the verdict checks only their number: at least 2 chains of 4 draws and
+400 draws in all, refused before any work otherwise). τ shows only in how judgements
+change with the scan speed: the data need trials at more than one speed pair.
+
+Exit status 1 when the verdict fails: τ not pinned by the data, a posterior piling
+against a grid bound, heights that look like mm or nm, speeds off a fingertip's, or
+subjects whose decision noise disagrees with the pooled fit (at chance, or always
+right: more than 4 times the pooled σ_d apart). Bad input: one line, exit status 2.
+
+Example:
+    feeler fit finger-route runs/humans/trials.csv --out runs/route
+"""
+
+
+def _add_route_output(parser) -> None:
+    """--out, --force, --seed, --chains, --draws, --progress: no --tune (no sampler)."""
+    from feeler.commands._fit_output import FIT_FILES
+
+    parser.add_argument("--out", default=None, metavar="DIR",
+                        help="write posterior.nc, summary.csv, verdict.json and tau_report.json into DIR")
+    parser.add_argument("--force", action="store_true", help="overwrite an earlier fit in DIR")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the draws from the grid (default 0)")
+    parser.add_argument("--chains", type=int, default=4,
+                        help="groups of independent draws from the grid posterior (default 4; at least 2)")
+    parser.add_argument("--draws", type=int, default=1000,
+                        help="independent draws per group (default 1000; chains × draws at least 400)")
+    parser.add_argument("--progress", action="store_true", default=None, help="always show progress")
+    parser.add_argument("--no-progress", dest="progress", action="store_false", help="never show progress")
+    parser.set_defaults(out_files=FIT_FILES + ("tau_report.json",))
+
+
+def _without_empty_rows(trials):
+    """(``trials`` without its rows of n_trials = 0, a note naming them or "").
+
+    Such a row holds no trial: it would add a tested level without responses to the
+    identifiability checks, or a subject with no data."""
+    empty = (trials["n_trials"] == 0).to_numpy()
+    if not empty.any():
+        return trials, ""
+    kept = trials[~empty].reset_index(drop=True)
+    kept.attrs = dict(trials.attrs)
+    rows = trials[empty]
+    named = "; ".join(f"{r.subject} {r.standard_um:g} µm at {r.standard_speed_mm_s:g} mm/s vs {r.comparison_um:g} µm "
+                      f"at {r.comparison_speed_mm_s:g} mm/s" for r in rows.head(3).itertuples())
+    more = f"; and {len(rows) - 3} more" if len(rows) > 3 else ""
+    gone = [str(x) for x in dict.fromkeys(trials["subject"]) if x not in set(kept["subject"])]
+    return kept, (f"{len(rows)} row{'s' if len(rows) != 1 else ''} with n_trials = 0 left out (no trials to fit): "
+                  f"{named}{more}" + (f"; subject(s) {', '.join(gone)} had no other rows" if gone else ""))
 
 
 def _banner(note: str) -> None:
@@ -182,9 +241,12 @@ def run_psychophysics(args) -> int:
     from feeler.calib.progress import stage
     from feeler.calib.psychometric.model.task import Task
 
-    task = Task(args.nafc)                     # --nafc and --pc checked before any work
+    from feeler.calib.psychometric.independent import check_draw_counts
+
+    task = Task(args.nafc)                     # --nafc, --pc, --chains and --draws checked before any work
     if args.pc is not None:
         task.check_pc(args.pc, "--pc")
+    check_draw_counts(args.chains, args.draws, flag="--")
     stage(f"fit psychophysics: reading {args.data}", args.progress)     # stderr: stdout is the result
     import warnings
 
@@ -204,9 +266,11 @@ def run_psychophysics(args) -> int:
     if args.out:
         prepare_out_dir(args.out, ("thresholds.csv", "posterior.nc", "summary.csv", "verdict.json")
                         + (() if args.no_plots else ("curves/index.csv",)), force=args.force)
-    trials = read_trials(args.data, design=design)
+    trials, dropped = _without_empty_rows(read_trials(args.data, design=design))
     note = synthetic_note(trials)
     _banner(note)
+    if dropped:
+        print(f"note: {dropped}")
     rows = trials.attrs.get("trial_rows", 0)
     what = (f"{trials['subject'].nunique()} subject(s), {int(trials['n_trials'].sum())} trials"
             f"{f' (aggregated from {rows} trial rows)' if rows else ''}, backend {args.backend}")
@@ -248,15 +312,21 @@ def run_finger_route(args) -> int:
     from feeler.psydata import read_trials, synthetic_note
     from feeler.rundir import prepare_out_dir, write_json
 
+    from feeler.calib.psychometric.independent import check_draw_counts
+
     if args.n_tau < 2:
         raise ArgumentError("--n-tau", args.n_tau, "needs at least 2 grid nodes")
+    check_draw_counts(args.chains, args.draws, flag="--")
     trials = read_trials(args.data, matrix_use="one condition at one speed pair, and the finger route needs trials at "
                                                "more than one; write the trial table's columns (README)")
     if "n_correct" in trials.columns:
         raise ArgumentError("DATA.csv", args.data, "the finger route needs comparison data "
                                                    "(n_comparison_higher), not nAFC (n_correct)")
+    trials, dropped = _without_empty_rows(trials)
     note = synthetic_note(trials)
     _banner(note)
+    if dropped:
+        print(f"note: {dropped}")
     if args.out:
         prepare_out_dir(args.out, ("posterior.nc", "summary.csv", "verdict.json", "tau_report.json"),
                         force=args.force)

@@ -204,3 +204,55 @@ def test_a_trial_table_saved_from_a_spreadsheet_reads_as_the_clean_one(data, tmp
     messy.write_bytes(("\r\n".join([ln if ln.startswith("#") else ln + ",," for ln in lines]
                                     + [",,,,,,,,,"] * 3) + "\r\n").encode())
     pd.testing.assert_frame_equal(read_trials(messy), read_trials(data))
+
+
+def test_finger_route_help_says_what_it_takes(capsys):
+    """Its help had the psychophysics text: --nafc N with n_correct data and --prior-*
+    options it does not have (`--nafc 2`: unrecognized), and --tune for a grid posterior."""
+    with pytest.raises(SystemExit):
+        main(["fit", "finger-route", "--help"])
+    text = capsys.readouterr().out
+    for absent in ("--nafc", "--prior", "--tune", "nAFC (--nafc", "warm-up steps"):
+        assert absent not in text, absent
+    for present in ("Comparison design only: no nAFC (n_correct) data", "independent draws",
+                    "n_trials = 0 are left out", "--chains", "--draws", "0.5·Beta(2, 18)", "always\nright"):
+        assert present in text, present
+    for option in ("--tune", "--nafc", "--prior-lapse"):
+        with pytest.raises(SystemExit) as exc:
+            main(["fit", "finger-route", "x.csv", option, "2"])
+        assert exc.value.code == 2 and f"unrecognized arguments: {option}" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", ["psychophysics", "finger-route"])
+def test_too_few_draws_are_one_line_before_any_work(data, command, capsys):
+    """--draws 5 --chains 1: 'R-hat nan > 1.01' 98 times under a table of numbers."""
+    assert main(["fit", command, str(data), "--draws", "5", "--chains", "1", "--no-progress"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err == ("feeler: error: argument --chains=1: at least 2: the summary's R-hat needs at least "
+                                 "2 chains of at least 4 draws (one chain: undefined), and the verdict's bulk ESS "
+                                 "chains × draws >= 400\n")
+    assert main(["fit", command, str(data), "--draws", "99", "--no-progress"]) == 2
+    assert "argument --draws=99: at least 100 with 4 chains" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", ["psychophysics", "finger-route"])
+def test_rows_without_trials_are_left_out_with_a_note(data, tmp_path, command, capsys):
+    t = pd.read_csv(data, comment="#")
+    t.loc[4, ["n_trials", "n_comparison_higher"]] = 0
+    write_trials(tmp_path / "zero.csv", t)
+    argv = ["fit", command, str(tmp_path / "zero.csv"), "--no-progress", "--draws", "200"]
+    assert main(argv + (["--no-plots"] if command == "psychophysics" else ["--n-tau", "31"])) in (0, 1)
+    out = capsys.readouterr().out
+    row = t.loc[4]
+    assert (f"note: 1 row with n_trials = 0 left out (no trials to fit): {row.subject} {row.standard_um:g} µm at "
+            f"{row.standard_speed_mm_s:g} mm/s vs {row.comparison_um:g} µm at {row.comparison_speed_mm_s:g} mm/s\n") in out
+    if command == "psychophysics":
+        assert f"{int(t.n_trials.sum())} trials" in out
+
+
+def test_the_shipped_scenes_data_pass_the_finger_route(tmp_path, capsys):
+    """What `feeler demo` fits: the per-subject check must not fail ordinary observers."""
+    assert main(["simulate", str(SCENE_PATH), "--out", str(tmp_path / "psy"), "--no-progress"]) == 0
+    assert main(["fit", "finger-route", str(tmp_path / "psy"), "--n-tau", "61", "--draws", "300",
+                 "--no-progress"]) == 0
+    assert "verdict: ok" in capsys.readouterr().out

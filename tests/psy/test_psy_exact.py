@@ -1,4 +1,6 @@
 """The exact backend: against a brute-force integral, invariances, estimands, nAFC, pc."""
+import warnings
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -126,3 +128,25 @@ def test_a_broad_spread_posterior_has_its_quantiles_where_its_draws_are():
         lb, med, ub = (row[f"{name}{k}_um"] for k in ("_lb", "_median", "_ub"))
         assert lb <= row[f"{name}_um"] <= ub
         np.testing.assert_allclose([lb, med, ub], np.quantile(draws, [0.025, 0.5, 0.975]), rtol=0.12)
+
+
+def test_independent_draws_are_not_failed_by_r_hat_noise(simulate):
+    """The exact grid's draws are independent: R-hat has nothing to detect there, and at 4
+    chains of 100 draws its noise alone read above 1.01 for about 1 parameter in 9."""
+    from feeler.calib.fit import DiagnosticWarning
+
+    trials, _ = simulate(7, n_subjects=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DiagnosticWarning)
+        result = fit_psychometric(trials, rng=np.random.default_rng(11), chains=4, draws=100)
+    assert (result.summary["r_hat"] > 1.01).any()              # the noise is there, shown in the table
+    assert not [p for p in result.verdict.problems if "R-hat" in p or "ESS" in p], result.verdict.problems
+
+
+@pytest.mark.parametrize("chains, draws, match", [(1, 5, "chains=1: at least 2"), (1, 1000, "chains=1"),
+                                                  (4, 50, "draws=50: at least 100 with 4 chains")])
+def test_too_few_chains_or_draws_are_refused_with_the_minimum(chains, draws, match):
+    from feeler.errors import ArgumentError
+
+    with pytest.raises(ArgumentError, match=match):
+        fit_psychometric(_one([2, 5, 10, 20, 30, 35, 38]), rng=np.random.default_rng(0), chains=chains, draws=draws)

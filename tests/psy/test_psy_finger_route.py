@@ -136,3 +136,30 @@ def test_speeds_in_metres_per_second_are_named(design):
         "given in mm/min, a stage's feed-rate unit (÷ 60 → 20–40 mm/s) or in µm/s (÷ 1000 → 1.2–2.4 mm/s)?"]
     assert speed_problems(np.array([np.nan, 5e7])) == [
         "speeds: the scan speeds 5e+07–5e+07 'mm/s' (median 5e+07) are above a fingertip's (1–1000 mm/s)"]
+
+
+def test_subjects_at_chance_or_always_right_fail_the_pooled_fit(design):
+    """S5 at chance at every level and S6 always right were pooled with the others into one
+    (τ, σ_d, λ): 'verdict: ok', while fit psychophysics failed naming both."""
+    from feeler.calib.psychometric.finger_route import SUBJECT_SIGMA_FACTOR
+
+    right = np.where(design.comparison_um > design.standard_um, design.n_trials,
+                     np.where(design.comparison_um < design.standard_um, 0, design.n_trials // 2))
+    k = np.where(design.subject == "S5", design.n_trials // 2,
+                 np.where(design.subject == "S6", right, design.n_comparison_higher))
+    with pytest.warns(DiagnosticWarning, match="subjects: S5"):
+        result = fit_finger_route(design.assign(n_comparison_higher=k), rng=np.random.default_rng(6), grid=GRID,
+                                  draws=200)
+    (line,) = [p for p in result.verdict.problems if p.startswith("subjects:")]
+    assert line.startswith("subjects: S5 (no rise, as at chance: sigma_d infinite), S6 (sigma_d ")
+    assert f"more than {SUBJECT_SIGMA_FACTOR:g} times apart" in line and "S1" not in line and "\n" not in line
+    ok = fit_finger_route(design, rng=np.random.default_rng(6), grid=GRID, draws=200)   # ordinary observers pass
+    assert not any(p.startswith("subjects:") for p in ok.verdict.problems)
+
+
+@pytest.mark.parametrize("chains, draws, name", [(1, 1000, "chains"), (4, 5, "draws"), (2, 199, "draws"),
+                                                 (200, 2, "draws")])
+def test_too_few_draws_for_r_hat_and_ess_are_refused_first(design, chains, draws, name):
+    """--draws 5 --chains 1 printed 'R-hat nan' beside a table of numbers."""
+    with pytest.raises(ArgumentError, match=f"argument {name}={draws if name == 'draws' else chains}: .*>= 400"):
+        fit_finger_route(design, rng=np.random.default_rng(0), grid=GRID, chains=chains, draws=draws)
