@@ -2,6 +2,7 @@
 simulated datasets, and the M1 / M2 fits on them (small sizes)."""
 from __future__ import annotations
 
+import logging
 import re
 import warnings
 from pathlib import Path
@@ -121,3 +122,95 @@ def test_areas_fidelity_needs_no_opencv_and_reads_close_to_the_truth(tmp_path):
     a, d = read_scans(tmp_path / "run"), read_scans(run_simulation(disp, tmp_path / "disp"))
     np.testing.assert_array_equal(a.x_mm, d.x_mm)
     assert 0.001 < np.std(a.uy_mm - d.uy_mm) < 0.004 and not np.array_equal(a.uy_mm, d.uy_mm)
+
+
+# --- scenes whose rendered frames the camera could not read: refused at load, naming the key ---
+
+FOUR_OPTICS = {"blur": "blur_sd_px = 1.2", "rest": "rest_area_px2 = 150.0", "photons": "photons_per_level = 40.0",
+               "press": "uy0_mean_mm = 0.05", "heights": "heights_mm = [0.0, 0.05, 0.1, 0.2]"}
+CAL_DESIGN = {"presses": "normal_presses_mm = [0.05, 0.10, 0.15, 0.20, 0.25]",
+              "offsets": "shear_offsets_mm = [-0.10, -0.05, 0.05, 0.10]", "preload": "shear_preload_mm = 0.15",
+              "blur": "blur_sd_px = 1.2", "rest": "rest_area_px2 = 150.0"}
+_LIMIT = re.compile(r"(?:at most|at least|up to ±?)\s*([0-9.]+)")
+
+
+@pytest.mark.parametrize("src, old, value, key, fmt", [
+    # the audit's scenes: each used to fail after rendering on areas_px2 (or 82 frame warnings)
+    (FOUR_IMAGES, FOUR_OPTICS["blur"], "10.0", "optics.blur_sd_px", "blur_sd_px = {}"),
+    (FOUR_IMAGES, FOUR_OPTICS["rest"], "9000.0", "optics.rest_area_px2", "rest_area_px2 = {}"),
+    (FOUR_IMAGES, FOUR_OPTICS["press"], "3.0", "probe.uy0_mean_mm", "uy0_mean_mm = {}"),
+    (FOUR_IMAGES, FOUR_OPTICS["heights"], "[0.0, 2.0, 4.0, 5.0]", "surface.heights_mm", "heights_mm = [0.0, {}]"),
+    (FOUR_IMAGES, FOUR_OPTICS["rest"], "1.0", "optics.rest_area_px2", "rest_area_px2 = {}"),
+    (FOUR_IMAGES, FOUR_OPTICS["photons"], "0.001", "optics.photons_per_level", "photons_per_level = {}"),
+    (FOUR_IMAGES, FOUR_OPTICS["photons"], "1.5", "optics.photons_per_level", "photons_per_level = {}"),
+    (CAL_IMAGES, CAL_DESIGN["presses"], "[0.05, 0.10, 0.15, 0.20, 2.0]", "design.normal_presses_mm",
+     "normal_presses_mm = [{}]"),
+    (CAL_IMAGES, CAL_DESIGN["offsets"], "[-2.0, -0.05, 0.05, 2.0]", "design.shear_offsets_mm",
+     "shear_offsets_mm = [-{0}, {0}]"),
+    (CAL_IMAGES, CAL_DESIGN["preload"], "1.5", "design.shear_preload_mm", "shear_preload_mm = {}"),
+    (CAL_IMAGES, CAL_DESIGN["blur"], "10.0", "optics.blur_sd_px", "blur_sd_px = {}"),
+    (CAL_IMAGES, CAL_DESIGN["rest"], "900.0", "optics.rest_area_px2", "rest_area_px2 = {}"),
+    (CAL_IMAGES, CAL_DESIGN["rest"], "20.0", "optics.rest_area_px2", "rest_area_px2 = {}"),
+])
+def test_unreadable_frames_are_refused_at_load_naming_the_key_and_a_limit_that_loads(tmp_path, src, old, value,
+                                                                                    key, fmt):
+    name = old.split(" = ")[0]
+    with pytest.raises(SceneError) as refused:
+        load_scene(variant(src, tmp_path, **{old: f"{name} = {value}"}))
+    message = str(refused.value)
+    assert f": {key}: " in message and "\n" not in message and "areas_px2" not in message, message
+    limit = _LIMIT.findall(message)[-1].rstrip(".")
+    load_scene(variant(src, tmp_path, "fixed.toml", **{old: fmt.format(limit)}))     # the limit named holds
+
+
+def test_shipped_images_scenes_and_their_nominal_optics_load():
+    for path in (FOUR_IMAGES, CAL_IMAGES):
+        assert load_scene(path).optics.blur_sd_px == 1.2
+
+
+def test_a_refused_simulate_is_one_line_exit_2_and_leaves_no_directory(tmp_path, capsys):
+    from feeler.cli import main
+
+    scene = variant(FOUR_IMAGES, tmp_path, **{FOUR_OPTICS["blur"]: "blur_sd_px = 10.0"})
+    assert main(["simulate", str(scene), "--out", str(tmp_path / "run"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "optics.blur_sd_px: 10: " in err[0] and "at most" in err[0], err
+    assert not (tmp_path / "run").exists()
+
+
+def _past_the_load_checks(monkeypatch):
+    import feeler.scenes._frames as frames
+
+    monkeypatch.setattr(frames, "check_frames", lambda *args, **kw: None)
+    monkeypatch.setattr(frames, "check_photons", lambda *args, **kw: None)
+
+
+@pytest.mark.parametrize("old, new, key, cause, advice", [
+    (FOUR_OPTICS["photons"], "photons_per_level = 0.001", "optics.photons_per_level", "shot noise",
+     "raise photons_per_level"),
+    (FOUR_OPTICS["rest"], "rest_area_px2 = 1.0", "optics.rest_area_px2", "too small for the blur",
+     "raise rest_area_px2"),
+])
+def test_frames_rejected_at_run_time_are_one_line_naming_what_is_at_fault(tmp_path, monkeypatch, caplog,
+                                                                          old, new, key, cause, advice):
+    _past_the_load_checks(monkeypatch)
+    scene = variant(FOUR_IMAGES, tmp_path, **{old: new, "scans_per_plate = 8": "scans_per_plate = 1"})
+    with pytest.raises(SceneError) as refused:
+        run_simulation(scene, tmp_path / "run", progress=False)
+    message = str(refused.value)
+    assert f": {key}: " in message and cause in message and advice in message, message
+    assert "see the log" not in message and "lower blur_sd_px or the noise" not in message
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]      # per-frame lines: -v only
+    assert not (tmp_path / "run").exists()
+
+
+def test_frames_rejected_in_a_video_keep_their_lines_at_info(tmp_path, monkeypatch, caplog):
+    _past_the_load_checks(monkeypatch)
+    caplog.set_level(logging.INFO)
+    scene = variant(FOUR_IMAGES, tmp_path, **{FOUR_OPTICS["photons"]: "photons_per_level = 0.001\nvideo = true",
+                                              "scans_per_plate = 8": "scans_per_plate = 1", "video = false": ""})
+    with pytest.raises(SceneError, match=r"optics\.photons_per_level: 0\.001: shot noise"):
+        run_simulation(scene, tmp_path / "run", progress=False)
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    assert any("frame 0 rejected" in r.getMessage() and r.levelno == logging.INFO for r in caplog.records)
+    assert not (tmp_path / "run").exists()

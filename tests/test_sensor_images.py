@@ -1,4 +1,5 @@
 """The `images` fidelity end to end: U → frames → (video) → OpenCV → U, against `displacement`."""
+import logging
 import subprocess
 import sys
 from pathlib import Path
@@ -10,8 +11,8 @@ from feeler.errors import ArgumentError
 from feeler.models.optics import (CameraParams, OpticsParams, areas_from_force, force_from_areas,
                                   force_from_displacement, load_layout, observe_areas)
 from feeler.models.sensor import FIDELITIES, DisplacementNoise, observe
-from feeler.simulate.images import (ImagesFidelity, frames_from_displacement, observe_images,
-                                  register_optical_fidelities)
+from feeler.simulate.images import (FramesRejected, ImagesFidelity, frames_from_displacement, observe_images,
+                                    register_optical_fidelities, rejection_cause)
 
 LAYOUT = load_layout(Path(__file__).resolve().parents[1] / "datasets-synthetic" / "layouts" / "sensor-16.toml")
 P = OpticsParams()
@@ -77,11 +78,40 @@ def test_noise_free_static_video_is_not_taken_for_frozen(tmp_path):
 
 
 def test_bad_frames_become_nan_never_values(caplog):
+    caplog.set_level(logging.INFO, logger="feeler.simulate.images")
     glare = CameraParams(peak_level=250.0, photons_per_level=0.5)  # shot noise saturates 8 bits
     out = observe_images(scans(n_scans=3, n_time=2), params=P, layout=LAYOUT,
                          rng=np.random.default_rng(6), camera=glare)
     assert out.shape == (3, 2, 3) and np.isnan(out).all()
     assert "rendered frame 1 rejected: saturated pixels" in caplog.text
+    # a line per frame is detail for -v (INFO), never a warning on stderr
+    assert [r.levelno for r in caplog.records] == [logging.INFO, logging.INFO]
+
+
+def test_strict_reading_raises_with_every_reason_and_the_series_it_cost():
+    glare = CameraParams(peak_level=250.0, photons_per_level=0.5)
+    u = scans(n_scans=18, n_time=2)                 # two frame groups: series 0-15, then 16-17
+    with pytest.raises(FramesRejected) as rejected:
+        observe_images(u, params=P, layout=LAYOUT, rng=np.random.default_rng(6), camera=glare, strict=True)
+    exc = rejected.value
+    assert exc.n_frames == 4 and [i for i, _ in exc.problems] == [0, 1, 2, 3]
+    assert exc.cause == "noise" and exc.series.tolist() == list(range(18))
+    fine = observe_images(u, params=P, layout=LAYOUT, rng=np.random.default_rng(6), strict=True)
+    assert not np.isnan(fine).any()
+
+
+@pytest.mark.parametrize("reasons, cause", [
+    (["a bright blob outside the feeler windows"] * 3 + ["no disc interior left to measure the peak level"], "noise"),
+    (["saturated pixels in a feeler window", "2 blobs in the window of element 0 feeler 1"], "noise"),
+    (["no disc interior left to measure the peak level"] * 2 + ["no disc found in the bright window of element 3 "
+                                                               "feeler 0", "saturated pixels in a feeler window"],
+     "small discs"),
+    (["a disc reaches the edge of its feeler window"], "large discs"),
+    (["cannot be decoded", "missing: the video ends after 3 of 5 frames"], "other"),
+    ([], "other"),
+])
+def test_rejection_cause_follows_the_majority_of_reasons(reasons, cause):
+    assert rejection_cause(reasons) == cause
 
 
 def test_bad_displacements():

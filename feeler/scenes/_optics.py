@@ -69,8 +69,11 @@ def fidelity_params(optics: Optics | None, fidelity: str, *, scene_path, out_dir
                     progress: bool | None = False):
     """``params`` for :func:`feeler.models.sensor.observe` at an optical fidelity (and
     registers those fidelities). ``out_dir`` receives ``sensor.avi`` when ``video``;
-    ``progress`` is the `images` fidelity's (stage lines and frame bars, False: silent)."""
-    from feeler.models.optics import CameraParams, grid_layout, load_layout
+    ``progress`` is the `images` fidelity's (stage lines and frame bars, False: silent);
+    at `images` rejected frames raise :class:`~feeler.simulate.images.FramesRejected`
+    (``strict``), which :func:`rejection_error` turns into the scene's one-line error."""
+    from feeler.models.optics import CameraParams
+    from feeler.scenes._frames import scene_layout
     from feeler.simulate.images import ImagesFidelity, register_optical_fidelities
 
     register_optical_fidelities()
@@ -78,13 +81,7 @@ def fidelity_params(optics: Optics | None, fidelity: str, *, scene_path, out_dir
     params = optics_params(o, c_mm_per_n)
     if fidelity == "areas":
         return params
-    if o.layout:
-        layout_path = Path(scene_path).parent / o.layout if scene_path is not None else Path(o.layout)
-        if not layout_path.is_file():
-            raise SceneError(scene_path, "optics.layout", f"{o.layout!r}: no such layout file ({layout_path})")
-        layout = load_layout(layout_path)
-    else:
-        layout = grid_layout()
     video = str(Path(out_dir) / "sensor.avi") if o.video and out_dir is not None else None
-    return ImagesFidelity(params, layout, CameraParams(blur_sd_px=o.blur_sd_px,
-                                                       photons_per_level=o.photons_per_level), video, progress)
+    return ImagesFidelity(params, scene_layout(o, scene_path),
+                          CameraParams(blur_sd_px=o.blur_sd_px, photons_per_level=o.photons_per_level),
+                          video, progress, strict=True)

@@ -4,11 +4,16 @@ One plate per entry of ``surface.heights_mm``, each scanned ``repeats.scans_per_
 times; every scan is a fresh touch (press, tilt, start offset and drift drawn anew).
 ``[noise]`` is the sensor's white noise at the ``displacement`` fidelity; at ``areas`` and
 ``images`` the noise comes from the optical element of the optional ``[optics]`` table
-(:mod:`feeler.scenes._optics`).
+(:mod:`feeler.scenes._optics`). At ``images`` the check also renders nothing it could not
+read: the contact discs of the scene's lightest and hardest touches must suit the camera
+(:mod:`feeler.scenes._frames`).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from feeler.errors import SceneError
 from feeler.scene import param
@@ -109,6 +114,60 @@ class Scene:
             return s.position_mm + (s.count - 0.5) * s.spacing_mm
         return s.position_mm
 
+    def plate_levels_mm(self) -> tuple[float, float]:
+        """(lowest, highest) surface level (mm) of any plate, 0 (the base) included."""
+        from feeler.simulate.robot import plate_profile
+
+        levels = [0.0]
+        for height in self.surface.heights_mm:
+            profile = plate_profile(self.surface, height)
+            levels += list(profile.base_mm + np.cumsum((0.0,) + tuple(profile.jumps_mm)))
+        return min(levels), max(levels)
+
+    def press_range_mm(self) -> tuple[float, float]:
+        """(lowest, highest) U_y (mm) of the scene's touches, with 5 sds of every draw: the
+        press (at least 0; less the breakaway at the low end), the plates' levels, and the
+        drift over one scan."""
+        p, m = self.probe, self.motion
+        low, top = self.plate_levels_mm()
+        drift = 5 * p.drift_sd_mm_s * m.traverse_mm / m.speed_mm_s
+        press_lo = max(0.0, p.uy0_mean_mm - 5 * p.uy0_sd_mm) * (1 - p.breakaway_frac)
+        return press_lo + low - drift, p.uy0_mean_mm + 5 * p.uy0_sd_mm + top + drift
+
+    def _check_frames(self, path) -> None:
+        """At ``images``: the contact discs of the lightest and hardest touches suit the camera."""
+        from feeler.scenes._frames import check_frames, check_photons, contact_areas, round_down, scene_layout
+
+        optics, layout = self.optics or Optics(), scene_layout(self.optics, path)
+        m, n_el = self.motion, len(layout.elements)
+        n_time = int(math.floor(m.traverse_mm / (m.speed_mm_s * m.dt_s) + 1e-9)) + 1     # probe.Motion.n_samples
+        n_scans = len(self.surface.heights_mm) * self.repeats.scans_per_plate
+        check_photons(optics, path, -(-n_scans // n_el) * n_time, n_el)
+        along = np.array([-self.probe.shear_per_normal, 1.0, 0.0])      # U per mm of U_y
+        lo, hi = self.press_range_mm()
+        areas = contact_areas(optics, np.stack([lo * along, hi * along]), optics.c_mm_per_n)
+        per_mm = contact_areas(optics, along[None], optics.c_mm_per_n)[0] - optics.rest_area_px2
+
+        def growth(peak, budget, lim, where):
+            p, s = self.probe, self.surface
+            press = p.uy0_mean_mm + 5 * p.uy0_sd_mm
+            top = self.plate_levels_mm()[1]
+            drift = hi - press - top
+            reach = budget / per_mm.max() if per_mm.max() > 0 else 0.0  # U_y (mm) whose discs fit
+            said = (f"the hardest touch (U_y up to {hi:.3g} mm: press {p.uy0_mean_mm:g} mm + 5 sd, highest "
+                    f"plate level {top:.3g} mm, drift {drift:.2g} mm) renders contact discs of {peak:.0f} px², "
+                    f"but only {lim.largest_px2:.0f} px² with the blur's {lim.reach_px} px fit {where}")
+            if top > press and reach > press + drift:
+                per_level = max(abs(h) for h in s.heights_mm) / top       # height per mm of level
+                return SceneError(path, "surface.heights_mm",
+                                  f"{list(s.heights_mm)}: {said}; with this press heights up to "
+                                  f"{round_down((reach - press - drift) * per_level):g} mm fit")
+            return SceneError(path, "probe.uy0_mean_mm",
+                              f"{p.uy0_mean_mm:g}: {said}; with these plates at most "
+                              f"{round_down(reach - top - drift - 5 * p.uy0_sd_mm):g} mm fits")
+
+        check_frames(optics, path, areas, growth, layout)
+
     def check(self, path) -> None:
         """Cross-field rules: raise :class:`SceneError` on an impossible combination."""
         s, m, p = self.surface, self.motion, self.probe
@@ -149,3 +208,5 @@ class Scene:
             raise SceneError(path, "neuron.tau_s",
                              f"{self.neuron.tau_s}: shorter than one sample (motion.dt_s = {m.dt_s:g} s); a window "
                              "must hold at least one frame for a neuron calibration to find it")
+        if self.sensor.fidelity == "images":
+            self._check_frames(path)

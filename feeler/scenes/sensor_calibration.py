@@ -10,9 +10,12 @@ read from the element's contact areas / rendered camera frames (``[optics]``, wh
 replaced by the true C), and ``noise.f_sd_n`` is not used. The
 ``[prior]`` table is the lab's nominal knowledge (C₀ from the sensor's design), used by
 ``feeler calibrate sensor``. Axes as in the paper: x along the scan, y normal, z lateral.
+At ``images`` the check also refuses a design whose contact discs the camera could not
+read (:mod:`feeler.scenes._frames`).
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,6 +94,63 @@ class Scene:
         if not any(o != 0 for o in self.design.shear_offsets_mm):
             raise SceneError(path, "design.shear_offsets_mm",
                              "needs a non-zero offset: without shear the x and z columns are unidentified")
+        if self.sensor.fidelity == "images":
+            self._check_frames(path)
+
+    def _check_frames(self, path) -> None:
+        """At ``images``: the contact discs of every design point (± 5 stage sds) suit the camera."""
+        from feeler.scenes._frames import check_frames, check_photons, contact_areas, round_down, scene_layout
+
+        optics, c, d = self.optics or Optics(), self.sensor.c_mm_per_n, self.design
+        layout = scene_layout(self.optics, path)
+        u = commanded_displacements(dataclasses.replace(d, repeats=1))
+        n_el = len(layout.elements)
+        check_photons(optics, path, -(-len(u) * d.repeats // n_el), n_el)
+        per_mm = contact_areas(optics, np.eye(3), c) - optics.rest_area_px2        # (axis, feeler) px²/mm
+        slack = 5 * self.noise.stage_sd_mm * np.abs(per_mm).sum(axis=0)
+        areas = contact_areas(optics, u, c)
+
+        n_normal, n_shear = len(d.normal_presses_mm), len(d.shear_offsets_mm)
+        preloaded = optics.rest_area_px2 + d.shear_preload_mm * per_mm[1]
+
+        def offsets_error(worst, lim, said) -> SceneError:
+            # the largest |offset| along the worst point's axis that keeps every disc inside and readable
+            axis = 0 if worst < n_normal + n_shear else 2
+            k = np.maximum(np.abs(per_mm[axis]), 1e-12)
+            room = np.minimum(lim.largest_px2 - slack - preloaded, preloaded - slack - lim.smallest_px2) / k
+            return SceneError(path, "design.shear_offsets_mm",
+                              f"{list(d.shear_offsets_mm)}: {said}; at this preload offsets up to "
+                              f"±{round_down(float(room.min())):g} mm keep the discs inside and readable")
+
+        def press_most(lim, extra) -> float:
+            # the largest press along y that keeps every disc, grown by extra (px²), inside its window
+            up = per_mm[1] > 0
+            room = (lim.largest_px2 - optics.rest_area_px2 - slack - extra)[up] / per_mm[1][up]
+            return round_down(float(room.min())) if up.any() else 0.0
+
+        def growth(peak, budget, lim, where):
+            worst = int(np.argmax((areas + slack).max(axis=1)))
+            said = (f"the design's contact discs reach {peak:.0f} px² (compliance sensor.c_mm_per_n), but only "
+                    f"{lim.largest_px2:.0f} px² with the blur's {lim.reach_px} px fit {where}")
+            if worst < n_normal:
+                return SceneError(path, "design.normal_presses_mm", f"{list(d.normal_presses_mm)}: {said}; "
+                                                                    f"presses up to {press_most(lim, 0.0):g} mm fit")
+            if (preloaded + slack).max() > lim.largest_px2:
+                sheared = max(np.abs(d.shear_offsets_mm)) * np.maximum(np.abs(per_mm[0]), np.abs(per_mm[2]))
+                return SceneError(path, "design.shear_preload_mm", f"{d.shear_preload_mm:g}: {said}; with these "
+                                  f"offsets a preload up to {press_most(lim, sheared):g} mm fits")
+            return offsets_error(worst, lim, said)
+
+        def shrink(least, lim, where):
+            worst = int(np.argmin((areas - slack).min(axis=1)))
+            said = (f"the design shrinks a contact disc to {max(least, 0.0):.0f} px² (compliance "
+                    f"sensor.c_mm_per_n), below the {lim.smallest_px2:.0f} px² (π (σ + 1.6)², blur "
+                    f"{optics.blur_sd_px:g} px) the frame reader tells from shot-noise specks")
+            if worst < n_normal:
+                return SceneError(path, "design.normal_presses_mm", f"{list(d.normal_presses_mm)}: {said}")
+            return offsets_error(worst, lim, said)
+
+        check_frames(optics, path, np.concatenate([areas + slack, areas - slack]), growth, layout, shrink)
 
 
 def commanded_displacements(design: Design) -> np.ndarray:

@@ -38,7 +38,9 @@ def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = Fal
     run); True, bars even off a terminal; False, silent.
 
     Raises:
-        SceneError: the scene does not validate. OverwriteError: data exist and not ``force``.
+        SceneError: the scene does not validate (checked before ``out`` is created), or its
+            rendered frames are rejected; a failed run removes ``out`` when it created it.
+        OverwriteError: data exist and not ``force``.
         ArgumentError: the scene asks for a sensor fidelity not available here.
     """
     scene = load_scene(scene_path)
@@ -55,7 +57,13 @@ def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = Fal
         raise SceneError(scene_path, "scene.kind", f"{kind!r} is not a scene to simulate{hint}; "
                                                    f"simulate takes {', '.join(sorted(SIMULATORS))}")
     module, func = SIMULATORS[kind].split(":")
-    getattr(importlib.import_module(module), func)(scene, scene_path, out, force, progress=progress)
+    fresh = not Path(out).exists()
+    try:
+        getattr(importlib.import_module(module), func)(scene, scene_path, out, force, progress=progress)
+    except Exception:
+        if fresh:                # a refused run leaves no directory of its own behind
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     if seed is not None:
         copy = Path(out) / "scene.toml"
         copy.write_text(with_seed(Path(scene_path).read_text(encoding="utf-8"), seed), encoding="utf-8")

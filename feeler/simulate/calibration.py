@@ -50,19 +50,19 @@ def draw_campaign(scene, rng: np.random.Generator, scene_path=None, out_dir=None
 def _optical_force(scene, u_true: np.ndarray, rng: np.random.Generator, scene_path, out_dir,
                    progress: bool | None = False) -> np.ndarray:
     """F (n, 3) N read through the optical element whose C is the scene's true C."""
-    from feeler.errors import SceneError
     from feeler.models import sensor
     from feeler.models.optics import force_from_displacement
+    from feeler.scenes._frames import rejection_error
     from feeler.scenes._optics import fidelity_params
+    from feeler.simulate.images import FramesRejected
 
     c = np.asarray(scene.sensor.c_mm_per_n, dtype=float)
     params = fidelity_params(scene.optics, scene.sensor.fidelity, scene_path=scene_path, out_dir=out_dir,
                              c_mm_per_n=c, progress=progress)
-    u_read = sensor.observe(u_true[:, None, :], fidelity=scene.sensor.fidelity, params=params, rng=rng)[:, 0]
-    bad = np.flatnonzero(np.isnan(u_read).any(axis=1))
-    if bad.size:
-        raise SceneError(scene_path, "optics", f"the frame reader rejected the frames of {bad.size} "
-                         f"points (first: point {bad[0]}); see the log")
+    try:
+        u_read = sensor.observe(u_true[:, None, :], fidelity=scene.sensor.fidelity, params=params, rng=rng)[:, 0]
+    except FramesRejected as exc:
+        raise rejection_error(exc, scene.optics, scene_path, "point") from None
     return force_from_displacement(u_read, c)
 
 

@@ -22,7 +22,6 @@ import numpy as np
 from feeler.calib.progress import progress as bar
 from feeler.calib.progress import stage
 from feeler.datasets import Scans, scan_features
-from feeler.errors import SceneError
 from feeler.models import probe, sensor, surface
 from feeler.rundir import prepare_out_dir, write_json
 from feeler.scene import scene_as_dict
@@ -64,7 +63,8 @@ def simulate_scans(scene, *, scene_path=None, out_dir=None,
     over the frames) on a terminal (:mod:`feeler.calib.progress`); False: silent.
 
     Raises:
-        SceneError: frames rejected by the reader (``optics`` too blurred or noisy).
+        SceneError: frames rejected by the reader, naming the ``optics`` key their reasons
+            point to (shot noise, discs too small or too large for the blur).
 
     Returns:
         scans (Scans): arrays ``(n_plates * scans_per_plate, n_time)``; scan_id =
@@ -99,11 +99,13 @@ def simulate_scans(scene, *, scene_path=None, out_dir=None,
         touches.append({"scan_id": scan_id, "plate": plate, "step_mm": height, **asdict(touch)})
     u = np.stack(u_all)
     if fidelity == "images":                   # its stages: rendering, (video,) reading the frames
-        u = sensor.observe(u, fidelity=fidelity, params=noise, rng=np.random.default_rng(children[n]))
-        bad = np.flatnonzero(np.isnan(u).any(axis=(1, 2)))
-        if bad.size:
-            raise SceneError(scene_path, "optics", f"the frame reader rejected frames of {bad.size} scans "
-                             f"(first: scan {bad[0]}); see the log; lower blur_sd_px or the noise")
+        from feeler.scenes._frames import rejection_error
+        from feeler.simulate.images import FramesRejected
+
+        try:
+            u = sensor.observe(u, fidelity=fidelity, params=noise, rng=np.random.default_rng(children[n]))
+        except FramesRejected as exc:
+            raise rejection_error(exc, scene.optics, scene_path, "scan") from None
     scans = Scans(scan_id=np.arange(n), step_mm=np.repeat(np.asarray(heights, float), per_plate),
                   speed_mm_s=np.full(n, m.speed_mm_s), t_s=np.stack(t_all), x_mm=np.stack(x_all),
                   ux_mm=u[..., 0], uy_mm=u[..., 1], uz_mm=u[..., 2])
