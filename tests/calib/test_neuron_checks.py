@@ -404,21 +404,22 @@ def test_a_far_out_scan_hidden_by_a_further_one_is_found_once_that_one_is_set_as
     assert line.endswith("; 1 more scan lies outside its plate too (scan 6 in file order)"), line
 
 
-def test_plates_of_two_or_three_scans_fail_the_verdict():
+def test_plates_of_two_to_four_scans_fail_the_verdict():
     """Two touches a plate: every leave-one-out check passes (each scan predicted from the
     other), yet over ten training sets of four-plates 0.78 of fresh labels fell inside their
-    90 % intervals and 9 of 10 fits said ok. Fewer than 4 a plate now fails, naming the plates."""
+    90 % intervals and 9 of 10 fits said ok. Four a plate: an outside audit's slow scene
+    covered 0.81-0.85 with 16 of 20 fits ok. Fewer than 5 a plate now fails, naming the plates."""
     from feeler.calib.neuron.checks import MIN_SCANS_PER_PLATE
 
-    assert MIN_SCANS_PER_PLATE == 4
+    assert MIN_SCANS_PER_PLATE == 5
     two = scene_scans(seed=21, per_plate=2)[2]
     res = _quiet_fit(two, seed=1)
     assert not res.verdict.ok
     line = next(q for q in res.verdict.problems if q.startswith("plate_sd_mm, tau_s: plate(s)"))
-    assert "0 mm (2 scans), 0.05 mm (2 scans), 0.1 mm (2 scans), 0.2 mm (2 scans) have fewer than 4" in line
-    four = scene_scans(seed=21, per_plate=4)[2]
-    table = four.table(n_grid=16)
-    assert not any("fewer than" in q for q in data_problems(table, Plates.of(four.step_mm)))   # 4 a plate
-    keep = np.flatnonzero((four.step_mm != 0.1) | (np.cumsum(four.step_mm == 0.1) <= 3))       # 0.1 mm: 3
-    three = data_problems(PeakTable(log_tau=table.log_tau, peak=table.peak[keep]), Plates.of(four.step_mm[keep]))
-    assert any(q.startswith("plate_sd_mm, tau_s: plate(s) 0.1 mm (3 scans) have fewer than 4") for q in three)
+    assert "0 mm (2 scans), 0.05 mm (2 scans), 0.1 mm (2 scans), 0.2 mm (2 scans) have fewer than 5" in line
+    five = scene_scans(seed=21, per_plate=5)[2]
+    table = five.table(n_grid=16)
+    assert not any("fewer than" in q for q in data_problems(table, Plates.of(five.step_mm)))   # 5 a plate
+    keep = np.flatnonzero((five.step_mm != 0.1) | (np.cumsum(five.step_mm == 0.1) <= 4))       # 0.1 mm: 4
+    four = data_problems(PeakTable(log_tau=table.log_tau, peak=table.peak[keep]), Plates.of(five.step_mm[keep]))
+    assert any(q.startswith("plate_sd_mm, tau_s: plate(s) 0.1 mm (4 scans) have fewer than 5") for q in four)
