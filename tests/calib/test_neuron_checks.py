@@ -219,6 +219,21 @@ def test_steps_in_cm_or_inches_are_named(data, per_mm, words):
     assert not res.verdict.ok and words in res.verdict.problems[0], res.verdict.problems
 
 
+@pytest.mark.parametrize("per_mm", [0.5, 1 / 3])
+def test_steps_labelled_too_small_are_named(data, per_mm):
+    """Steps labelled half or a third of their height make U_y rise 2 or 3 times the step,
+    under MAX_GAIN: the fit said verdict ok (an outside audit). The shipped labels are not
+    flagged, nor a rise a third below the step."""
+    res = _quiet_fit(dataclasses.replace(data, step_mm=per_mm * data.step_mm))
+    assert not res.verdict.ok
+    (q,) = [q for q in res.verdict.problems if q.startswith("a: ")]
+    assert "the steps are probably labelled too small, the scans reading them about" in q, q
+    assert abs(float(q.split("reading them about ")[1].split(" ")[0]) - 1 / per_mm) < 0.3, q
+    table, plates = data.table(n_grid=32), Plates.of(data.step_mm)
+    assert unit_problems(table, plates, length_mm=3.0, t_s=data.t_s) == []
+    assert unit_problems(PeakTable(table.log_tau, table.peak / 1.5), plates, length_mm=3.0, t_s=data.t_s) == []
+
+
 @pytest.mark.parametrize("per_mm, words", [(0.1, "U_y probably in cm, expected mm (or the steps labelled 10 times"),
                                             (1 / 25.4, "U_y probably in inches")])
 def test_displacements_in_cm_or_inches_are_named(data, per_mm, words):
