@@ -12,8 +12,8 @@ support; any problem fails the verdict (:func:`feeler.calib.fit.make_result`).
   steps in cm or inches, a rise that falls as the step rises (by 3 standard
   errors of the slope at some window, and rises at none) names steps labelled with the
   wrong sign (or, all steps ≥ 0, in reverse order), and one that changes with the step at
-  no window says the scans show no step (labels unrelated to the scans, or the wrong
-  column). The stage speed measured
+  no window says no step shows through the noise (steps too small for it, labels unrelated
+  to the scans, or the wrong column). The stage speed measured
   from ``x_mm`` and ``t_s`` against the commanded one, and a sample interval over a
   minute, name ms vs s;
 - the decoder's fit (:func:`posterior_problems`): leave-one-out predictive integral

@@ -6,7 +6,7 @@ or inches; under :data:`MIN_GAIN` U_y in cm or inches; above :data:`OVER_GAIN` b
 than 3 standard errors steps labelled too small; a slope far off while the largest
 step rises about its own step names plates labelled closer together (or further apart)
 than they read. A rise that falls as the step rises names steps of the wrong sign (or in
-reverse order), one that changes at no window says the scans show no step. The stage
+reverse order), one that changes at no window says no step shows through the noise. The stage
 speed from ``x_mm`` and ``t_s`` against the commanded one, and a sample interval over a
 minute, name ms vs s. :mod:`.checks` gathers these with the other verdict checks.
 """
@@ -64,6 +64,11 @@ def _slope_z(peak: np.ndarray, plates: Plates) -> np.ndarray:
         return np.where(se > 0, slope / se, np.where(slope == 0, 0.0, np.sign(slope) * np.inf))
 
 
+def mm_list(steps) -> str:
+    """Step heights as a short list: '0, 0.02'."""
+    return ", ".join(f"{v + 0.0:g}" for v in steps)
+
+
 def _gain_se(rise: np.ndarray, plates: Plates) -> float:
     """Standard error of the least-squares slope of each scan's ``rise (ndarray[n_scans])``
     on its labelled step (inf with fewer than 3 scans)."""
@@ -93,8 +98,10 @@ def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_
             out.append(f"a: the scans' rise in U_y falls as the labelled step rises (slope {gain:.3g}): {why}")
         elif np.abs(z).max() < 3 and plates.counts.min() >= 2:
             out.append(f"a: the scans' rise in U_y does not change with the labelled step at any window (slope "
-                       f"{gain:.3g}, at most {np.abs(z).max():.1f} standard errors from 0): the scans show no step; "
-                       f"check that uy_mm holds the normal displacement and step_mm each scan's plate")
+                       f"{gain:.3g}, at most {np.abs(z).max():.1f} standard errors from 0): no step shows through "
+                       f"the scans' noise; steps of {mm_list(c)} mm may be too small for this read-out noise "
+                       f"(more scans, or larger steps), or uy_mm may not hold the normal displacement or step_mm "
+                       f"each scan's plate")
         elif gain > MAX_GAIN or 0 < gain < MIN_GAIN:
             top = int(np.argmax(c))
             level = float(mean[top] * length_mm / c[top]) if c[top] > 0 else None
