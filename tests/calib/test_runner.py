@@ -101,6 +101,7 @@ def test_a_worker_that_dies_loses_only_its_job():
     over, and the error comes after them, saying how many were lost (it stopped at the
     first death, and a caller kept only what had finished by then)."""
     import dask
+    import distributed  # noqa: F401  (its config first: set() below then restores it, not deletes it)
 
     from feeler.errors import FeelerError
 

@@ -164,5 +164,6 @@ def test_a_worker_that_dies_is_a_one_line_failure():
     from feeler.errors import FeelerError
 
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
-        with pytest.raises(FeelerError, match=r"^a dask worker died while computing deaths \(.*\); run with -v"):
+        with pytest.raises(FeelerError, match=r"^a dask worker died while computing deaths: 1 of 1 lost \(the first, job 0: .*\); "
+                                              r"the other 0 finished; run with -v"):
             map_seeds(_die, [1], n_workers=1, desc="deaths")
