@@ -54,7 +54,7 @@ def _num(v):
 
 def interval_json(iv, **extra) -> dict:
     """An :class:`Interval` as JSON (non-finite values as null)."""
-    return {"mean": _num(iv.mean), "lo95": _num(iv.lo95), "hi95": _num(iv.hi95), "mcse": _num(iv.mcse), **extra}
+    return {"mean": _num(iv.estimate), "lo95": _num(iv.lo95), "hi95": _num(iv.hi95), "mcse": _num(iv.mcse), **extra}
 
 
 def threshold_text(th, scale: float = 1e3, unit: str = "um") -> str:
@@ -124,9 +124,9 @@ def run(args) -> int:
     print(f"{'low mm':>8} {'high mm':>8}  P(correct) [95 % interval]   MC se")
     for lo, hi in progress(pairs, desc="2AFC pairs", enabled=args.progress, lines=True):
         p = disc.pc(lo, hi)
-        rows.append({"low_mm": lo, "high_mm": hi, "pc": p.mean, "lo95": p.lo95, "hi95": p.hi95, "mcse": p.mcse})
+        rows.append({"low_mm": lo, "high_mm": hi, "pc": p.estimate, "lo95": p.lo95, "hi95": p.hi95, "mcse": p.mcse})
         mcse = f"{p.mcse:.4f}" if math.isfinite(p.mcse) else "-  (touches never overlap)"
-        print(f"{lo:8.4g} {hi:8.4g}  {format_estimate(p.mean, p.lo95, p.hi95, 4):28s} {mcse}")
+        print(f"{lo:8.4g} {hi:8.4g}  {format_estimate(p.estimate, p.lo95, p.hi95, 4):28s} {mcse}")
     stage(f"difference threshold at 75 % around {args.reference:g} mm", args.progress)
     th = disc.threshold(args.reference)
     w = th.weber
@@ -138,7 +138,7 @@ def run(args) -> int:
     stage(f"PSE of {args.reference:g} mm between {v_ref:g} and {v_test:g} mm/s", args.progress)
     pse = disc.pse(args.reference, v_ref, v_test)
     print(f"PSE of {args.reference:g} mm at {v_ref:g} mm/s when scanned at {v_test:g} mm/s: "
-          + (f"{format_estimate(pse.mean, pse.lo95, pse.hi95, 4)} mm" if pse.found == 1 else
+          + (f"{format_estimate(pse.estimate, pse.lo95, pse.hi95, 4)} mm" if pse.found == 1 else
              "outside the searched {:g}-{:g} mm for {:.0f} % of draws".format(*disc.pse_range_mm(args.reference),
                                                                               100 * (1 - pse.found))))
     if args.out:
@@ -156,7 +156,7 @@ def run(args) -> int:
                              "median": _num(d.median), "mcse": _num(d.mcse), "searched_mm": th.searched_mm,
                              "hi95_is_bound": bound, "estimate_is_bound": d.median == float("inf")},
             "weber": interval_json(w, median=_num(w.median), hi95_is_bound=bound) | {"mean": _num(w.estimate)},
-            "pse": {"speed_ref_mm_s": v_ref, "speed_test_mm_s": v_test, "mean_mm": _num(pse.mean),
+            "pse": {"speed_ref_mm_s": v_ref, "speed_test_mm_s": v_test, "mean_mm": _num(pse.estimate),
                     "lo95": _num(pse.lo95), "hi95": _num(pse.hi95), "mcse": _num(pse.mcse), "found": pse.found}})
         print(f"wrote {out / 'discrimination.json'}")
     return 0

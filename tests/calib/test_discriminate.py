@@ -137,6 +137,18 @@ def test_crossing_and_intervals_with_unreached_values():
     assert np.isnan(iv.mean) and iv.found == 0.5 and iv.hi95 == np.inf and np.isfinite(iv.lo95)
 
 
+def test_the_estimate_never_lies_outside_its_interval():
+    """Near 1 a few low draws pull the mean below the 2.5 % point of the resampled values:
+    'pc 0.99900 [0.99951, 0.99999]' (an outside audit, six plates of five touches). The
+    median is printed then; a mean inside its interval still is."""
+    values = np.r_[np.full(190, 0.9999), np.full(10, 0.982)]
+    resampled = np.r_[np.full(195, 0.99995), np.full(5, 0.9999)]
+    iv = Interval.of(values, resampled)
+    assert iv.mean < iv.lo95 and iv.estimate == iv.median and iv.lo95 <= iv.estimate <= iv.hi95
+    inside = Interval.of(np.linspace(0.8, 0.9, 200), np.linspace(0.79, 0.91, 200))
+    assert inside.estimate == inside.mean
+
+
 def test_the_fit_scene_is_used_and_checked(fit, tmp_path):
     from feeler.calib.fit import FitResult
     d = Discriminator(fit, n_scans=4, n_draws=3)
