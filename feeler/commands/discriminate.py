@@ -6,7 +6,10 @@ the fit; --scene overrides it, and a fit made from a bare CSV needs it), decoded
 posterior draw. Prints the 2AFC proportion correct for pairs of heights (--pair LOW HIGH,
 repeatable; default the pairs of the scene's plates), the difference threshold at 75 %
 around --reference (default 0.1 mm) with its Weber fraction, and the PSE of the reference
-step between two scan speeds (--speeds REF TEST). 95 % intervals include the posterior
+step between two scan speeds (--speeds REF TEST). Of a pair, the touch with the larger
+peak z is called higher: the neuron's response, as in the paper's 2AFC, with one decoder for
+every touch (`classify` reads snapping and riding touches apart and can tell fresh pairs apart
+more often). 95 % intervals include the posterior
 and the Monte Carlo error of the --n-scans simulated touches (bootstrap per draw; "MC se"
 is the latter alone; "-" when the touches of the two heights never overlap, where the
 interval's far end is the bound from n disjoint pairs all correct, 0.025^(1/n)). The touches belong to the forward model and are seeded from the
@@ -23,6 +26,10 @@ from feeler.commands._posterior_use import add_use_arguments, load_checked
 
 __all__ = ["NAME", "HELP", "register", "run", "threshold_text", "interval_json"]
 
+#: what P(correct) measures, printed with it: an outside audit read it against classify's pairs
+RULE = ("2AFC rule: the touch whose peak z is larger is called higher (the paper's neuron response, one decoder "
+        "for every touch); `classify`, which reads snapping and riding touches apart, can tell fresh pairs apart "
+        "more often")
 NAME = "discriminate"
 HELP = "2AFC discrimination probabilities, threshold, Weber fraction and speed PSE from a neuron posterior"
 
@@ -115,6 +122,7 @@ def run(args) -> int:
     scene = load_scene(disc.scene_path)
     print(f"forward model: {args.scene or 'the scene recorded in the fit'} ({scene.surface.heights_mm} mm plates), "
           f"{args.n_scans} touches per height, {disc.a.size} posterior draws")
+    print(RULE)
     pairs = args.pair or list(combinations(sorted(scene.surface.heights_mm), 2))
     for note in (disc.note, scene_note(result, args.scene), disc.outside_note(args.reference),
                  disc.outside_note([v for pair in pairs for v in pair], option="--pair")):

@@ -65,6 +65,8 @@ def test_classify_and_discriminate_use_the_fit(run_and_fit, tmp_path, capsys):
                  "--n-draws", "10", "--speeds", "0.5", "0.5", "--out", str(tmp_path / "d")]) == 0
     out = capsys.readouterr().out
     assert "the scene recorded in the fit" in out and "MC se" in out and "Weber fraction" in out
+    # what P(correct) measures (an outside audit compared it with classify's reading of fresh pairs)
+    assert "2AFC rule: the touch whose peak z is larger is called higher" in out
     assert out.count("note: pair height 0.25 mm lies outside the plates the fit was trained on") == 1
     d = json.loads((tmp_path / "d" / "discrimination.json").read_text())
     assert set(d["threshold_mm"]) >= {"mean", "lo95", "hi95", "found", "median", "mcse", "hi95_is_bound"}
