@@ -52,6 +52,18 @@ def register(parser) -> None:
     parser.set_defaults(run=run)
 
 
+def _scores(scores: dict, n_scans: int) -> str:
+    """The noise models' leave-one-out log scores per scan as printed; those that are -inf
+    (a scan the model gives probability 0 given the others: shuffled labels) are named
+    together, not printed as '-inf'."""
+    import math
+
+    shown = [f"{k} {v / n_scans:+.3f}" for k, v in scores.items() if math.isfinite(v)]
+    lost = [k for k, v in scores.items() if not math.isfinite(v)]
+    if lost:
+        shown.append(f"{', '.join(lost)} none: some scan has probability 0 given the others")
+    return ", ".join(shown)
+
 def run(args) -> int:
     import warnings
 
@@ -102,8 +114,8 @@ def run(args) -> int:
         why = (f"; {modes['snaps']} of {modes['snaps'] + modes['rides']} touches of plates with a riser snapped onto "
                f"the upper level, the others rode over the edge, and each is read by its mode (chosen unless a "
                f"one-mode model scores better by two standard errors: left out, a touch takes its cell's mean with it)")
-    print(f"decoder noise: {attrs['noise']}" + (" (leave-one-out log score per scan: " + ", ".join(
-        f"{k} {v / scans.step_mm.size:+.3f}" for k, v in scores.items()) + ")" if scores else "") + why)
+    print(f"decoder noise: {attrs['noise']}" + (f" (leave-one-out log score per scan: {_scores(scores, scans.step_mm.size)})"
+                                                 if scores else "") + why)
     reading = json.loads(attrs.get("loo_reading", "null"))
     if reading:
         print(f"leave-one-out reading: {reading_text(reading)}")

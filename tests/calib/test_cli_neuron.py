@@ -227,3 +227,13 @@ def test_each_label_its_own_and_constant_scans_name_the_file_and_column(run_and_
                  str(tmp_path / "f")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("feeler: error: argument --noise='two-mode'") and not any("reading" in e for e in err)
+
+
+def test_scores_minus_infinity_are_named_not_printed():
+    """Shuffled labels left three noise models' leave-one-out scores at -inf, printed as
+    'constant -inf, growing -inf, per-plate -inf' (an outside audit)."""
+    from feeler.commands._calibrate_neuron import _scores
+
+    text = _scores({"constant": -float("inf"), "two-mode": -39.0, "per-plate": -float("inf")}, 100)
+    assert text == "two-mode -0.390, constant, per-plate none: some scan has probability 0 given the others"
+    assert "inf" not in _scores({"constant": -12.0}, 10)
