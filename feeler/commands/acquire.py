@@ -14,7 +14,9 @@ checked against the board's soft limits and the axes' maximum rates ($110-$112) 
 --camera is a device index, a video file or an image sequence (frames/%05d.png). With
 --emulate a Grbl emulator runs on a pty in a child process and, without --camera, a virtual
 camera renders the optical sensor for the stage's position over the plan's plate
-(recording RUN/video/scan_NNNN.avi, lossless FFV1, replayable with --camera).
+(recording RUN/video/scan_NNNN.avi, lossless FFV1; each replays its scan with --camera under
+a plan of that one scan, and a source with fewer frames than the plan has samples is refused
+before the stage moves).
 
 RUN/samples.csv receives every sample as it arrives (flushed and fsync-ed), RUN/scans.csv
 every complete scan in the format of `feeler simulate` (scan_id, plate, step_mm, speed_mm_s,

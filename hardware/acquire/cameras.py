@@ -86,6 +86,22 @@ class CaptureCamera:
                                 f"{self.size[0]}×{self.size[1]} px (record at that size, or name this camera's "
                                 "layout file in the plan's [optics] layout)")
 
+    def check_frames(self, needed: int, what: str) -> None:
+        """A video file or image sequence that states fewer frames than ``needed`` fails
+        here, before the stage moves: a recorded scan's video replayed under a plan of four
+        scans ran its first scan, then stopped with 'the video ended (truncated or corrupt)'
+        (an outside audit). A source that states no count is read as it comes."""
+        import cv2
+
+        if self.is_device:
+            return
+        count = int(self._cap.get(cv2.CAP_PROP_FRAME_COUNT))
+        if 0 < count < needed:
+            self._cap.release()
+            raise DataFileError(self.name, f"holds {count} frames; {what} needs at least {needed}, one per sample "
+                                "(a run's video/scan_NNNN.avi replays its one scan: use a plan of that scan, or "
+                                "an image sequence of the whole run)")
+
     def start_scan(self, scan_id: int) -> None:
         pass
 

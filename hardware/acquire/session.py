@@ -20,7 +20,7 @@ from feeler.rundir import write_json
 from feeler.scene import load_scene, scene_as_dict
 
 from .campaign import LATE_FRACTION, Setup, run_campaign
-from .plan import check_moves
+from .plan import check_moves, sample_times_s, scans_of
 from .store import RunStore
 from .world import VirtualWorld, layout_file, optics_of_plan, plan_layout
 
@@ -120,6 +120,9 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
         if camera_src is not None:
             camera = CaptureCamera(camera_src, (setup.layout.width_px, setup.layout.height_px))
             stack.callback(camera.close)
+            if not resume:                   # a resumed run needs only the scans not yet done
+                n_scans, n_samples = len(scans_of(plan)), len(sample_times_s(plan))
+                camera.check_frames(n_scans * n_samples, f"the plan ({n_scans} scans of {n_samples} samples)")
         if emulate:
             from .emulated import campaign_emulator, emulated_stage
 

@@ -406,3 +406,18 @@ def test_a_dry_run_says_when_a_board_at_grbls_defaults_would_refuse_the_plan(tmp
     shipped = Path(__file__).resolve().parents[2] / "datasets-synthetic" / "plans" / "four-plates-plan.toml"
     _note_a_default_board(load_plan(shipped), shipped, emulated_stage(load_plan(shipped)).start_mm)
     assert capsys.readouterr().err == ""
+
+
+def test_a_video_shorter_than_the_plan_is_refused_before_the_stage_moves(reference, tmp_path, capsys):
+    """One scan's recording replayed under the four-scan plan ran its first scan, then
+    stopped with 'the video ended (truncated or corrupt) before the plan did' (an outside
+    audit): the frames it states are counted first, and nothing is written."""
+    run, _ = reference
+    out = tmp_path / "replay"
+    video = run / "video" / "scan_0000.avi"
+    assert main(["acquire", "--emulate", "--camera", str(video), "--plan", str(TINY), "--out", str(out)]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:") and not ln.startswith(NOTE)]
+    assert err == [f"feeler: error: {video}: holds 4 frames; the plan (4 scans of 4 samples) needs at least 16, one "
+                   "per sample (a run's video/scan_NNNN.avi replays its one scan: use a plan of that scan, or an "
+                   "image sequence of the whole run)"]
+    assert not out.exists()
