@@ -337,6 +337,9 @@ def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
     if problem:
         raise DataFileError(path, problem)
     if len(frame) == 0:
+        if Path(path).name == "scans.csv" and (Path(path).parent / "journal.jsonl").is_file():
+            raise DataFileError(path, "no rows: no complete scan yet (an acquisition stopped before its first scan "
+                                      "finished; `feeler acquire ... --resume` with the same --out continues it)")
         raise DataFileError(path, "no rows")
     frame, named = named_scan_ids(frame, path)
     for col in COLUMNS:

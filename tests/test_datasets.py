@@ -472,3 +472,15 @@ def test_a_scan_missing_a_sample_in_its_middle_is_told_apart_from_a_short_one(tm
     path = write_csv(tmp_path / "short.csv", rows[:-1])
     with pytest.raises(DataFileError, match="trim them to 5 samples"):
         read_scans(path)
+
+
+def test_an_acquisition_stopped_before_its_first_scan_says_so(tmp_path):
+    """report and decode of a run interrupted during its first scan said only 'scans.csv:
+    no rows' (an outside audit): a run directory's journal says it is an acquisition."""
+    write_csv(tmp_path / "scans.csv", [])
+    with pytest.raises(DataFileError, match=r"scans.csv: no rows$"):
+        read_scans(tmp_path / "scans.csv")
+    (tmp_path / "journal.jsonl").write_text('{"event": "run"}\n')
+    with pytest.raises(DataFileError, match=r"no rows: no complete scan yet \(an acquisition stopped before its first "
+                                            r"scan finished; `feeler acquire ... --resume` with the same --out"):
+        read_scans(tmp_path / "scans.csv")
