@@ -138,11 +138,22 @@ def _run_started(args) -> bool:
     return getattr(args, "resume", None) is not None and bool(out) and (Path(out) / "journal.jsonl").is_file()
 
 
+class _UserFormatter(logging.Formatter):
+    """'feeler: warning: …' as the CLI prints its own lines, not 'WARNING feeler.acquire: …'
+    (an outside audit: acquire's late-sample and bad-frame lines read as a log's)."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return f"feeler: {record.levelname.lower()}: {record.getMessage()}"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    handler = logging.StreamHandler()    # a user's warning reads as the CLI's own lines; -v names the logger
+    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s") if args.verbose else
+                         _UserFormatter())
     logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
-                        format="%(levelname)s %(name)s: %(message)s")
+                        handlers=[handler])
     run = getattr(args, "run", None)
     if run is None:
         parser.print_help()

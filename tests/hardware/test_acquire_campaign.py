@@ -421,3 +421,23 @@ def test_a_video_shorter_than_the_plan_is_refused_before_the_stage_moves(referen
                    "per sample (a run's video/scan_NNNN.avi replays its one scan: use a plan of that scan, or an "
                    "image sequence of the whole run)"]
     assert not out.exists()
+
+
+def test_a_bad_frame_is_a_feeler_warning_line_not_a_log_record(reference, tmp_path):
+    """Per-frame warnings printed as 'WARNING feeler.acquire: ...', a log's format, among the
+    CLI's 'feeler: error: ...' lines (an outside audit); -v still names the logger."""
+    from feeler.hardware.camera import write_video
+    from feeler.hardware.camera.source import FrameReader
+
+    run, _ = reference
+    frames = np.array([f for _, f in FrameReader(run / "video" / "scan_0000.avi")])
+    video = write_video(frames[[0, 1, 1, 2, 3]], tmp_path / "frozen.avi")
+    plan = one_scan_plan(tmp_path)
+    for verbose, out in ((), "quiet"), (("-v",), "loud"):
+        cmd = [sys.executable, "-m", "feeler", *verbose, "acquire", "--emulate", "--camera", str(video), "--plan",
+               str(plan), "--out", str(tmp_path / out), "--no-progress"]
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr
+        bad = [ln for ln in done.stderr.splitlines() if "identical to the previous frame" in ln]
+        assert len(bad) == 1, done.stderr
+        assert bad[0].startswith("WARNING feeler.acquire: " if verbose else "feeler: warning: "), bad
