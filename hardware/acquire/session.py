@@ -55,6 +55,10 @@ def c_from_calibration(directory: str | Path | None, *, accept_failed: bool = Fa
     return c, f"posterior mean of {directory}"
 
 
+#: how the note of :func:`_note_a_default_board` begins (tests of other lines leave it out)
+DEFAULT_BOARD_NOTE = "feeler: note: the emulated stage (6000 mm/min per axis) runs this plan"
+
+
 def _note_a_default_board(plan, plan_path, start_mm) -> None:
     """With --emulate, a line on stderr when a board at Grbl's default settings would refuse
     the plan: the emulated stage allows 6000 mm/min per axis (:data:`~.emulated.FAST_STAGE`),
@@ -68,8 +72,8 @@ def _note_a_default_board(plan, plan_path, start_mm) -> None:
     try:
         check_moves(plan, plan_path, StageLimits(), "a board at Grbl's default settings", start_mm)
     except SceneError as exc:
-        print(f"feeler: note: the emulated stage (6000 mm/min per axis) runs this plan, but a board at Grbl's "
-              f"default settings would refuse it: {exc.key}: {exc.problem}", file=sys.stderr)
+        print(f"{DEFAULT_BOARD_NOTE}, but a board at Grbl's default settings would refuse it: {exc.key}: {exc.problem}",
+              file=sys.stderr)
 
 
 def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = None,

@@ -20,13 +20,12 @@ import pytest
 from feeler.cli import main
 from feeler.datasets import read_scans
 from feeler.errors import CalibrationFailed
+from feeler.hardware.acquire.session import DEFAULT_BOARD_NOTE as NOTE   # tiny plans' fast moves get it
 
 DATA = Path(__file__).parent / "data"
 TINY = DATA / "tiny-plan.toml"
 AREAS = [f"area{i}_px2" for i in range(4)]
 EXACT = ["scan_id", "plate", "step_mm", "speed_mm_s", "t_sched_s", "repeat"]
-
-NOTE = "feeler: note: the emulated stage (6000 mm/min per axis) runs this plan"
 
 
 def one_scan_plan(tmp_path: Path) -> Path:

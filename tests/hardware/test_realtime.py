@@ -6,6 +6,7 @@ import sys
 import pytest
 
 from feeler.errors import ArgumentError
+from feeler.hardware.acquire.session import DEFAULT_BOARD_NOTE as NOTE   # tiny plans' fast moves get it
 from feeler.hardware.realtime import DEFAULT_PRIORITY, realtime_priority
 
 CHILD_POLICY = "import os; print(os.sched_getscheduler(0))"
@@ -82,7 +83,7 @@ def test_acquire_realtime_runs_the_campaign_and_says_what_it_got(tmp_path, capsy
     assert main(["acquire", "--emulate", "--realtime", "--no-progress", "--plan", str(plan),
                  "--out", str(tmp_path / "run")]) == 0
     captured = capsys.readouterr()
-    said = [ln for ln in captured.err.splitlines() if ln.startswith("feeler:")]
+    said = [ln for ln in captured.err.splitlines() if ln.startswith("feeler:") and not ln.startswith(NOTE)]
     expected = ("feeler: acquisition loop at real-time priority (SCHED_FIFO 10)" if _may_use_realtime() else
                 "feeler: real-time priority 10 not permitted")
     assert len(said) == 1 and said[0].startswith(expected)

@@ -9,13 +9,12 @@ from pathlib import Path
 import pytest
 
 from feeler.errors import ArgumentError
+from feeler.hardware.acquire.session import DEFAULT_BOARD_NOTE as NOTE   # tiny plans' fast moves get it
 from feeler.hardware.emulators import Fault, GrblConfig, emulator_process
 from feeler.hardware.stage import (ProtocolError, Stage, StageAlarm, StageDisconnected, StageLimits, StageLocked,
                                    StageTimeout)
 
 FAST = GrblConfig(max_rate_mm_min=(60000.0,) * 3, accel_mm_s2=(20000.0,) * 3, start_mm=(0.0, 0.0, -20.0))
-
-NOTE = "feeler: note: the emulated stage (6000 mm/min per axis) runs this plan"
 
 
 @pytest.fixture(scope="module")
