@@ -189,7 +189,12 @@ def test_a_missing_stage_port_is_one_line_and_writes_nothing(tmp_path, capsys):
         assert code == 2 and len(err) == 1 and not (tmp_path / "run").exists()
         return err[0]
 
-    assert "ttyNOPE" in acquire(write_video(np.zeros((2, 480, 640), np.uint8), tmp_path / "v.avi"))
+    from feeler.hardware.acquire import load_plan
+    from feeler.hardware.acquire.plan import sample_times_s, scans_of
+
+    plan = load_plan(PLAN)                # a frame for every sample: a shorter video is refused before the stage
+    frames = len(scans_of(plan)) * len(sample_times_s(plan))
+    assert "ttyNOPE" in acquire(write_video(np.zeros((frames, 480, 640), np.uint8), tmp_path / "v.avi"))
     small = write_video(np.zeros((2, 48, 64), np.uint8), tmp_path / "small.avi")
     assert acquire(small) == (f"feeler: error: {small}: frames are 64×48 px; the plan's camera layout is 640×480 px "
                               "(record at that size, or name this camera's layout file in the plan's [optics] layout)")
