@@ -33,9 +33,9 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
 
     ``on_result(i, result)`` is called in this process as each job finishes (the i-th seed;
     on a cluster in the order they finish), so that a caller can keep each result at once:
-    a Ctrl-C then loses only the jobs not yet done, and a worker that dies only the job it
-    held (once dask's retries are spent): the others run on and are handed over before the
-    error.
+    a Ctrl-C then loses only the jobs not yet done, and a worker that dies only the jobs it
+    held (running or queued on it, once dask's retries are spent): the others run on and are
+    handed over before the error.
 
     Progress (:func:`feeler.calib.progress.progress`): a bar on a terminal, else a line
     per finished job with an estimate of the time left; none when ``progress_bar`` is False.

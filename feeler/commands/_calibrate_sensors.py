@@ -15,7 +15,7 @@ with one line naming it (exit 2) before any work. An element that still raises d
 fit (a file changed meanwhile, a bug) is named in one line below the table; the elements
 that finished are written all the same (exit 2 for bad input, else 1). Each element is
 written as it finishes, so a Ctrl-C keeps the finished ones, and a dask worker that dies
-loses only the element it held: the others run on and are written before the error
+loses only the elements it held: the others run on and are written before the error
 (tests/calib/test_runner.py kills a worker under map_seeds).
 """
 from __future__ import annotations
