@@ -48,18 +48,27 @@ LEVEL_RANGE = (0.6, MAX_GAIN)
 OVER_GAIN = 1.2
 
 
-def _slope_z(peak: np.ndarray, plates: Plates) -> np.ndarray:
-    """Least-squares slope of ``peak (ndarray[n_scans, ...])`` on the scans' steps over its
-    standard error, per column (0 where it cannot be computed; ±inf for a noise-free slope)."""
+def _slope_se(peak: np.ndarray, plates: Plates) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares slope of ``peak (ndarray[n_scans, ...])`` on the scans' steps and its
+    standard error, per column (NaN for both with fewer than 3 scans or a single step)."""
     peak = np.asarray(peak, float)
     c = plates.steps_mm[plates.group]
     shape = peak.shape[1:]
     if np.ptp(c) == 0 or peak.shape[0] < 3:
-        return np.zeros(shape)
+        return np.full(shape, np.nan), np.full(shape, np.nan)
     dc = (c - c.mean()).reshape((-1,) + (1,) * len(shape))
     dev = peak - peak.mean(axis=0)
     slope = np.sum(dc * dev, axis=0) / np.sum(dc ** 2)
     se = np.sqrt(np.sum((dev - slope * dc) ** 2, axis=0) / (peak.shape[0] - 2) / np.sum(dc ** 2))
+    return slope, se
+
+
+def _slope_z(peak: np.ndarray, plates: Plates) -> np.ndarray:
+    """:func:`_slope_se`'s slope over its standard error, per column (0 where it cannot be
+    computed; ±inf for a noise-free slope)."""
+    slope, se = _slope_se(peak, plates)
+    if np.all(np.isnan(slope)):
+        return np.zeros(np.shape(slope))
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(se > 0, slope / se, np.where(slope == 0, 0.0, np.sign(slope) * np.inf))
 
@@ -67,16 +76,6 @@ def _slope_z(peak: np.ndarray, plates: Plates) -> np.ndarray:
 def mm_list(steps) -> str:
     """Step heights as a short list: '0, 0.02'."""
     return ", ".join(f"{v + 0.0:g}" for v in steps)
-
-
-def _gain_se(rise: np.ndarray, plates: Plates) -> float:
-    """Standard error of the least-squares slope of each scan's ``rise (ndarray[n_scans])``
-    on its labelled step (inf with fewer than 3 scans)."""
-    c = plates.steps_mm[plates.group]
-    if c.size < 3 or np.ptp(c) == 0:
-        return np.inf
-    b, a = np.polyfit(c, rise, 1)
-    return float(np.sqrt(np.sum((rise - a - b * c) ** 2) / (c.size - 2) / np.sum((c - c.mean()) ** 2)))
 
 
 def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_mm=None,
@@ -106,7 +105,7 @@ def unit_problems(table: PeakTable, plates: Plates, *, length_mm: float, t_s, x_
             top = int(np.argmax(c))
             level = float(mean[top] * length_mm / c[top]) if c[top] > 0 else None
             out.append(_scale_problem(gain, level, c))
-        elif gain - 3 * _gain_se(table.peak[:, -1] * length_mm, plates) > OVER_GAIN:
+        elif gain - 3 * np.nan_to_num(_slope_se(table.peak[:, -1] * length_mm, plates)[1], nan=np.inf) > OVER_GAIN:
             out.append(f"a: the scans' rise in U_y is {gain:.3g} times the labelled steps (expected about 1, "
                        f"0.3-1.1 measured; a face riding over a step rises by at most the step): the steps are "
                        f"probably labelled too small, the scans reading them about {gain:.2g} times as high; check "
@@ -154,7 +153,7 @@ def _scale_problem(gain: float, level: float | None, steps: np.ndarray) -> str:
         return (f"{said}; a face riding over a step rises by 0.3-1.1 of it): U_y probably in {likely}, expected "
                 f"mm (or the steps labelled {1 / gain:.2g} times too large)")
     way = "closer together" if gain > 1 else "further apart"
-    listed = ", ".join(f"{v + 0.0:g}" for v in steps)
-    return (f"a: the plates' rises in U_y differ {gain:.3g} times as much as their labelled steps ({listed} mm), "
+    return (f"a: the plates' rises in U_y differ {gain:.3g} times as much as their labelled steps "
+            f"({mm_list(steps)} mm), "
             f"while the largest step's rise is {level:.3g} times that step (both in mm, as expected): the plates "
             f"are labelled {way} than their scans read them; check step_mm")
