@@ -14,6 +14,8 @@ Example:
 """
 from __future__ import annotations
 
+import sys
+
 __all__ = ["NAME", "HELP", "register"]
 
 NAME = "skin"
@@ -26,7 +28,10 @@ def register(parser) -> None:
                          description="L2 mesh convergence and the trade between the skin fidelities L0, L1 and L2: "
                                      "seconds per slide against the error of the peak strain rate to converged L2. "
                                      "Writes convergence.csv, trade.csv, ladder.json and ladder.png into --out "
-                                     "(default runs/skin-ladder). Example: feeler skin ladder --small --out runs/ladder")
+                                     "(default runs/skin-ladder). Exit status 1 when the full study misses a goal (peak step strain "
+                                     "changing < 1 % between the two finest meshes, L1 100x faster than L2 within 10 % "
+                                     "error, L0 10^4x faster); --small reports them without judging them. "
+                                     "Example: feeler skin ladder --small --out runs/ladder")
     lad.add_argument("--out", default="runs/skin-ladder", metavar="DIR",
                      help="output directory (default runs/skin-ladder)")
     lad.add_argument("--small", action="store_true", help="coarse meshes and time steps (a quick check)")
@@ -57,7 +62,7 @@ def _progress_flag(parser) -> None:
 
 
 def run_ladder(args) -> int:
-    from feeler.skin.study import ladder_files, run_ladder_study
+    from feeler.skin.study import ladder_files, run_ladder_study, unmet_goals
 
     from feeler.rundir import prepare_out_dir
     out = prepare_out_dir(args.out, ladder_files(), force=args.force)
@@ -66,6 +71,11 @@ def run_ladder(args) -> int:
     for line in summary["lines"]:
         print(line)
     print(f"wrote {', '.join(str(out / f) for f in ladder_files())}")
+    missed = unmet_goals(summary)
+    if missed:
+        print(f"feeler: failed: the skin ladder misses its goal(s): {'; '.join(missed)} "
+              f"(the results are kept in {out})", file=sys.stderr)
+        return 1
     return 0
 
 
