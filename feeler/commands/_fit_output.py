@@ -50,6 +50,27 @@ def _estimate_columns(row) -> tuple[str, str, str]:
     return tuple(f"{v}e{e:+d}" for v in round_inside(*(v / 10.0 ** e for v in vals), 4))
 
 
+def _without_rounding_noise(table, rel: float = 1e-12):
+    """``table`` with every mean, sd and bound below ``rel`` times its quantity's scale (the
+    largest mean or bound over the rows of one name, ``plate_mean_mm[0]`` and ``[1]`` alike) set to 0:
+    a two-plate decoder pins its plates' heights exactly, and the plate at 0 printed its float
+    rounding as -0.4632e-17 [-1.3878e-17, 0.5204e-17]."""
+    import numpy as np
+
+    out = table.copy()
+    values = ["mean", "sd", "eti95_lb", "eti95_ub"]
+    family = out["name"].str.split("[", n=1, regex=False).str[0]
+    for _, rows in out.groupby(family, sort=False):
+        block = rows[values].to_numpy(dtype=float)
+        where = block[:, [0, 2, 3]]                   # the scale: where the values lie, not their spread
+        where = np.abs(where[np.isfinite(where)])
+        if where.size == 0 or where.max() == 0:
+            continue
+        tiny = np.isfinite(block) & (np.abs(block) < rel * where.max())
+        out.loc[rows.index, values] = np.where(tiny, 0.0, block)
+    return out
+
+
 def add_fit_arguments(parser, *, draws: int | None = 1000, tune: int | None = 1000) -> None:
     """--out, --force, --seed, --chains, --draws, --tune, --progress/--no-progress.
 
@@ -78,7 +99,7 @@ def print_summary(result, *, skip_prefixes: tuple[str, ...] = ()) -> None:
         else result.summary
     cols = ["name", "mean", "sd", "eti95_lb", "eti95_ub", "r_hat", "ess_bulk", "ess_tail"]
     shown = table[cols].astype(object).copy()
-    for i, row in table[cols].iterrows():          # mean, interval: same rounding, mean inside
+    for i, row in _without_rounding_noise(table[cols]).iterrows():   # mean, interval: same rounding, mean inside
         shown.loc[i, ["mean", "eti95_lb", "eti95_ub"]] = _estimate_columns(row)
         shown.loc[i, "sd"] = f"{row['sd']:.3g}"
         if row["sd"] == 0 and not math.isfinite(row["r_hat"]):      # the same at every draw: nothing to mix

@@ -90,11 +90,11 @@ def test_printed_means_never_lie_outside_their_printed_intervals(capsys):
     line = [s for s in capsys.readouterr().out.splitlines() if s.strip().startswith("pc")][0].split()
     assert float(line[3]) <= float(line[1]) <= float(line[4])          # name mean sd lb ub ...
     tiny = row | {"name": "s", "mean": 3.2e-154, "eti95_lb": 1.1e-154, "eti95_ub": 5.01e-154}
-    huge = row | {"name": "k", "mean": -2.5e12, "eti95_lb": -3e12, "eti95_ub": -2e12}
+    huge = row | {"name": "k", "mean": -2.5e12, "sd": 2.5e11, "eti95_lb": -3e12, "eti95_ub": -2e12}
     print_summary(FitResult(posterior=None, summary=pd.DataFrame([tiny, huge]), verdict=Verdict(True)))
     out = capsys.readouterr().out
     assert "s 3.2000e-154 0.001 1.1000e-154 5.0100e-154" in " ".join(out.split())
-    assert "k -2.5000e+12 0.001 -3.0000e+12 -2.0000e+12" in " ".join(out.split())
+    assert "k -2.5000e+12 2.5e+11 -3.0000e+12 -2.0000e+12" in " ".join(out.split())
     assert max(len(x) for x in out.split()) < 20
 
 
@@ -116,3 +116,20 @@ def test_verdict_line_counts_its_problems(problems, head):
 
     lines = verdict_text(Verdict(ok=not problems, problems=problems)).splitlines()
     assert lines == [head] + [f"  {p}" for p in problems]
+
+
+def test_summary_prints_rounding_noise_of_a_pinned_quantity_as_zero(capsys):
+    """A two-plate decoder pins its plates' heights exactly: the plate at 0 printed
+    -0.4632e-17 [-1.3878e-17, 0.5204e-17]. Noise below 1e-12 of the quantity's scale is 0."""
+    from feeler.calib.fit import FitResult, Verdict
+    from feeler.commands._fit_output import print_summary
+    base = {"sd": 5.21e-18, "r_hat": 1.0, "ess_bulk": 4000.0, "ess_tail": 3717.0}
+    rows = [base | {"name": "plate_mean_mm[0]", "mean": -4.632e-18, "eti95_lb": -1.3878e-17, "eti95_ub": 5.204e-18},
+            base | {"name": "plate_mean_mm[1]", "mean": 0.1, "sd": 2.59e-17, "eti95_lb": 0.1, "eti95_ub": 0.1},
+            base | {"name": "s", "mean": 3.2e-15, "sd": 1e-16, "eti95_lb": 3.0e-15, "eti95_ub": 3.4e-15}]
+    print_summary(FitResult(posterior=None, summary=pd.DataFrame(rows), verdict=Verdict(True)))
+    out = " ".join(capsys.readouterr().out.split())
+    assert "plate_mean_mm[0] 0.00000 0 0.00000 0.00000 1.0000" in out
+    assert "plate_mean_mm[1] 0.10000 0 0.10000 0.10000" in out
+    assert "e-17" not in out and "e-18" not in out
+    assert "s 3.2000e-15 1e-16 3.0000e-15 3.4000e-15" in out        # a small quantity on its own scale stays
