@@ -11,7 +11,8 @@ peak z is called higher: the neuron's response, as in the paper's 2AFC, with one
 every touch (`classify` reads snapping and riding touches apart and can tell fresh pairs apart
 more often). 95 % intervals include the posterior
 and the Monte Carlo error of the --n-scans simulated touches (bootstrap per draw; "MC se"
-is the latter alone; "-" when the touches of the two heights never overlap, where the
+is the latter alone; "-" when the touches of the two heights never overlap (or in under 2.5 %
+of draws, with their share), where the
 interval's far end is the bound from n disjoint pairs all correct, 0.025^(1/n)). The touches belong to the forward model and are seeded from the
 scene's seed, so reruns with another --seed (posterior draws, resamples) agree within
 their intervals; --touch-seed simulates another set of touches. A threshold that many
@@ -24,7 +25,7 @@ import math
 
 from feeler.commands._posterior_use import add_use_arguments, load_checked
 
-__all__ = ["NAME", "HELP", "register", "run", "threshold_text", "interval_json"]
+__all__ = ["NAME", "HELP", "register", "run", "threshold_text", "interval_json", "mcse_text"]
 
 #: what P(correct) measures, printed with it: an outside audit read it against classify's pairs
 RULE = ("2AFC rule: the touch whose peak z is larger is called higher (the paper's neuron response, one decoder "
@@ -62,6 +63,21 @@ def _num(v):
 def interval_json(iv, **extra) -> dict:
     """An :class:`Interval` as JSON (non-finite values as null)."""
     return {"mean": _num(iv.estimate), "lo95": _num(iv.lo95), "hi95": _num(iv.hi95), "mcse": _num(iv.mcse), **extra}
+
+
+def mcse_text(p) -> str:
+    """The "MC se" column of a pair: the standard error, or "-" with why there is none. The
+    touches never overlap when every draw's P(correct) on them is 1 (or 0); when only a few
+    draws' are not, the 2.5 % point is still 1: "never" would overstate it (0.9999983)."""
+    import numpy as np
+
+    if math.isfinite(p.mcse):
+        return f"{p.mcse:.4f}"
+    if np.all((p.draws >= 1.0) | (p.draws <= 0.0)):
+        return "-  (touches never overlap)"
+    share = np.mean((p.draws > 0.0) & (p.draws < 1.0))
+    return f"-  (touches overlap in {100 * share:.1f} % of draws)" if share >= 0.001 else \
+        "-  (touches overlap in under 0.1 % of draws)"
 
 
 def threshold_text(th, scale: float = 1e3, unit: str = "um") -> str:
@@ -133,7 +149,7 @@ def run(args) -> int:
     for lo, hi in progress(pairs, desc="2AFC pairs", enabled=args.progress, lines=True):
         p = disc.pc(lo, hi)
         rows.append({"low_mm": lo, "high_mm": hi, "pc": p.estimate, "lo95": p.lo95, "hi95": p.hi95, "mcse": p.mcse})
-        mcse = f"{p.mcse:.4f}" if math.isfinite(p.mcse) else "-  (touches never overlap)"
+        mcse = mcse_text(p)
         print(f"{lo:8.4g} {hi:8.4g}  {format_estimate(p.estimate, p.lo95, p.hi95, 4):28s} {mcse}")
     stage(f"difference threshold at 75 % around {args.reference:g} mm", args.progress)
     th = disc.threshold(args.reference)

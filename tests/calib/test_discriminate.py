@@ -230,3 +230,19 @@ def test_a_forward_scene_of_other_touches_is_named(fit, tmp_path):
     same.write_text(text.replace("scans_per_plate = 24", "scans_per_plate = 5").replace("seed = 20040501", "seed = 7")
                     .replace("heights_mm = [0.0, 0.05, 0.1, 0.2]", "heights_mm = [0.0, 0.3]"))
     assert same.read_text() != text and scene_note(fit, same) is None and scene_note(fit, None) is None
+
+
+def test_mc_se_column_says_never_only_when_no_draw_overlaps():
+    """discriminate printed "touches never overlap" for a pair whose P(correct) was 0.9999983:
+    a few draws' touches overlapped, though the interval's 2.5 % point was 1."""
+    from feeler.commands.discriminate import mcse_text
+    nan = float("nan")
+    assert mcse_text(Interval(1.0, 0.99, 1.0, np.ones(400), mcse=nan)) == "-  (touches never overlap)"
+    assert mcse_text(Interval(0.0, 0.0, 0.01, np.zeros(400), mcse=nan)) == "-  (touches never overlap)"
+    few = np.ones(400)
+    few[:3] = 0.9995
+    assert mcse_text(Interval(few.mean(), 0.99, 1.0, few, mcse=nan)) == "-  (touches overlap in 0.8 % of draws)"
+    one = np.ones(4000)
+    one[0] = 0.99
+    assert mcse_text(Interval(one.mean(), 0.99, 1.0, one, mcse=nan)) == "-  (touches overlap in under 0.1 % of draws)"
+    assert mcse_text(Interval(0.8, 0.7, 0.9, np.full(10, 0.8), mcse=0.01234)) == "0.0123"
