@@ -141,7 +141,8 @@ def acquire(plan_path: str | Path, out: str | Path, *, stage_port: str | None = 
                 raise ArgumentError("--home", True, f"a board with homing enabled ($22=1); {stage_port} "
                                     "has it disabled (pass --unlock, or nothing, instead)") from None
             raise
-        check_moves(plan, plan_path, stage.limits, stage.port, stage.target_mm)
+        # the emulator's /dev/pts path means nothing to the user who asked for --emulate
+        check_moves(plan, plan_path, stage.limits, "the emulated stage" if emulate else stage.port, stage.target_mm)
         if emulate:
             _note_a_default_board(plan, plan_path, stage.target_mm)
         store = RunStore.resume(out, plan_path) if resume else RunStore.create(

@@ -211,7 +211,8 @@ def test_plan_beyond_the_soft_limits_is_refused_before_writing(tmp_path, capsys)
     code = main(["acquire", "--emulate", "--plan", str(plan), "--out", str(tmp_path / "run")])
     err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:") and not ln.startswith(NOTE)]
     assert code == 2 and len(err) == 1
-    assert "scan.traverse_mm: scan 2 moves x to 1 mm, beyond the soft limits [-200, 0] mm" in err[0]
+    assert "scan.traverse_mm: scan 2 moves x to 1 mm, beyond the soft limits [-200, 0] mm of the emulated " \
+        "stage (Grbl's [-$130..$132, 0])" in err[0]                # not the emulator's /dev/pts path
     assert not (tmp_path / "run").exists()
 
 
