@@ -214,3 +214,22 @@ def test_frames_rejected_in_a_video_keep_their_lines_at_info(tmp_path, monkeypat
     assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
     assert any("frame 0 rejected" in r.getMessage() and r.levelno == logging.INFO for r in caplog.records)
     assert not (tmp_path / "run").exists()
+
+
+def test_a_blur_refusal_names_both_limits_it_quotes(tmp_path):
+    """The message explained the blur's reach past the largest disc but quoted the lighter
+    limit of the lightest touch's interior (1.43 px where the reach alone allows 3.25 px)."""
+    with pytest.raises(SceneError) as refused:
+        load_scene(variant(FOUR_IMAGES, tmp_path, **{FOUR_OPTICS["blur"]: "blur_sd_px = 10.0"}))
+    found = re.search(r"inside their windows with a blur up to ([0-9.]+) px and their brightness readable at the "
+                      r"lightest touch up to ([0-9.]+) px: at most ([0-9.]+) px$", str(refused.value))
+    assert found, str(refused.value)
+    inside, readable, most = map(float, found.groups())
+    assert most == min(inside, readable)
+    for blur in (inside, readable):                 # each limit holds for the condition it names alone
+        if blur > most:
+            with pytest.raises(SceneError) as other:
+                load_scene(variant(FOUR_IMAGES, tmp_path, f"b{blur}.toml",
+                                   **{FOUR_OPTICS["blur"]: f"blur_sd_px = {blur}"}))
+            why = str(other.value).split(";")[0]     # refused for the other condition, not the one it names
+            assert ("the reader measures the discs' brightness" in why) == (blur == inside), why

@@ -133,13 +133,17 @@ def check_frames(optics, path, areas: np.ndarray, growth: Callable[..., SceneErr
     r_peak, r_weak = math.sqrt(peak / math.pi), math.sqrt(max(weakest, 0.0) / math.pi)
     # the largest blur both limits allow: the reach ⌈4σ⌉ + 1 beside the largest disc, and
     # an interior 4σ + ½ px deep (π (4σ + 1)²) in the largest disc of the lightest touch
-    blur_most = math.floor(min(math.floor(w - 1 - r_peak) / 4.0, (r_weak - 1.0) / 4.0) * 100) / 100
+    blur_inside = math.floor(math.floor(w - 1 - r_peak) / 4.0 * 100) / 100
+    blur_readable = math.floor((r_weak - 1.0) / 4.0 * 100) / 100
+    blur_most = min(blur_inside, blur_readable)
+    blur_limits = (f"the discs stay inside their windows with a blur up to {blur_inside:g} px and their brightness "
+                   f"readable at the lightest touch up to {blur_readable:g} px: at most {blur_most:g} px")
     if peak > lim.largest_px2:
         if blur > nominal.blur_sd_px and peak <= DiscLimits.of(w, nominal.blur_sd_px).largest_px2:
             raise SceneError(path, "optics.blur_sd_px",
                              f"{blur:g}: the blur reaches {lim.reach_px} px past a disc's edge, and with the "
                              f"scene's largest contact disc ({peak:.0f} px², radius {r_peak:.1f} px) it leaves "
-                             f"{where}; at most {blur_most:g} px keeps the discs inside and readable")
+                             f"{where}; {blur_limits}")
         grown = peak - rest
         if rest > nominal.rest_area_px2 and grown + nominal.rest_area_px2 <= lim.largest_px2:
             raise SceneError(path, "optics.rest_area_px2",
@@ -153,7 +157,7 @@ def check_frames(optics, path, areas: np.ndarray, growth: Callable[..., SceneErr
             raise SceneError(path, "optics.blur_sd_px",
                              f"{blur:g}: the reader measures the discs' brightness 4σ + ½ px inside their edge, "
                              f"and at the scene's lightest touch the largest disc ({weakest:.0f} px²) has no "
-                             f"such pixel (it needs {lim.interior_px2:.0f} px²); at most {blur_most:g} px")
+                             f"such pixel (it needs {lim.interior_px2:.0f} px²); {blur_limits}")
         raise SceneError(path, "optics.rest_area_px2",
                          f"{rest:g}: at the scene's lightest touch the largest contact disc is "
                          f"{max(weakest, 0.0):.0f} px², "
