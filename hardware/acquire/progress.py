@@ -60,19 +60,23 @@ class Progress(CampaignObserver):
         self.planned = self.done = self.per_scan = self.samples = self.in_scan = 0
         self.bad = self.late = 0
         self.scan_id, self._start, self._last_draw, self._drawn = None, clock(), -1e9, 0
-        self._first_done = 0
+        self._first_done, self._last_done = 0, self._start
 
     def started(self, scans_planned: int, scans_done: int, samples_per_scan: int) -> None:
         self.planned, self.done, self.per_scan = scans_planned, scans_done, samples_per_scan
         self._first_done, self._start = scans_done, self.clock()
+        self._last_done = self._start
 
     def eta_s(self) -> float | None:
-        """Seconds left, from the scans finished in this run (None before the first)."""
+        """Seconds left, from the scans finished in this run (None before the first): their
+        mean time per scan for every scan not finished, less the time the current one has
+        run. Timed from the clock alone, the live line's ETA rose through every scan (the
+        time spent in it counted as if no scan were nearer its end)."""
         finished = self.done - self._first_done
         if finished <= 0:
             return None
-        per_scan = (self.clock() - self._start) / finished
-        return per_scan * (self.planned - self.done)
+        per_scan = (self._last_done - self._start) / finished
+        return max(0.0, per_scan * (self.planned - self.done) - (self.clock() - self._last_done))
 
     def _eta(self) -> str:
         eta = self.eta_s()
@@ -91,6 +95,7 @@ class Progress(CampaignObserver):
             self.bad += 1
         elif kind == "scan_done":
             self.done += 1
+            self._last_done = self.clock()
             if self.live:
                 self._draw(force=True)
             else:

@@ -118,3 +118,22 @@ def test_cli_progress_forced_or_off_and_every_sample_reaches_an_observer(tmp_pat
                  "--unlock"]) == 2
     assert "argument --unlock=True: not together with --home" in capsys.readouterr().err
     assert not (tmp_path / "d").exists()
+
+
+def test_live_eta_counts_down_through_a_scan():
+    """The live line's ETA was (time so far / scans done) x scans left: it rose with every
+    sample of a scan (an audit saw 3 s, then 6 s). It now falls by the time the scan has run."""
+    out, clock = io.StringIO(), Clock()
+    progress = Progress(out, live=True, interval_s=0.0, clock=clock)
+    play(progress, clock, scans=1)                     # scan 1 took 10 s; 2 of 4 left
+    assert progress.eta_s() == 20.0
+    progress.event("scan_start", {"scan_id": 2, "attempt": 0})
+    etas = []
+    for _ in range(4):
+        clock.now += 2.5
+        progress.sample({"late": 0})
+        etas.append(progress.eta_s())
+    assert etas == [17.5, 15.0, 12.5, 10.0]
+    clock.now += 30                                    # a slow scan: never below 0
+    assert progress.eta_s() == 0.0
+    assert out.getvalue().split("\r")[-1].startswith("scan 3 of 4 (id 2), sample 4 of 4; 8 samples, 1 bad, 0 late; ETA 10s")
