@@ -129,6 +129,11 @@ def run(args) -> int:
           "that predicts them best), not the neuron parameters of a scene; a is in mm per unit of window sum")
     for line in checks.get("window_edge", []):
         print(f"note: {line}")
+    if steps.size == 2:
+        print(f"note: two plates: the line z = a·P − h passes through both plates' means exactly, so no plate checks "
+              f"it; steps other than {steps[0] + 0.0:g} and {steps[1] + 0.0:g} mm (classify of other scans, "
+              f"discriminate's pairs and threshold) are read along a line these data cannot test (a third plate "
+              f"would)")
     left_out = _undecodable_note(result)
     if left_out:
         print(left_out + " (the summary leaves them out too)")

@@ -237,3 +237,24 @@ def test_scores_minus_infinity_are_named_not_printed():
     text = _scores({"constant": -float("inf"), "two-mode": -39.0, "per-plate": -float("inf")}, 100)
     assert text == "two-mode -0.390, constant, per-plate none: some scan has probability 0 given the others"
     assert "inf" not in _scores({"constant": -12.0}, 10)
+
+
+def test_a_two_plate_fit_says_its_line_is_untested(run_and_fit, tmp_path, capsys):
+    """Two plates pin a and h exactly (their means printed as 0 and 0.1 to 17 digits): the
+    fit said ok with nothing to say that no third plate checks the line it reads heights by."""
+    import shutil
+
+    import pandas as pd
+
+    run, _ = run_and_fit
+    two = tmp_path / "two"
+    two.mkdir()
+    frame = pd.read_csv(run / "scans.csv")
+    frame[frame.step_mm.isin([0.0, 0.1])].to_csv(two / "scans.csv", index=False)
+    shutil.copy(run / "scene.toml", two / "scene.toml")
+    assert main(["calibrate", "neuron", str(two), "--draws", "300", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "note: two plates: the line z = a·P − h passes through both plates' means exactly" in out
+    assert "steps other than 0 and 0.1 mm" in out and "e-1" not in out
+    assert main(["calibrate", "neuron", str(run), "--draws", "300", "--no-progress"]) == 0
+    assert "two plates" not in capsys.readouterr().out
