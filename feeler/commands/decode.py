@@ -19,7 +19,9 @@ shares.
 
 --follow decodes a run another process is still acquiring: it tails RUN/samples.csv
 (a partial last line waits for its end) and stops when the acquisition lets go of the
-run (finished, stopped or crashed), rewriting decisions.csv after every scan. On a
+run (finished, stopped or crashed), rewriting decisions.csv after every scan; a scan the
+acquisition cut short gets no row (as without --follow). RUN may not exist yet: --wait-s
+waits for it (a follower started before `feeler acquire`). On a
 terminal a live line shows the scan in progress (decoded z so far, plate
 probabilities, decision); otherwise one line per decision (--no-progress: neither).
 """
@@ -46,7 +48,7 @@ def register(parser) -> None:
                         help="the peak has passed once the response fell by this fraction (default 0.5)")
     parser.add_argument("--poll-s", type=float, default=0.2, help="--follow: seconds between looks (default 0.2)")
     parser.add_argument("--wait-s", type=float, default=30.0,
-                        help="--follow: how long to wait for samples.csv to appear (default 30 s)")
+                        help="--follow: how long to wait for RUN and its samples.csv to appear (default 30 s)")
     parser.add_argument("--live", action=argparse.BooleanOptionalAction, default=None,
                         help="one live line per scan (default: when stderr is a terminal)")
     parser.set_defaults(run=run)
@@ -67,8 +69,10 @@ def run(args) -> int:
         raise ArgumentError("--drop", args.drop, "a fraction in (0, 1)")
     if args.follow and not args.wait_s >= 0:
         raise ArgumentError("--wait-s", args.wait_s, ">= 0 s")
-    if args.follow and not path.is_dir():
+    if args.follow and path.exists() and not path.is_dir():
         raise ArgumentError("RUN", str(path), "a run directory with --follow (one that `feeler acquire` writes)")
+    if args.follow and not path.exists():               # started just before the acquisition: wait for it
+        _wait_for_run(path, args)
     if not args.follow and not path.exists():
         raise ArgumentError("RUN", str(path), "an existing run directory or scan CSV")
     out = Path(args.out) if args.out else (path if path.is_dir() else path.parent)
@@ -140,10 +144,48 @@ def _follow(decoder, path, out, args) -> None:
             decoder.sample(row)
     except KeyboardInterrupt:
         print("\ninterrupted: the scan in progress is decoded as far as it went")
+    else:
+        _drop_cut_scan(decoder, path)
     decoder.end_scan()
     decoder.write(out / "decisions.csv")
     if stats.get("partial_lines_dropped"):
         print("the run ended with a cut last line in samples.csv: that sample was not decoded")
+
+
+def _wait_for_run(path, args) -> None:
+    """Wait up to --wait-s for RUN to appear (a follower started before `feeler acquire` has
+    made its directory), then go on; refuse naming the wait when it does not."""
+    import time
+
+    from feeler.errors import ArgumentError
+
+    if args.progress is not False:
+        print(f"waiting up to {args.wait_s:g} s for {path} to appear (--wait-s) ...", flush=True)
+    deadline = time.monotonic() + args.wait_s
+    while not path.exists():
+        if time.monotonic() >= deadline:
+            raise ArgumentError("RUN", str(path), f"a run directory: none appeared in {args.wait_s:g} s (--wait-s); "
+                                "start `feeler acquire --out RUN` too, or give a longer --wait-s")
+        time.sleep(args.poll_s)
+    if not path.is_dir():
+        raise ArgumentError("RUN", str(path), "a run directory with --follow (one that `feeler acquire` writes)")
+
+
+def _drop_cut_scan(decoder, path) -> None:
+    """The acquisition let go of the run in the middle of a scan (stopped or crashed): that
+    scan is not complete, and gets no row, as `decode` of the run (its scans.csv) leaves it
+    out; `feeler acquire --resume` scans it again."""
+    from feeler.calib.neuron.live.follow import completed_scans
+
+    done = completed_scans(path)
+    sid = decoder.in_progress
+    if done is None or sid is None or sid in done:
+        return
+    decoder.discard()
+    decoder.rows.pop(sid, None)                         # an earlier attempt of it, cut too
+    decoder.snapped.pop(sid, None)
+    print(f"scan {sid} was cut short when the acquisition stopped: it gets no row in decisions.csv (as `feeler "
+          f"decode` of the run leaves it out); `feeler acquire --resume` scans it again")
 
 
 def _summary(decoder) -> None:

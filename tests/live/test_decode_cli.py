@@ -206,3 +206,56 @@ def test_decisions_that_contradict_the_labels_are_a_warning(fit_dir, fresh_frame
     assert len(warnings) == 2, warnings
     assert "labels inside their 90 % interval" in warnings[0]
     assert "the decisions are over-confident for these scans" in warnings[1] and "right where their" in warnings[1]
+
+
+def _stopped_writer(run, frame, delay_s=0.3):
+    """Make RUN after ``delay_s`` (the follower is already waiting), then write its scans
+    with their scan_done events, the last one stopped half-way (Ctrl-C or a crash)."""
+    import json
+
+    time.sleep(delay_s)
+    run.mkdir()
+    fd = lock_run_dir(run)
+    try:
+        ids = list(dict.fromkeys(frame.scan_id))
+        last = frame[frame.scan_id == ids[-1]]
+        rows = pd.concat([frame[frame.scan_id != ids[-1]], last.iloc[: len(last) // 2]]).assign(attempt=0)
+        rows.to_csv(run / "samples.csv", index=False)
+        with open(run / "journal.jsonl", "w") as f:
+            for sid in ids[:-1]:
+                f.write(json.dumps({"event": "scan_done", "scan_id": int(sid)}) + "\n")
+            f.write(json.dumps({"event": "scan_start", "scan_id": int(ids[-1]), "attempt": 0}) + "\n")
+        time.sleep(0.2)
+    finally:
+        release_run_dir(fd)
+
+
+def test_follow_waits_for_the_run_and_leaves_out_a_scan_cut_short(fit_dir, scans_frame, tmp_path, capsys):
+    """An audit: a follower started before `acquire` had made RUN exited 2 at once ("a run
+    directory with --follow"), though --wait-s promises a wait; and when the acquisition
+    stopped mid-scan, the follower wrote a row for the half scan (p = 0.999 for the wrong
+    plate) that `decode` of the stopped run leaves out."""
+    run = tmp_path / "later"
+    th = threading.Thread(target=_stopped_writer, args=(run, scans_frame))
+    th.start()
+    try:
+        assert main(["decode", str(fit_dir), str(run), "--follow", "--poll-s", "0.02", "--wait-s", "10",
+                     "--n-draws", "40", "--no-live"]) == 0
+    finally:
+        th.join()
+    out = capsys.readouterr().out
+    ids = list(dict.fromkeys(scans_frame.scan_id))
+    assert f"waiting up to 10 s for {run} to appear (--wait-s)" in out
+    assert f"scan {ids[-1]} was cut short when the acquisition stopped: it gets no row in decisions.csv" in out
+    live = pd.read_csv(run / "decisions.csv")
+    assert list(live.scan_id) == ids[:-1]
+    scans_frame[scans_frame.scan_id != ids[-1]].to_csv(tmp_path / "s.csv", index=False)
+    assert main(["decode", str(fit_dir), str(tmp_path / "s.csv"), "--n-draws", "40", "--no-live"]) == 0
+    off = pd.read_csv(tmp_path / "decisions.csv")
+    pd.testing.assert_frame_equal(live.drop(columns="flag"), off.drop(columns="flag"), rtol=1e-12)
+    assert main(["decode", str(fit_dir), str(tmp_path / "never"), "--follow", "--wait-s", "0.1"]) == 2
+    err = capsys.readouterr().err
+    line = err.strip().splitlines()[-1]
+    assert line.startswith("feeler: error: argument RUN=") and line.endswith(
+        "never': a run directory: none appeared in 0.1 s (--wait-s); start `feeler acquire --out RUN` too, or give "
+        "a longer --wait-s"), line

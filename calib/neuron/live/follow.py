@@ -19,7 +19,7 @@ from pathlib import Path
 from feeler.datasets import csv_dialect, repeated_header_problem
 from feeler.errors import DataFileError
 
-__all__ = ["writer_active", "follow_rows"]
+__all__ = ["writer_active", "follow_rows", "completed_scans"]
 
 
 def writer_active(run: str | Path) -> bool:
@@ -36,6 +36,25 @@ def writer_active(run: str | Path) -> bool:
     finally:
         os.close(fd)                      # also releases our shared lock at once
     return False
+
+
+def completed_scans(run: str | Path) -> set[int] | None:
+    """The scan ids an acquisition finished (their ``scan_done`` events in ``RUN/journal.jsonl``),
+    or None without a journal. A line cut by a crash is skipped."""
+    import json
+
+    path = Path(run) / "journal.jsonl"
+    if not path.is_file():
+        return None
+    done = set()
+    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+        try:
+            ev = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(ev, dict) and ev.get("event") == "scan_done" and "scan_id" in ev:
+            done.add(int(ev["scan_id"]))
+    return done
 
 
 def follow_rows(run: str | Path, *, poll_s: float = 0.2, wait_s: float = 30.0, active=None, sleep=time.sleep,

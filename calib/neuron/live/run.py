@@ -93,6 +93,11 @@ class RunDecoder:
             self.on_scan(row)
         return row
 
+    @property
+    def in_progress(self) -> int | None:
+        """The scan id of the scan in progress (samples taken, not closed), else None."""
+        return None if self._key is None else self._key[0]
+
     def discard(self) -> None:
         """Forget the scan in progress (cut short: it gets no row)."""
         self._key = None
