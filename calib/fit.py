@@ -51,8 +51,11 @@ class FitResult:
     seconds: float = 0.0
 
     def save(self, out_dir: str | Path, *, force: bool = False) -> Path:
-        """Write ``posterior.nc``, ``summary.csv``, ``verdict.json`` into ``out_dir``."""
-        out = prepare_out_dir(out_dir, FIT_FILES, force=force)
+        """Write ``posterior.nc``, ``summary.csv``, ``verdict.json`` into ``out_dir``,
+        ``verdict.json`` last: a directory without it holds a save that was interrupted
+        (Ctrl-C between the files), which is overwritten without ``force``."""
+        interrupted = not (Path(out_dir) / FIT_FILES[-1]).exists()
+        out = prepare_out_dir(out_dir, FIT_FILES, force=force or interrupted)
         tree = self.posterior.copy()
         tree["posterior"].attrs.update({"priors": json.dumps(self.priors),
                                         "backend": self.backend, "seconds": float(self.seconds)})

@@ -70,9 +70,9 @@ class DataFileError(InputError):
 class OverwriteError(InputError):
     """Refusing to overwrite existing data without ``--force``."""
 
-    def __init__(self, path: object):
+    def __init__(self, path: object, advice: str = "pass --force to overwrite it"):
         self.path = str(path)
-        super().__init__(f"{self.path}: already exists; pass --force to overwrite it")
+        super().__init__(f"{self.path}: already exists; {advice}")
 
 
 def _short(value: object, limit: int = 60) -> str:

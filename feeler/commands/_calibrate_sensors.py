@@ -16,7 +16,8 @@ fit (a file changed meanwhile, a bug) is named in one line below the table; the 
 that finished are written all the same (exit 2 for bad input, else 1). Each element is
 written as it finishes, so a Ctrl-C keeps the finished ones, and a dask worker that dies
 loses only the elements it held: the others run on and are written before the error
-(tests/calib/test_runner.py kills a worker under map_seeds).
+(tests/calib/test_runner.py kills a worker under map_seeds). --resume then fits only the
+elements not yet written (an element's verdict.json, written last, marks it complete).
 """
 from __future__ import annotations
 
@@ -33,6 +34,9 @@ def register(parser) -> None:
     parser.add_argument("datasets", metavar="DATASET", nargs="+", help="calibration run directories")
     parser.add_argument("--out", required=True, metavar="DIR", help="write DIR/<dataset name>/ per element")
     parser.add_argument("--force", action="store_true", help="overwrite earlier fits in DIR")
+    parser.add_argument("--resume", action="store_true",
+                        help="keep the elements already written in DIR (after a Ctrl-C or a lost worker) and fit "
+                             "the others; the table lists all")
     parser.add_argument("--seed", type=int, default=0, help="seed of element 0; element i uses SEED + i")
     parser.add_argument("--scheduler", default=None, metavar="ADDR",
                         help="tcp://HOST:PORT of a dask scheduler, or 'serial' (default: a LocalCluster)")
@@ -135,30 +139,47 @@ class _Defaults:
 def run(args) -> int:
     import sys
 
+    from feeler.calib.fit import load
     from feeler.calib.runner import map_seeds
-    from feeler.errors import ArgumentError
+    from feeler.errors import ArgumentError, OverwriteError
     from feeler.rundir import prepare_out_dir
 
     names = [Path(d).resolve().name for d in args.datasets]
     if len(set(names)) != len(names):
         raise ArgumentError("DATASET", names, "dataset directories must have distinct names")
+    if args.resume and args.force:
+        raise ArgumentError("--resume/--force", True, "one of them: --resume keeps the written elements, "
+                            "--force refits them")
     _check_datasets(args.datasets)
-    out = prepare_out_dir(args.out, [f"{n}/verdict.json" for n in names], force=args.force)
+    written = [i for i, n in enumerate(names) if (Path(args.out) / n / "verdict.json").is_file()] \
+        if args.resume else []
+    try:
+        out = prepare_out_dir(args.out, [f"{n}/verdict.json" for n in names], force=args.force or args.resume)
+    except OverwriteError as exc:
+        raise OverwriteError(exc.path, "pass --resume to fit only the elements not yet written, or --force to "
+                                       "refit them all") from None
+    kept = {i: load(out / names[i]) for i in written}
+    if kept:
+        print(f"--resume: {len(kept)} of {len(names)} element(s) already written under {out}, kept; fitting "
+              f"{len(names) - len(kept)}", file=sys.stderr)
     job = partial(_fit_or_error, datasets=tuple(str(d) for d in args.datasets), seed=args.seed)
+    todo = [i for i in range(len(names)) if i not in kept]
     saved = []
 
-    def keep(i: int, res) -> None:             # each element written as it finishes, not after the last
+    def keep(k: int, res) -> None:             # each element written as it finishes, not after the last
         if not isinstance(res, ElementError):
-            res.save(out / names[i], force=args.force)
-            saved.append(names[i])
+            res.save(out / names[todo[k]], force=args.force)
+            saved.append(names[todo[k]])
 
     try:
-        results = map_seeds(job, range(len(names)), scheduler=args.scheduler, n_workers=args.workers,
-                            desc="elements", progress_bar=args.progress, on_result=keep)
+        fitted = map_seeds(job, todo, scheduler=args.scheduler, n_workers=args.workers,
+                           desc="elements", progress_bar=args.progress, on_result=keep) if todo else []
     except BaseException:                      # a worker died, or Ctrl-C: say what is kept, then stop as before
         if saved:
-            print(f"kept {len(saved)} finished posterior(s) under {out}: {', '.join(saved)}", file=sys.stderr)
+            print(f"kept {len(saved)} finished posterior(s) under {out}: {', '.join(saved)}; run the same command "
+                  f"with --resume to fit the others", file=sys.stderr)
         raise
+    results = [kept[i] if i in kept else fitted[todo.index(i)] for i in range(len(names))]
     done = [(name, res) for name, res in zip(names, results) if not isinstance(res, ElementError)]
     errors = [(name, res) for name, res in zip(names, results) if isinstance(res, ElementError)]
     print(f"{'element':24s} {'verdict':8s} {'cond(C)':>8s}   C diagonal (mm/N)")

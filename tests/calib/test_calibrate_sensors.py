@@ -218,3 +218,34 @@ def test_a_ctrl_c_mid_run_keeps_the_elements_already_finished(elements, tmp_path
     assert f"kept 1 finished posterior(s) under {out}: elem1" in err and "feeler: interrupted" in err
     assert {p.name for p in (out / "elem1").iterdir()} >= {"posterior.nc", "summary.csv", "verdict.json"}
     assert not (out / "elem2").exists()
+
+
+def test_resume_after_a_ctrl_c_fits_only_what_is_missing(elements, tmp_path, capsys, monkeypatch):
+    """An audit: a Ctrl-C during a save left an element with posterior.nc alone, and the
+    only way on was --force, refitting every element. An element without verdict.json (written
+    last) is now an interrupted save, and --resume keeps the complete ones, fitting the rest
+    to what one uninterrupted run writes."""
+    real = _second_fit_raises(monkeypatch, KeyboardInterrupt)
+    out = tmp_path / "out"
+    assert main(["calibrate", "sensors", *elements, "--out", str(out), "--scheduler", "serial",
+                 "--no-progress"]) == 130
+    assert "run the same command with --resume to fit the others" in capsys.readouterr().err
+    (out / "elem2").mkdir()
+    (out / "elem2" / "posterior.nc").write_bytes(b"cut short")               # a save cut after its first file
+    monkeypatch.setattr(matrix, "fit_matrix", real)
+    assert main(["calibrate", "sensors", *elements, "--out", str(out), "--scheduler", "serial"]) == 2
+    err = capsys.readouterr().err
+    assert "elem1/verdict.json: already exists; pass --resume to fit only the elements not yet written" in err
+    before = (out / "elem1" / "posterior.nc").stat().st_mtime_ns
+    assert main(["calibrate", "sensors", *elements, "--out", str(out), "--scheduler", "serial", "--no-progress",
+                 "--resume"]) == 0
+    std = capsys.readouterr()
+    assert "--resume: 1 of 2 element(s) already written" in std.err
+    assert re.search(r"(?m)^elem1 +ok ", std.out) and re.search(r"(?m)^elem2 +ok ", std.out)
+    assert (out / "elem1" / "posterior.nc").stat().st_mtime_ns == before                  # kept, not refitted
+    assert main(["calibrate", "sensors", *elements, "--out", str(tmp_path / "ref"), "--scheduler", "serial",
+                 "--no-progress"]) == 0
+    for name in ("elem1", "elem2"):
+        pd.testing.assert_frame_equal(pd.read_csv(out / name / "summary.csv"),
+                                      pd.read_csv(tmp_path / "ref" / name / "summary.csv"))
+    assert main(["calibrate", "sensors", *elements, "--out", str(out), "--resume", "--force"]) == 2
