@@ -41,7 +41,10 @@ def test_every_subcommand_has_help(path, capsys):
     (["validate", "sbc", "--model", "matrix", "--n", "abc"], "argument --n: invalid int value: 'abc' (see "
                                                             "`feeler validate sbc --help`)"),
     (["classify", "--bogus"], "the following arguments are required: POSTERIOR, SCANS"),
-    (["validate", "sbc", "--model", "matrix", "--draws", "0"], "--draws=0: at least 9 posterior draws"),
+    (["validate", "sbc", "--model", "matrix", "--draws", "0"], "--draws=0: 9 to 999 posterior draws"),
+    # the fits draw 999: --draws 1000 failed after a dataset's fit as "argument n_draws=1000"
+    (["validate", "sbc", "--model", "neuron", "--draws", "1000"], "--draws=1000: 9 to 999 posterior draws per "
+                                                                  "dataset (ranks 0..draws; each fit draws 999"),
 ])
 def test_argument_errors_are_one_line(argv, words, capsys):
     """argparse printed its usage block and 'feeler validate sbc: error:'; validate's --draws 0

@@ -42,7 +42,7 @@ def register(parser) -> None:
                          description=_SBC_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     sbc.add_argument("--model", choices=sorted(SBC_MODELS), required=True, help="which model")
     sbc.add_argument("--n", type=int, default=200, help="simulated datasets (default 200)")
-    sbc.add_argument("--draws", type=int, default=99, help="posterior draws per dataset for the ranks (default 99)")
+    sbc.add_argument("--draws", type=int, default=99, help="posterior draws per dataset for the ranks, 9-999 (default 99)")
     sbc.add_argument("--scheduler", default=None, metavar="ADDR",
                      help="tcp://HOST:PORT of a dask scheduler, or 'serial' (default: a LocalCluster)")
     sbc.add_argument("--seed", type=int, default=0, help="seed (default 0)")
@@ -60,6 +60,9 @@ def register(parser) -> None:
     parser.set_defaults(run=no_target)
 
 
+#: independent draws each SBC fit returns (``fit_matrix_draws``, ``fit_neuron_draws``); --draws thins them
+FIT_DRAWS = 999
+
 #: below this many datasets an "ok" says how little it covers: a uniformity test over 10-20
 #: datasets has little power (SBC of 10 datasets printed "every parameter's ranks are uniform")
 LOW_POWER_N = 100
@@ -70,8 +73,9 @@ def run_sbc_command(args) -> int:
 
     if args.n < 10:                                  # before the heavy imports (issue 16 item 3)
         raise ArgumentError("--n", args.n, "at least 10 simulated datasets")
-    if args.draws < 9:
-        raise ArgumentError("--draws", args.draws, "at least 9 posterior draws per dataset (ranks 0..draws)")
+    if not 9 <= args.draws <= FIT_DRAWS:
+        raise ArgumentError("--draws", args.draws, f"9 to {FIT_DRAWS} posterior draws per dataset (ranks 0..draws; "
+                            f"each fit draws {FIT_DRAWS}, evenly thinned to --draws)")
     import pandas as pd
 
     from feeler.calib.sbc import run_sbc

@@ -84,3 +84,15 @@ def test_distributed_sbc_equals_serial():
     dist = run_sbc(sim, fit, n_datasets=10, seed=5, scheduler=None)
     np.testing.assert_array_equal(serial.ranks, dist.ranks)
     assert serial.names == dist.names
+
+
+def test_validate_draws_bound_is_what_the_fits_return():
+    """`validate sbc --draws` is checked against FIT_DRAWS before any work: it must be the
+    number of draws the SBC fits actually return."""
+    import inspect
+
+    from feeler.calib.matrix.sbc_model import fit_matrix_draws
+    from feeler.calib.neuron.sbc import fit_neuron_draws
+    from feeler.commands.validate import FIT_DRAWS
+    for fit in (fit_matrix_draws, fit_neuron_draws):
+        assert inspect.signature(fit).parameters["n_draws"].default == FIT_DRAWS, fit.__name__
