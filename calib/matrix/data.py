@@ -69,7 +69,7 @@ def read_calibration_csv(path: str | Path) -> CalibrationData:
         bad = np.flatnonzero(~np.isfinite(v))
         if bad.size:
             cell = table[col].iloc[bad[0]]
-            shown = (repr(cell.strip()) if isinstance(cell, str) else "an empty cell" if pd.isna(cell)
+            shown = (repr(cell.strip()) if isinstance(cell, str) else "an empty or NaN cell" if pd.isna(cell)
                      else f"{float(cell):g}")                 # never numpy's repr ('np.float64(nan)')
             raise DataFileError(path, f"column {col}, row {bad[0] + 1}: {shown} is not a finite number")
         values[col] = v

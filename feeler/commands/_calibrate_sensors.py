@@ -25,13 +25,14 @@ from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
-__all__ = ["HELP", "register", "run", "fit_element"]
+__all__ = ["HELP", "register", "run", "fit_element", "element_name"]
 
 HELP = "posteriors of the force→displacement matrices of many sensor elements (dask)"
 
 
 def register(parser) -> None:
-    parser.add_argument("datasets", metavar="DATASET", nargs="+", help="calibration run directories")
+    parser.add_argument("datasets", metavar="DATASET", nargs="+",
+                        help="calibration run directories (or the calibration.csv in each)")
     parser.add_argument("--out", required=True, metavar="DIR", help="write DIR/<dataset name>/ per element")
     parser.add_argument("--force", action="store_true", help="overwrite earlier fits in DIR")
     parser.add_argument("--resume", action="store_true",
@@ -81,6 +82,13 @@ def _fit_or_error(index: int, *, datasets: tuple[str, ...], seed: int):
     except Exception as exc:                        # noqa: BLE001 - reported below the table, with its kind
         text = str(exc) if isinstance(exc, FeelerError) else f"{exc.__class__.__name__}: {exc}"
         return ElementError(" ".join(text.split()), isinstance(exc, InputError))
+
+
+def element_name(dataset: str) -> str:
+    """The name of an element's directory under --out: its dataset directory's name, also when
+    DATASET is the calibration.csv in it (OUT/calibration.csv/ was made for it)."""
+    path = Path(dataset).resolve()
+    return path.parent.name if path.is_file() else path.name
 
 
 def _read_element(dataset: str):
@@ -144,7 +152,7 @@ def run(args) -> int:
     from feeler.errors import ArgumentError, OverwriteError
     from feeler.rundir import prepare_out_dir
 
-    names = [Path(d).resolve().name for d in args.datasets]
+    names = [element_name(d) for d in args.datasets]
     if len(set(names)) != len(names):
         raise ArgumentError("DATASET", names, "dataset directories must have distinct names")
     if args.resume and args.force:

@@ -249,3 +249,13 @@ def test_resume_after_a_ctrl_c_fits_only_what_is_missing(elements, tmp_path, cap
         pd.testing.assert_frame_equal(pd.read_csv(out / name / "summary.csv"),
                                       pd.read_csv(tmp_path / "ref" / name / "summary.csv"))
     assert main(["calibrate", "sensors", *elements, "--out", str(out), "--resume", "--force"]) == 2
+
+
+def test_a_calibration_csv_given_for_its_directory_names_the_element_by_it(elements, tmp_path, capsys):
+    """`calibrate sensors DIR/calibration.csv` wrote OUT/calibration.csv/ (a directory named
+    like a file); the element is its dataset directory, as when the directory is given."""
+    out = tmp_path / "out"
+    assert main(["calibrate", "sensors", str(Path(elements[0]) / "calibration.csv"), elements[1], "--out", str(out),
+                 "--scheduler", "serial", "--no-progress"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["elem1", "elem2"]
+    assert re.search(r"(?m)^elem1 +ok ", capsys.readouterr().out)

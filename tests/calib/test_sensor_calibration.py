@@ -65,7 +65,9 @@ def test_scene_errors_name_the_key(tmp_path, old, new, match):
     ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3 + "3,0,abc,0,1,2,3\n",
      "column uy_mm, row 4: 'abc' is not a finite number"),
     ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3 + "3,0,0.1,0,1,2,\n",
-     "column fz_n, row 4: an empty cell is not a finite number$"),
+     "column fz_n, row 4: an empty or NaN cell is not a finite number$"),
+    ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3 + "3,0,0.1,nan,1,2,3\n",
+     "column uz_mm, row 4: an empty or NaN cell is not a finite number$"),      # pandas reads both as NaN
     ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3 + "3,0,0.1,0,inf,2,3\n",
      "column fx_n, row 4: inf is not a finite number$"),
     ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3, "3 points; a 3x3 matrix needs at least 4"),
