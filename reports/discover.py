@@ -10,6 +10,7 @@ cannot fill is listed with the command that would produce it.
 from __future__ import annotations
 
 import re
+import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -178,7 +179,7 @@ def discover(run_dir: str | Path) -> Inventory:
     kinds = _kinds(parts)
     if any((run_dir / p.path("decoder.csv")).is_file() for p in parts if p.kind in ("benchmarks", "speed")):
         kinds.add("decoder")
-    missing = tuple(Missing(title, needs.replace("{run}", str(run_dir))) for title, any_of, needs in EXPECTED
+    missing = tuple(Missing(title, needs.replace("{run}", shlex.quote(str(run_dir)))) for title, any_of, needs in EXPECTED
                     if not kinds & set(any_of))
     return Inventory(run_dir=run_dir, parts=tuple(parts), present=tuple(_sections(run_dir, parts)),
                      missing=missing, unread=tuple(unread_files(run_dir)))

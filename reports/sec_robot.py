@@ -88,8 +88,9 @@ def _acquisition_blocks(rd, src) -> list:
         rows = tuple((k.replace("_", " "), fmt(rd.summary[k])) for k in keys if k in rd.summary)
         blocks.append(Table("Acquisition counts", ("quantity", "value"), rows, (rd.part.path("summary.json"),)))
         if rd.summary.get("complete") is False:
+            why = rd.summary.get("stopped") or "stopped without a word: killed, or the machine went down"
             blocks.append(Note(f"Incomplete acquisition: {rd.summary.get('scans_done', '?')} of "
-                               f"{rd.summary.get('scans_planned', '?')} scans ({rd.summary.get('stopped', '')}); "
+                               f"{rd.summary.get('scans_planned', '?')} scans ({why}); "
                                "resume with `feeler acquire ... --resume`.", level="failed",
                                sources=(rd.part.path("summary.json"),)))
     if rd.timing is not None and len(rd.timing):

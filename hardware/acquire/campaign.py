@@ -86,6 +86,17 @@ class Setup:
                              blur_sd_px=self.plan.optics.blur_sd_px)
 
 
+def stopped_text(exc: BaseException) -> str:
+    """Why a campaign stopped, in words for summary.json and the report (it read
+    "KeyboardInterrupt: ", the exception's class name and an empty message)."""
+    if isinstance(exc, KeyboardInterrupt):          # feeler turns SIGTERM into one ("signal 15")
+        return f"interrupted ({str(exc).strip() or 'Ctrl-C'})"
+    if isinstance(exc, SystemExit):
+        return "stopped (the process was asked to exit)"
+    text = str(exc).strip()
+    return text if text else f"stopped by an error ({type(exc).__name__})"
+
+
 def run_campaign(setup: Setup, stage, camera, store: RunStore, extra: dict) -> dict:
     """Run every scan not yet done; returns the final summary (also in ``summary.json``)."""
     extract = setup.pipeline
@@ -103,7 +114,7 @@ def run_campaign(setup: Setup, stage, camera, store: RunStore, extra: dict) -> d
     except BaseException as exc:                 # the counts so far, and why the run stopped
         _journal_recovered(stage, store, seen, None, None)
         store.notify("finished", store.write_summary({**extra, "complete": False,
-                                                      "stopped": f"{type(exc).__name__}: {exc}"}))
+                                                      "stopped": stopped_text(exc)}))
         raise
     summary = store.write_summary({**extra, "complete": len(store.done) == len(scans)})
     store.notify("finished", summary)

@@ -285,7 +285,7 @@ def test_sigterm_stops_the_run_cleanly_and_says_where(tmp_path):
     import json
     summary = json.loads((run / "summary.json").read_text())
     assert proc.returncode == 130 and "feeler: interrupted" in err
-    assert summary["complete"] is False and summary["stopped"] == "KeyboardInterrupt: signal 15"
+    assert summary["complete"] is False and summary["stopped"] == "interrupted (signal 15)"   # was "KeyboardInterrupt: ..."
 
 
 def test_ctrl_c_at_a_terminal_is_one_line_not_the_emulators_traceback(tmp_path):
@@ -441,3 +441,13 @@ def test_a_bad_frame_is_a_feeler_warning_line_not_a_log_record(reference, tmp_pa
         bad = [ln for ln in done.stderr.splitlines() if "identical to the previous frame" in ln]
         assert len(bad) == 1, done.stderr
         assert bad[0].startswith("WARNING feeler.acquire: " if verbose else "feeler: warning: "), bad
+
+
+def test_why_a_campaign_stopped_is_said_in_words():
+    """summary.json and the report said "(KeyboardInterrupt: )" of a Ctrl-C (an audit)."""
+    from feeler.hardware.acquire.campaign import stopped_text
+    from feeler.hardware.stage.errors import PortError
+    assert stopped_text(KeyboardInterrupt()) == "interrupted (Ctrl-C)"
+    assert stopped_text(KeyboardInterrupt("signal 15")) == "interrupted (signal 15)"
+    assert stopped_text(RuntimeError()) == "stopped by an error (RuntimeError)"
+    assert stopped_text(PortError("/dev/ttyUSB0", "disconnected")) == "port /dev/ttyUSB0: disconnected"

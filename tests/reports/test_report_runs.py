@@ -143,6 +143,10 @@ def test_a_run_lists_what_each_missing_section_needs(run_dir, tmp_path, capsys):
     assert "holds: 1 part(s) in 1 section(s)" in out and out.count("not in this run: ") == 11
     html = (tmp_path / "run" / "report.html").read_text(encoding="utf-8")
     assert "Not in this run, and what each would need" in html
+    odd = shutil.copytree(run, tmp_path / "Mëßung Ω 1" / "psychophysics")      # commands to paste, quoted
+    assert main(["report", str(odd.parent), "--no-progress", "--no-pdf"]) == 0
+    needs = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("not in this run: ") and "--out" in ln]
+    assert needs and all(f"'{odd.parent}" in ln for ln in needs), needs
 
 
 def test_progress_is_a_line_per_stage_and_figure_off_a_terminal(run_dir, tmp_path, capsys):
@@ -254,3 +258,19 @@ def test_a_simulation_of_many_plates_draws_eight_curves_and_says_so(tmp_path):
     assert [(f["title"], f["layout_problems"]) for f in report.figures if f["layout_problems"]] == []
     html = report.html.read_text(encoding="utf-8")
     assert html.count("(8 of the 10 plates, evenly spaced)") == 2
+
+
+def test_an_acquisition_killed_mid_run_says_so_in_words(acquired, tmp_path):
+    """A SIGKILLed run's summary.json has no "stopped" (nothing ran to write it): the report
+    said "()" after its counts; an interrupted one said "(KeyboardInterrupt: )"."""
+
+    run = shutil.copytree(acquired, tmp_path / "killed", ignore=shutil.ignore_patterns("report*"))
+    summary = json.loads((run / "summary.json").read_text())
+    summary.update(complete=False, scans_done=1)
+    (run / "summary.json").write_text(json.dumps(summary))
+    html = build_report(run, tmp_path / "out", pdf=False).html.read_text(encoding="utf-8")
+    assert "scans (stopped without a word: killed, or the machine went down); resume with" in html
+    summary["stopped"] = "interrupted (Ctrl-C)"
+    (run / "summary.json").write_text(json.dumps(summary))
+    html = build_report(run, tmp_path / "out2", pdf=False).html.read_text(encoding="utf-8")
+    assert "scans (interrupted (Ctrl-C)); resume with" in html and "()" not in html.split("Incomplete")[1][:200]
