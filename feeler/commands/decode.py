@@ -57,7 +57,7 @@ def register(parser) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from feeler.errors import ArgumentError
+    from feeler.errors import ArgumentError, OverwriteError
     from feeler.rundir import prepare_out_dir
 
     path = Path(args.run_dir)
@@ -76,7 +76,11 @@ def run(args) -> int:
     if not args.follow and not path.exists():
         raise ArgumentError("RUN", str(path), "an existing run directory or scan CSV")
     out = Path(args.out) if args.out else (path if path.is_dir() else path.parent)
-    out = prepare_out_dir(out, ("decisions.csv",), force=args.force)
+    try:
+        out = prepare_out_dir(out, ("decisions.csv",), force=args.force)
+    except OverwriteError as exc:                       # e.g. following a run again after `acquire --resume`
+        raise OverwriteError(exc.path, "pass --force to replace it (the run is decoded again from its first "
+                                       "scan, as after `feeler acquire --resume`)") from None
     records = None
     if not args.follow:
         from feeler.calib.neuron.live.scan_csv import read_scan_records

@@ -36,7 +36,9 @@ def test_decode_equals_classify_of_the_same_run(fit_dir, scans_frame, tmp_path, 
     made = dec.dropna(subset=["decided_mm"])
     assert len(made) > 0 and (made.p_decided >= 0.9).all()
     assert main(["decode", str(fit_dir), str(run), "--n-draws", "40"]) == 2          # no silent overwrite
-    assert "decisions.csv" in capsys.readouterr().err
+    err = capsys.readouterr().err                   # and the way on, as a follower of a resumed run needs it
+    assert "decisions.csv: already exists; pass --force to replace it (the run is decoded again from its " \
+           "first scan, as after `feeler acquire --resume`)" in err
 
 
 def _writer(run, frame, release, chunks=7):
