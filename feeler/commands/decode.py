@@ -210,6 +210,14 @@ def _summary(decoder) -> None:
         line += f"; median decision at {np.median(t['decided_at_t_s'].to_numpy(float)[decided]):.3g} s"
     flagged = int(t["flagged"].sum())
     print(line + (f"; {flagged} flagged as unlike the fit's training scans" if flagged else ""))
+    if "step_mm" in t.columns:                          # a run of other plates than the fit's (another scene)
+        plates = np.asarray(decoder.live.plates_mm, float)
+        step = t["step_mm"].to_numpy(float)
+        new = np.isfinite(step) & ~np.isclose(step[:, None], plates[None, :], atol=1e-9).any(axis=1)
+        if new.any():
+            print(f"note: {int(new.sum())} of {len(t)} scans are labelled with steps the fit has no plate for "
+                  f"({', '.join(f'{v:g}' for v in np.unique(step[new]))} mm; its plates: "
+                  f"{', '.join(f'{v:g}' for v in plates)} mm): none of them can be decided as its label")
     snapped = [decoder.snapped[k] for k in sorted(decoder.rows)]
     modes = None if None in snapped else np.array(snapped, bool)
     for said in chance_mode_notes(decoder.live.fit.posterior["posterior"].attrs, modes):

@@ -261,3 +261,21 @@ def test_follow_waits_for_the_run_and_leaves_out_a_scan_cut_short(fit_dir, scans
     assert line.startswith("feeler: error: argument RUN=") and line.endswith(
         "never': a run directory: none appeared in 0.1 s (--wait-s); start `feeler acquire --out RUN` too, or give "
         "a longer --wait-s"), line
+
+
+def test_decode_says_when_the_runs_labels_are_not_plates_of_the_fit(fit_dir, scans_frame, tmp_path, capsys):
+    """An audit decoded a four-plate run with a six-plate fit: the scans were flagged, but
+    nothing said that the run's plates were not the fit's."""
+    run = tmp_path / "run"
+    run.mkdir()
+    other = scans_frame.assign(step_mm=np.where(scans_frame.step_mm > 0, scans_frame.step_mm + 0.03, 0.0))
+    other.to_csv(run / "scans.csv", index=False)
+    assert main(["decode", str(fit_dir), str(run), "--n-draws", "40", "--no-progress"]) == 0
+    said = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("note: ") and "no plate for" in ln]
+    n = int((other.groupby("scan_id").step_mm.first() > 0).sum())
+    assert len(said) == 1 and said[0].startswith(f"note: {n} of {other.scan_id.nunique()} scans are labelled with "
+                                                 "steps the fit has no plate for ("), said
+    assert "none of them can be decided as its label" in said[0]
+    scans_frame.to_csv(run / "scans.csv", index=False)
+    assert main(["decode", str(fit_dir), str(run), "--n-draws", "40", "--no-progress", "--force"]) == 0
+    assert "no plate for" not in capsys.readouterr().out
