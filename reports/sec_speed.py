@@ -17,7 +17,7 @@ import numpy as np
 from feeler.reports.model import Note, Section, Table, fmt, log_axis, make_figure, subplots, table_from_frame
 from feeler.reports.readers import read_json, read_table
 
-__all__ = ["speed_section", "trade_columns", "TIME_COLS", "ERROR_COLS", "ACCURACY_COLS"]
+__all__ = ["speed_section", "trade_columns", "table_columns", "TIME_COLS", "ERROR_COLS", "ACCURACY_COLS"]
 
 TIME_COLS = ("latency_s", "decision_latency_s", "seconds_per_slide", "seconds", "fit_s", "min_s")
 ERROR_COLS = ("error_ref_sd", "error_sd", "error", "rate_error", "max_abs_mean_err_sd", "max_error")
@@ -67,6 +67,18 @@ def _trade_figure(name, frame, x, y, rel, provenance):
     return make_figure(_TITLES.get(name, name), fig, (rel,), f"One point per option; {provenance}.")
 
 
+#: a benchmark's spread columns, the same number as its median when every row ran one round
+_ONE_ROUND = ("min_s", "mean_s", "q1_s", "q3_s", "rounds")
+
+
+def table_columns(frame) -> list[str]:
+    """The columns of a benchmark table to show: not ``measured_at`` (in the provenance line),
+    and, when every row ran one round, the median alone of the timing columns (the open-world
+    table, one round a scene, ran past the page's right edge with all of them)."""
+    one_round = "rounds" in frame.columns and bool((frame["rounds"].fillna(1) <= 1).all())
+    return [c for c in frame.columns if c != "measured_at" and not (one_round and c in _ONE_ROUND)]
+
+
 def _tables(inv, part, names, provenance) -> list:
     blocks = []
     for name in names:
@@ -79,8 +91,8 @@ def _tables(inv, part, names, provenance) -> list:
         x, y = trade_columns(frame)
         if x and y and len(frame) > 1:
             blocks.append(_trade_figure(stem, frame, x, y, rel, provenance))
-        keep = [c for c in frame.columns if c not in ("measured_at",)]
-        blocks.append(table_from_frame(frame[keep], title=_TITLES.get(stem, stem), sources=(rel,), digits=3))
+        blocks.append(table_from_frame(frame[table_columns(frame)], title=_TITLES.get(stem, stem), sources=(rel,),
+                                       digits=3))
     return blocks
 
 

@@ -296,3 +296,17 @@ def test_m4_thresholds_never_show_nan():
     assert _cell(r, "threshold_um") == "> 2.625"
     assert _cell(r, "slope_per_um") == "—" and _cell(r, "backend") == "nuts" and _cell(r, "gof_p") == "0.41"
     assert _cell(pd.Series({**r.to_dict(), "threshold_lb_um": float("nan")}), "threshold_um") == "—"
+
+
+def test_a_benchmark_table_of_one_round_shows_its_median_alone():
+    """The open-world table (one round a scene) ran past the PDF page's right edge: with one
+    round, min, mean, q1 and q3 are the median again. With more rounds all are shown."""
+    import pandas as pd
+
+    from feeler.reports.sec_speed import table_columns
+    one = pd.DataFrame({"benchmark": ["a", "b"], "min_s": [1.0, 2.0], "mean_s": [1.0, 2.0], "rounds": [1, 1],
+                        "median_s": [1.0, 2.0], "q1_s": [1.0, 2.0], "q3_s": [1.0, 2.0], "ece": [0.01, 0.02],
+                        "measured_at": ["t", "t"]})
+    assert table_columns(one) == ["benchmark", "median_s", "ece"]
+    many = one.assign(rounds=[1, 5])
+    assert table_columns(many) == ["benchmark", "min_s", "mean_s", "rounds", "median_s", "q1_s", "q3_s", "ece"]
