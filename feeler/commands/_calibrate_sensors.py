@@ -187,7 +187,8 @@ def run(args) -> int:
             print(f"kept {len(saved)} finished posterior(s) under {out}: {', '.join(saved)}; run the same command "
                   f"with --resume to fit the others", file=sys.stderr)
         raise
-    results = [kept[i] if i in kept else fitted[todo.index(i)] for i in range(len(names))]
+    by_index = {**kept, **dict(zip(todo, fitted))}
+    results = [by_index[i] for i in range(len(names))]
     done = [(name, res) for name, res in zip(names, results) if not isinstance(res, ElementError)]
     errors = [(name, res) for name, res in zip(names, results) if isinstance(res, ElementError)]
     print(f"{'element':24s} {'verdict':8s} {'cond(C)':>8s}   C diagonal (mm/N)")

@@ -69,10 +69,10 @@ def run(args) -> int:
         raise ArgumentError("--drop", args.drop, "a fraction in (0, 1)")
     if args.follow and not args.wait_s >= 0:
         raise ArgumentError("--wait-s", args.wait_s, ">= 0 s")
-    if args.follow and path.exists() and not path.is_dir():
-        raise ArgumentError("RUN", str(path), "a run directory with --follow (one that `feeler acquire` writes)")
     if args.follow and not path.exists():               # started just before the acquisition: wait for it
         _wait_for_run(path, args)
+    if args.follow and not path.is_dir():
+        raise ArgumentError("RUN", str(path), "a run directory with --follow (one that `feeler acquire` writes)")
     if not args.follow and not path.exists():
         raise ArgumentError("RUN", str(path), "an existing run directory or scan CSV")
     out = Path(args.out) if args.out else (path if path.is_dir() else path.parent)
@@ -158,7 +158,7 @@ def _follow(decoder, path, out, args) -> None:
 
 def _wait_for_run(path, args) -> None:
     """Wait up to --wait-s for RUN to appear (a follower started before `feeler acquire` has
-    made its directory), then go on; refuse naming the wait when it does not."""
+    made it); refuse naming the wait when it does not."""
     import time
 
     from feeler.errors import ArgumentError
@@ -171,8 +171,6 @@ def _wait_for_run(path, args) -> None:
             raise ArgumentError("RUN", str(path), f"a run directory: none appeared in {args.wait_s:g} s (--wait-s); "
                                 "start `feeler acquire --out RUN` too, or give a longer --wait-s")
         time.sleep(args.poll_s)
-    if not path.is_dir():
-        raise ArgumentError("RUN", str(path), "a run directory with --follow (one that `feeler acquire` writes)")
 
 
 def _drop_cut_scan(decoder, path) -> None:

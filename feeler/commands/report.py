@@ -14,8 +14,9 @@ section, each figure drawn, each PDF step and page (--no-progress: none). A corr
 of the run stops with a one-line error naming it (exit 2), and so does a directory holding
 nothing the report can show. Otherwise the exit status is 0 once the report is written,
 whatever the verdicts it holds: a failed fit is a result to show (first, and named on
-stdout as "FAILED calibration shown first: ..."), not a failure of the report. Files of other commands the report does not read (decode's
-decisions.csv, validate sbc's ranks.csv and sbc.csv) are named on stderr: "not reported: ...".
+stdout as "FAILED calibration shown first: ..."), not a failure of the report. Files of
+other commands the report does not read (decode's decisions.csv, validate sbc's ranks.csv
+and sbc.csv) are named on stderr: "not reported: ...".
 
 Examples:
     feeler report runs/demo

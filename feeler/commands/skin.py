@@ -28,9 +28,10 @@ def register(parser) -> None:
                          description="L2 mesh convergence and the trade between the skin fidelities L0, L1 and L2: "
                                      "seconds per slide against the error of the peak strain rate to converged L2. "
                                      "Writes convergence.csv, trade.csv, ladder.json and ladder.png into --out "
-                                     "(default runs/skin-ladder). Exit status 1 when the full study misses a goal (peak step strain "
-                                     "changing < 1 % between the two finest meshes, L1 100x faster than L2 within 10 % "
-                                     "error, L0 10^4x faster); --small reports them without judging them. "
+                                     "(default runs/skin-ladder). Exit status 1 when the full study misses a "
+                                     "goal (peak step strain changing < 1 % between the two finest meshes, L1 "
+                                     "100x faster than L2 within 10 % error, L0 10^4x faster); --small reports "
+                                     "them without judging them. "
                                      "Example: feeler skin ladder --small --out runs/ladder")
     lad.add_argument("--out", default="runs/skin-ladder", metavar="DIR",
                      help="output directory (default runs/skin-ladder)")
