@@ -13,6 +13,10 @@ export UV_COMPILE_BYTECODE := 1
 # numba's on-disk cache for the fused loops lives with the environment
 export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
 export MPLBACKEND := Agg
+# test files run in parallel (pytest-xdist), one worker a core; a file's tests stay on one worker
+# (its module fixtures are made once): make test TEST_WORKERS=0 runs them one by one
+TEST_WORKERS ?= auto
+PYTEST_PARALLEL := -n $(TEST_WORKERS) --dist loadfile
 
 .PHONY: env demo test test-load bench bench-load browser clean help
 
@@ -32,11 +36,11 @@ demo: env  ## simulate, decode and calibrate on the shipped default scenes; resu
 browser:  ## headless Chromium for the report rendering test (Debian packages; needs root)
 	-@bash .ci/install-browser
 
-test: env browser  ## run the whole test suite (slow suites at a small size)
-	$(BIN)/python -m pytest
+test: env browser  ## run the whole test suite (slow suites at a small size), a worker a core
+	$(BIN)/python -m pytest $(PYTEST_PARALLEL)
 
 test-load: env browser  ## the whole test suite with two busy-loop processes competing for the cores
-	.ci/with-load -n 2 $(BIN)/python -m pytest
+	.ci/with-load -n 2 $(BIN)/python -m pytest $(PYTEST_PARALLEL)
 
 bench: env  ## run the benchmarks: medians with spread, idle and under two busy loops; tables in runs/benchmarks/
 	@mkdir -p runs/benchmarks

@@ -5,9 +5,14 @@ scans per plate (its name turned into a script tag, to test escaping), the finge
 scene with three steps on a coarse mesh, 80 touches per height for the discrimination.
 A tiny real acquisition (the emulated Grbl stage and the virtual camera, 2 plates x 1
 scan) is made once for the tests that need one.
+
+Under pytest-xdist (``make test`` runs two workers) the demo run is made once for all
+workers (:func:`once_per_session`): the tests only read it, or copy what they change.
 """
 from __future__ import annotations
 
+import fcntl
+import os
 import shutil
 from pathlib import Path
 
@@ -31,16 +36,38 @@ def small_scenes(tmp: Path) -> tuple[Path, dict]:
     return robot, {"finger-steps": small_finger_scene(tmp / "finger-small.toml")}
 
 
+def once_per_session(tmp_path_factory, name: str, build) -> Path:
+    """A directory ``build(dir)`` fills once per test session: under pytest-xdist the first
+    worker to take the lock builds it in the workers' common temporary root and the others
+    wait for it, then reuse it (a build that failed is tried again by the next worker)."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        path = tmp_path_factory.mktemp(name)
+        build(path)
+        return path
+    root = tmp_path_factory.getbasetemp().parent
+    path, done = root / name, root / f"{name}.done"
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.is_file():
+            shutil.rmtree(path, ignore_errors=True)
+            path.mkdir()
+            build(path)
+            done.touch()
+    return path
+
+
 @pytest.fixture(scope="session")
 def run_dir(tmp_path_factory) -> Path:
+    return once_per_session(tmp_path_factory, "demo-run", _make_demo_run) / "run"
+
+
+def _make_demo_run(tmp: Path) -> None:
     from feeler.demo import run_demo
 
-    tmp = tmp_path_factory.mktemp("demo-run")
     robot, scenes = small_scenes(tmp)
     printed = []
     run_demo(tmp / "run", scene_path=robot, scenes=scenes, discriminate_scans=80, echo=printed.append)
     (tmp / "printed.txt").write_text("\n".join(printed), encoding="utf-8")      # what the demo said
-    return tmp / "run"
 
 
 @pytest.fixture(scope="session")
