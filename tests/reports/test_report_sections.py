@@ -235,6 +235,22 @@ def test_speed_section_says_where_its_numbers_come_from(report):
     assert "The skin fidelity ladder: seconds per slide against error" in finger and "Trade table" in finger
 
 
+@pytest.mark.parametrize("options", [3, 20, 40])
+def test_a_trade_plot_of_many_options_names_every_one_at_its_median(options):
+    """The open-world benchmark's 20 scenes in one legend column lost the last four below
+    the figure's edge; and the plot took the best round where the table leads with medians."""
+    from feeler.reports.sec_speed import _trade_figure
+
+    rng = np.random.default_rng(3)
+    frame = pd.DataFrame({"benchmark": [f"test_random_scene[random-{i:02d}]" for i in range(options)],
+                          "min_s": rng.uniform(10, 20, options), "median_s": rng.uniform(30, 50, options),
+                          "rounds": 3, "accuracy": rng.uniform(0.6, 1.0, options)})
+    fig = _trade_figure("open_world", frame, "median_s", "accuracy", "benchmarks/open_world.csv", "measured")
+    assert fig.problems == ()
+    from feeler.reports.sec_speed import trade_columns
+    assert trade_columns(frame) == ("median_s", "accuracy")
+
+
 def test_failed_calibration_comes_first(part_run, tmp_path):
     run = part_run("m1", "m4", "psychophysics")
     bad = {"ok": False, "problems": ["pse[0,0]: R-hat 1.2 > 1.01"]}
