@@ -71,7 +71,11 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
         with sigint_ignored():          # the workers never see a Ctrl-C (a traceback each): we stop them
             cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                                    dashboard_address=None, host="127.0.0.1", **cluster_options())
-        client = Client(cluster)
+        try:
+            client = Client(cluster)
+        except BaseException:           # a Ctrl-C while the client connects: the workers are stopped, not orphaned
+            cluster.close(timeout=SHUTDOWN_TIMEOUT_S)
+            raise
     else:
         try:
             cluster, client = None, Client(scheduler, timeout=CONNECT_TIMEOUT_S)

@@ -118,3 +118,26 @@ def test_a_worker_that_dies_loses_only_the_jobs_it_held():
     lost, finished = (int(v) for v in re.search(r"(\d) of 5 lost.*the other (\d) finished", str(info.value)).groups())
     assert lost >= 1 and lost + finished == 5
     assert len(got) == finished and all(r == 10 * i for i, r in got) and 2 not in dict(got)
+
+
+def test_a_ctrl_c_while_the_client_connects_stops_the_workers(monkeypatch):
+    """The LocalCluster is up and the Ctrl-C lands in ``Client(cluster)``: the cluster's
+    worker processes are stopped before the interrupt goes on, not left to the interpreter's exit."""
+    import distributed
+    import psutil
+
+    made = []
+
+    class Interrupted:
+        def __init__(self, cluster, *a, **kw):
+            made.append(cluster)
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(distributed, "Client", Interrupted)
+    before = {p.pid for p in psutil.Process().children(recursive=True)}
+    with pytest.raises(KeyboardInterrupt):
+        map_seeds(partial(_seeded_job, n=5), range(4))
+    assert len(made) == 1 and made[0].status.name == "closed"
+    left = [p.cmdline() for p in psutil.Process().children(recursive=True) if p.pid not in before
+            and p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
+    assert [c for c in left if "multiprocessing.resource_tracker" not in " ".join(c)] == []   # it lives with us
