@@ -279,3 +279,25 @@ def test_decode_says_when_the_runs_labels_are_not_plates_of_the_fit(fit_dir, sca
     scans_frame.to_csv(run / "scans.csv", index=False)
     assert main(["decode", str(fit_dir), str(run), "--n-draws", "40", "--no-progress", "--force"]) == 0
     assert "no plate for" not in capsys.readouterr().out
+
+
+def test_an_aborted_attempt_gets_no_line_of_its_own(small_fit, scans_frame):
+    """A resumed run's samples.csv holds the stopped attempt of a scan, then the scan again
+    from its start: the live lines showed an "end" line for the stopped half before the
+    scan's own. Only the complete attempt is reported, once."""
+    from feeler.calib.neuron.live import LiveDecoder
+    from feeler.calib.neuron.live.run import RunDecoder
+
+    ended = []
+    decoder = RunDecoder(LiveDecoder(small_fit[1], seed=0, n_draws=40), on_scan=ended.append)
+    ids = list(dict.fromkeys(scans_frame.scan_id))
+    second = scans_frame[scans_frame.scan_id == ids[1]]
+    rows = pd.concat([scans_frame[scans_frame.scan_id == ids[0]].assign(attempt=0),
+                      second.iloc[: len(second) // 2].assign(attempt=0),              # stopped here
+                      scans_frame[scans_frame.scan_id != ids[0]].assign(attempt=np.where(
+                          scans_frame[scans_frame.scan_id != ids[0]].scan_id == ids[1], 1, 0))])
+    for row in rows.to_dict("records"):
+        decoder.sample(row)
+    decoder.end_scan()
+    assert [r["scan_id"] for r in ended] == ids
+    assert ended[1]["n_samples"] == len(second)

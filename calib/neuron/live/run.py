@@ -2,8 +2,10 @@
 
 :class:`RunDecoder` takes sample rows (dicts with ``scan_id``, ``t_s``, ``uy_mm`` and
 optionally ``x_mm``, ``attempt``, ``step_mm``, ``speed_mm_s``, as ``samples.csv`` holds
-them). A new ``scan_id`` or ``attempt`` closes the scan before it; a later attempt of a
-scan replaces the earlier one's row (the acquisition retries a scan from its start).
+them). A new ``scan_id`` closes the scan before it; a new ``attempt`` of the scan in
+progress drops the earlier attempt unreported (the acquisition retries a scan from its
+start, and a resumed run starts again at the scan it was stopped in), and a later attempt
+of a scan closed before replaces its row.
 
 Columns of ``decisions.csv`` (:data:`COLUMNS`, with one ``p_<plate>mm`` per plate):
 ``scan_id``; ``step_mm`` when the samples are labelled; ``p_<plate>mm`` and ``height_mm``,
@@ -60,7 +62,10 @@ class RunDecoder:
         sid = int(float(row["scan_id"]))
         key = (sid, row.get("attempt"))
         if key != self._key:
-            self.end_scan()
+            if self._key is not None and self._key[0] == sid:
+                self.discard()              # a new attempt of the scan in progress: the earlier one was aborted
+            else:
+                self.end_scan()
             self._key = key
             self._labels = {"step_mm": _num(row, "step_mm"), "speed_mm_s": _num(row, "speed_mm_s")}
             self.live.reset(speed_mm_s=self._labels["speed_mm_s"])
