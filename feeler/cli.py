@@ -114,6 +114,26 @@ def _check_before_work(args) -> None:
         check_out_dir(out, getattr(args, "out_files", ()), force=bool(getattr(args, "force", False)))
 
 
+#: arguments of the library's functions that a command's option passes on under another name
+_LIBRARY_NAMES = {"c0_mm_per_n": "c0", "all": "all_estimand"}
+
+
+def _as_option(exc: Exception, parser: argparse.ArgumentParser) -> Exception:
+    """``exc`` with a library argument's name (``rel_sd``) turned into the option the user
+    typed (``--rel-sd``), when one of the commands has such an option."""
+    if not isinstance(exc, ArgumentError) or exc.name.startswith("-"):
+        return exc
+    options, parsers = {}, [parser]
+    while parsers:
+        for action in parsers.pop()._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                parsers.extend(action.choices.values())
+            elif action.option_strings:
+                options.setdefault(action.dest, max(action.option_strings, key=len))
+    flag = options.get(_LIBRARY_NAMES.get(exc.name, exc.name))
+    return exc if flag is None else ArgumentError(flag, exc.value, exc.allowed)
+
+
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """warnings.showwarning: ``feeler: warning: <message>`` on one line, no source path."""
     text = " ".join(str(message).split())
@@ -166,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         _check_before_work(args)
         return int(run(args) or 0)
     except InputError as exc:
-        print(f"feeler: error: {exc}", file=sys.stderr)
+        print(f"feeler: error: {_as_option(exc, parser)}", file=sys.stderr)
         return 2
     except FeelerError as exc:
         resume = "; the run so far is kept: run the same command with --resume to continue" \

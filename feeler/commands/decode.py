@@ -159,12 +159,13 @@ def _follow(decoder, path, out, args) -> None:
 def _wait_for_run(path, args) -> None:
     """Wait up to --wait-s for RUN to appear (a follower started before `feeler acquire` has
     made it); refuse naming the wait when it does not."""
+    import sys
     import time
 
     from feeler.errors import ArgumentError
 
     if args.progress is not False:
-        print(f"waiting up to {args.wait_s:g} s for {path} to appear (--wait-s) ...", flush=True)
+        print(f"waiting up to {args.wait_s:g} s for {path} to appear (--wait-s) ...", file=sys.stderr, flush=True)
     deadline = time.monotonic() + args.wait_s
     while not path.exists():
         if time.monotonic() >= deadline:

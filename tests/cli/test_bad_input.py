@@ -80,6 +80,14 @@ CASES = {
     "calibrate neuron given a sensor dataset": (lambda d: ("calibrate", "neuron", d / "sc"),
                                                 ["sc: holds no scans.csv", "`feeler calibrate sensor` fits it"]),
     "calibrate sensor given a fit": (lambda d: (*FIT, d / "m1"), ["no such calibration file", "holds a fit (posterior.nc)"]),
+    # a library argument's name (rel_sd, c0_mm_per_n, target_accept, all) stood for the option typed
+    "calibrate sensor --rel-sd -1": (lambda d: (*FIT, d / "sc", "--rel-sd", "-1"), ["--rel-sd=-1.0", "> 0"]),
+    "calibrate sensor --c0 singular": (lambda d: (*FIT, d / "sc", "--c0", *"100010000"), ["--c0=", "invertible"]),
+    "fit psychophysics --target-accept 2": (lambda d: ("fit", "psychophysics", d / "bare.csv", "--target-accept",
+                                                       "2"), ["--target-accept=2.0", "(0, 1)"]),
+    "fit psychophysics --all population --separate": (lambda d: ("fit", "psychophysics", d / "bare.csv", "--all",
+                                                                 "population", "--separate"),
+                                                      ["--all='population'", "hierarchical"]),
     "fit psychophysics given calibration.csv": (lambda d: ("fit", "psychophysics", d / "sc" / "calibration.csv"),
                                                 ["line 1: not a trial table: calibration.csv is a sensor-calibration"]),
 }

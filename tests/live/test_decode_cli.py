@@ -245,9 +245,10 @@ def test_follow_waits_for_the_run_and_leaves_out_a_scan_cut_short(fit_dir, scans
                      "--n-draws", "40", "--no-live"]) == 0
     finally:
         th.join()
-    out = capsys.readouterr().out
+    said = capsys.readouterr()
+    out = said.out
     ids = list(dict.fromkeys(scans_frame.scan_id))
-    assert f"waiting up to 10 s for {run} to appear (--wait-s)" in out
+    assert f"waiting up to 10 s for {run} to appear (--wait-s)" in said.err          # progress: stderr
     assert f"scan {ids[-1]} was cut short when the acquisition stopped: it gets no row in decisions.csv" in out
     live = pd.read_csv(run / "decisions.csv")
     assert list(live.scan_id) == ids[:-1]
