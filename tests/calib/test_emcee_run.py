@@ -51,9 +51,12 @@ def test_a_cap_fails_clearly(capsys):
     burn, notes = run_until_converged(s, p0, max_steps=300, chunk=100)
     assert len(notes) == 1 and "cap of 300 steps" in notes[0] and "autocorrelation" in notes[0]
     assert not _verdict(s, burn).ok
-    lines = capsys.readouterr().err.splitlines()          # off a terminal: a line per chunk (100, 100, 100)
+    *lines, last = capsys.readouterr().err.splitlines()   # off a terminal: a line per chunk (100, 100, 100)
     assert [ln.split(",")[0] for ln in lines] == [f"emcee: {n} steps per walker" for n in (100, 200, 300)]
     assert all("longest tau" in ln and "not yet converged" in ln for ln in lines)
+    # then the stage that turns the kept draws into a posterior (a minute of silence on the shipped M1 data)
+    assert last == f"emcee: summarising the last 225 steps of its {s.nwalkers} walkers ({225 * s.nwalkers:,} " \
+                   "draws: posterior, predictive check, R-hat, ESS) ..."
     run_until_converged(*_sampler(1), max_steps=200, chunk=100, progress=False)
     assert capsys.readouterr().err == ""                  # --no-progress: silent
 
