@@ -16,7 +16,9 @@ autocorrelation times long, or fails at --emcee-steps). The fit records the scen
 DATASET, which `feeler discriminate` then simulates. The verdict fails when the data
 cannot pin the decoder down (one plate, noise-free scans, a window any value of which
 fits), when units look wrong (µm for mm, steps in cm or inches, ms for s), or when the leave-one-out check
-finds a plate whose 90 % intervals would not cover 85–95 % of its scans. The fit also
+finds a plate whose 90 % intervals cover too few or too many of its scans to be
+compatible with covering 85–95 % (a binomial test of its scans, Bonferroni-corrected over
+the plates: a plate of 6 scans all inside passes). The fit also
 says how its training scans read when each is left out (how many read as their own plate,
 and the log score per scan, beside the plates' shares alone), for the set and per mode,
 and names a mode that reads no better than those shares.
