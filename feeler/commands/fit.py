@@ -295,7 +295,9 @@ def run_psychophysics(args) -> int:
     shown, notes = display_table(table, _SHOW)
     location = ("DT = PSE → 75 % point" if not task.is_nafc else
                 "pse = the location m, where Φ = ½; no DT in nAFC: see the threshold")
-    print(f"thresholds (µm; posterior mean and 95 % interval; {location}; threshold and slope "
+    exact = " by quadrature on the exact grid, where the summary above is of its draws" \
+        if args.backend == "exact" else ""
+    print(f"thresholds (µm; posterior mean and 95 % interval{exact}; {location}; threshold and slope "
           f"at P = {pc:g}; 'all' = {table['estimand'].iloc[-1]}):")
     with pd.option_context("display.width", 200, "display.max_columns", 30):
         print(shown.to_string(index=False))
@@ -354,7 +356,7 @@ def run_finger_route(args) -> int:
         report["check"] = {"level": args.check_level, "max_abs_dp": float(np.max(np.abs(p_fit - p_chk)))}
     lo, hi = report["tau_eti95_s"]
     print(f"tau: posterior mean {1e3 * report['tau_mean_s']:.1f} ms, 95 % interval "
-          f"[{1e3 * lo:.1f}, {1e3 * hi:.1f}] ms")
+          f"[{1e3 * lo:.1f}, {1e3 * hi:.1f}] ms (of the exact grid marginal; the summary above is of its draws)")
     print(f"paper: {report['paper']}")                   # gives P(tau <= 300 ms | data)
     if "check" in report:
         print(f"check at the posterior mean with {args.check_level}: max |ΔP| = "

@@ -31,6 +31,9 @@ def test_exact_default_writes_thresholds_curves_and_index(data, tmp_path, capsys
     assert code == 0 and lines[0].startswith("DATA: SYNTHETIC")     # stdout is the result; progress on stderr
     assert f"fit psychophysics: reading {data} ..." in captured.err.splitlines()
     assert "backend exact (adaptive grid)" in text and "verdict: ok" in text
+    # the table's means come from quadrature, the summary's from draws: they differ a little, and say why
+    assert "posterior mean and 95 % interval by quadrature on the exact grid, where the summary above is of its " \
+           "draws" in text
     table = pd.read_csv(tmp_path / "thresholds.csv", comment="#")
     assert tuple(table.columns) == THRESHOLD_COLUMNS and set(LEGACY_COLUMNS) <= set(table.columns)
     assert set(table.subject) == {"S1", "S2", "all"} and len(table) == 6
@@ -112,6 +115,7 @@ def test_fit_finger_route_reports_tau_beside_the_paper(data, tmp_path, capsys):
                  "--check-level", "l0", "--out", str(tmp_path)])
     text = capsys.readouterr().out
     assert code == 0 and text.count("P(tau <= 300 ms | data)") == 1 and "paper:" in text   # said once
+    assert "ms (of the exact grid marginal; the summary above is of its draws)" in text
     report = json.loads((tmp_path / "tau_report.json").read_text())
     assert report["synthetic_data"] is True and report["check"]["max_abs_dp"] == 0.0
     assert report["tau_eti95_s"][0] < report["tau_mean_s"] < report["tau_eti95_s"][1]
