@@ -90,7 +90,16 @@ def peak_pulse_density(peak_u1, a, h) -> np.ndarray:
     for name, v, bad in (("a", a, ~(a > 0) | ~np.isfinite(a)), ("h", h, ~(h >= 0) | ~np.isfinite(h))):
         if bad.any():
             check_params(**{name: float(v[bad].flat[0])})
-    return np.maximum(a * np.asarray(peak_u1, dtype=np.float64) - h, 0.0)
+    peak_u1 = np.asarray(peak_u1, dtype=np.float64)
+    try:
+        np.broadcast_shapes(a.shape, h.shape, peak_u1.shape)
+    except ValueError:
+        from feeler.errors import ArgumentError
+
+        raise ArgumentError("a, h", f"shapes {a.shape}, {h.shape}",
+                            f"arrays that broadcast against peak_u1 of shape {peak_u1.shape}: draws for a "
+                            f"batch of records as (n_draws, 1), giving (n_draws, n_records)") from None
+    return np.maximum(a * peak_u1 - h, 0.0)
 
 
 def per_time_base(fn, strain, t) -> np.ndarray:

@@ -90,6 +90,15 @@ def test_fast_path_checks_the_domain(a, h, name):
     assert info.value.name == name
 
 
+def test_draws_that_do_not_broadcast_against_the_records_are_named():
+    """1-D draws against a batch of records raised numpy's "operands could not be broadcast"
+    (an outside walk through the README's snippet); (n_draws, 1) is the way, and it says so."""
+    with pytest.raises(ArgumentError, match=r"\(n_draws, 1\)") as info:
+        peak_pulse_density(np.ones(2), np.ones(3), np.zeros(3))
+    assert info.value.name == "a, h" and "(2,)" in str(info.value)
+    assert peak_pulse_density(np.ones(2), np.ones((3, 1)), np.zeros((3, 1))).shape == (3, 2)
+
+
 # a record this long is cut across the threads, each checking its own piece of t
 LONG = 300_001
 
