@@ -44,7 +44,7 @@ def test_failed_verdict_gives_exit_1(dataset, capsys):
 @pytest.mark.parametrize("argv, message", [
     (["calibrate", "sensor", "nowhere.txt"], "nowhere.txt: not a dataset directory"),
     (["calibrate", "sensor", "DATA", "--backend", "exact", "--noise", "student"], "exact needs noise=gaussian"),
-    (["calibrate", "sensor", "DATA", "--rel-sd", "-1"], "rel_sd=-1.0: must be a finite number > 0"),
+    (["calibrate", "sensor", "DATA", "--rel-sd", "-1"], "--rel-sd=-1.0: must be a finite number > 0"),
 ])
 def test_bad_input_is_one_line_exit_2(dataset, capsys, argv, message):
     argv = [str(dataset) if a == "DATA" else a for a in argv]
