@@ -11,6 +11,13 @@ so that the verdict's own estimates on the same draws agree. It stops when they 
 at ``max_steps``; then the returned note says so and the verdict fails on the short chain.
 A fixed ``steps`` runs exactly that many.
 
+The steps kept after a converged run are thinned to every ⌊τ_int/4⌋-th. Neighbouring steps of
+a chain with τ_int of 160 steps say nearly the same thing, and keeping all of them made the
+shipped M1 posterior 289 MB (1.6 million draws) and its summary a minute's work. Thinned by a
+quarter of τ_int, a chain's own τ_int falls by the same factor to within a few per cent (an
+AR(1) chain with τ_int = 160 thinned by 40: 4.1 against 4), so it keeps its length in τ_int,
+its ESS and R-hat inside the margins above. A run stopped at its cap is not thinned.
+
 Progress: emcee's bar on a terminal (sized for a pseudo-terminal that reports no size),
 otherwise a line per chunk (steps so far, longest τ_int, elapsed time); none with
 ``progress=False``.
@@ -61,7 +68,8 @@ def converged(chain: np.ndarray, *, times: float = TIMES) -> tuple[bool, float]:
 
 def run_until_converged(sampler, p0: np.ndarray, *, steps: int | None = None, max_steps: int = MAX_STEPS,
                         times: float = TIMES, chunk: int = 2000, progress: bool | None = None):
-    """Run ``sampler`` from ``p0``; returns (burn-in steps to discard, notes).
+    """Run ``sampler`` from ``p0``; returns (burn-in steps to discard, notes, thinning: keep
+    every how many-th step after the burn-in; 1 for a fixed ``steps`` or a run at its cap).
 
     Args:
         steps (int | None): run exactly this many steps; None: until converged or ``max_steps``.
@@ -73,7 +81,7 @@ def run_until_converged(sampler, p0: np.ndarray, *, steps: int | None = None, ma
         if lines:
             print(f"emcee: {int(steps)} steps per walker ...", file=sys.stderr, flush=True)
         sampler.run_mcmc(p0, int(steps), **bar)
-        return int(steps) // 4, []
+        return int(steps) // 4, [], 1
     state, done, tau = p0, 0, float("inf")
     while done < max_steps:
         n = min(chunk if done == 0 else max(chunk, done // 2), max_steps - done)
@@ -85,12 +93,14 @@ def run_until_converged(sampler, p0: np.ndarray, *, steps: int | None = None, ma
                   f"{tau:.0f} steps: {'converged' if ok else f'not yet converged, continuing (cap {max_steps})'}",
                   file=sys.stderr, flush=True)
         if ok:
-            _summarising(sampler, done - done // 4, progress)
-            return done // 4, []
+            thin = max(1, int(tau // 4))
+            _summarising(sampler, len(range(done // 4 + thin - 1, done, thin)), progress)    # as get_chain keeps
+            return done // 4, [], thin
     _summarising(sampler, done - done // 4, progress)
-    return done // 4, [f"emcee: stopped at its cap of {max_steps} steps per walker before the chains passed "
-                       f"their diagnostics ({times:.0f} autocorrelation times, R-hat, ESS; longest tau = "
-                       f"{tau:.0f} steps) - use the exact backend or nuts"]
+    note = (f"emcee: stopped at its cap of {max_steps} steps per walker before the chains passed their "
+            f"diagnostics ({times:.0f} autocorrelation times, R-hat, ESS; longest tau = {tau:.0f} steps) - use the "
+            f"exact backend or nuts")
+    return done // 4, [note], 1
 
 
 def _summarising(sampler, kept: int, progress: bool | None) -> None:

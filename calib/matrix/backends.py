@@ -98,7 +98,8 @@ def sample_emcee(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise:
     """emcee (affine-invariant ensemble, stretch move); walkers are stored as chains.
 
     ``draws`` None: run until the chains pass their diagnostics (50 autocorrelation
-    times, R-hat, ESS; :mod:`feeler.calib.emcee_run`), discarding the first quarter;
+    times, R-hat, ESS; :mod:`feeler.calib.emcee_run`), discarding the first quarter and
+    thinning the rest to every τ_int/4-th step;
     else ``tune`` + ``draws`` steps. Returns (draws, sample_stats, notes)."""
     import emcee
 
@@ -114,11 +115,12 @@ def sample_emcee(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise:
                                     args=(x, y, prior, noise, nu, noise_sd))
     sampler.random_state = np.random.RandomState(seed).get_state()   # emcee uses the legacy RNG
     notes: list[str] = []
+    thin = 1
     if draws is None:
-        tune, notes = run_until_converged(sampler, init, progress=progress)
+        tune, notes, thin = run_until_converged(sampler, init, progress=progress)
     else:
         sampler.run_mcmc(init, tune + draws, progress=show_progress(progress))
-    chain = sampler.get_chain(discard=tune)                # (draw, walker, ndim)
+    chain = sampler.get_chain(discard=tune, thin=thin)     # (draw, walker, ndim)
     chain = np.swapaxes(chain, 0, 1)                       # (walker, draw, ndim)
     draws = chain.shape[1]
     B = chain[..., :3 * p].reshape(walkers, draws, p, 3)
@@ -126,7 +128,7 @@ def sample_emcee(x: np.ndarray, y: np.ndarray, prior: RegressionPrior, *, noise:
         sigma = np.exp(chain[..., 3 * p:])
     else:
         sigma = np.broadcast_to(np.asarray(noise_sd, float), (walkers, draws, p)).copy()
-    lp = np.swapaxes(sampler.get_log_prob(discard=tune), 0, 1)
+    lp = np.swapaxes(sampler.get_log_prob(discard=tune, thin=thin), 0, 1)
     return {"B": B, "sigma": sigma}, {"lp": lp}, notes
 
 

@@ -146,12 +146,12 @@ def sample_emcee(table: PeakTable, plates: Plates, pri: Priors, noise: str, log_
     sampler = emcee.EnsembleSampler(walkers, p0.shape[1], _log_prob, vectorize=True,
                                     args=(table, plates, log_w, noise, pri.growth_max))
     sampler.random_state = np.random.RandomState(int(rng.integers(2 ** 31))).get_state()  # legacy RNG
-    burn, notes = run_until_converged(sampler, p0, steps=steps, progress=progress)
-    chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)                    # (walker, step, dim)
+    burn, notes, thin = run_until_converged(sampler, p0, steps=steps, progress=progress)
+    chain = np.swapaxes(sampler.get_chain(discard=burn, thin=thin), 0, 1)        # (walker, step, dim)
     W, S = chain.shape[:2]
     flat = chain.reshape(W * S, -1)
     lt = flat[:, 0]
     st = node_stats(table, plates, lt, np.zeros(lt.size), noise, pri.growth_max)
     out = _to_named(np.exp(lt), flat[:, 1:1 + C], flat[:, 1 + C:], st.a, st.h, plates, noise)
-    lp = sampler.get_log_prob(discard=burn).T
+    lp = sampler.get_log_prob(discard=burn, thin=thin).T
     return {k: v.reshape((W, S) + v.shape[1:]) for k, v in out.items()}, {"lp": lp}, notes

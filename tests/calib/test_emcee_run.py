@@ -21,8 +21,8 @@ def _sampler(seed=0, walkers=16):
     return s, np.random.default_rng(seed).normal(size=(walkers, 2))
 
 
-def _verdict(sampler, burn):
-    chain = np.swapaxes(sampler.get_chain(discard=burn), 0, 1)
+def _verdict(sampler, burn, thin=1):
+    chain = np.swapaxes(sampler.get_chain(discard=burn, thin=thin), 0, 1)
     tree = posterior_from_draws({"x": chain[..., 0], "y": chain[..., 1]})
     return diagnose(tree, backend="emcee")
 
@@ -39,17 +39,20 @@ def test_converged_tells_independent_from_sticky_chains():
 @pytest.mark.slow
 def test_runs_until_the_verdict_passes():
     s, p0 = _sampler()
-    burn, notes = run_until_converged(s, p0, chunk=500)
+    burn, notes, thin = run_until_converged(s, p0, chunk=500)
     assert notes == []
-    assert converged(s.get_chain(discard=burn))[0]
-    verdict = _verdict(s, burn)
+    ok, tau = converged(s.get_chain(discard=burn))
+    assert ok and thin == int(tau // 4) > 1
+    verdict = _verdict(s, burn, thin)               # the chain the fit keeps: thinned by a quarter of tau
     assert verdict.ok, verdict.problems
+    kept = s.get_chain(discard=burn, thin=thin)
+    assert kept.shape[0] == len(range(burn + thin - 1, s.iteration, thin))
 
 
 def test_a_cap_fails_clearly(capsys):
     s, p0 = _sampler(1)
-    burn, notes = run_until_converged(s, p0, max_steps=300, chunk=100)
-    assert len(notes) == 1 and "cap of 300 steps" in notes[0] and "autocorrelation" in notes[0]
+    burn, notes, thin = run_until_converged(s, p0, max_steps=300, chunk=100)
+    assert thin == 1 and len(notes) == 1 and "cap of 300 steps" in notes[0] and "autocorrelation" in notes[0]
     assert not _verdict(s, burn).ok
     *lines, last = capsys.readouterr().err.splitlines()   # off a terminal: a line per chunk (100, 100, 100)
     assert [ln.split(",")[0] for ln in lines] == [f"emcee: {n} steps per walker" for n in (100, 200, 300)]
@@ -63,5 +66,5 @@ def test_a_cap_fails_clearly(capsys):
 
 def test_a_fixed_number_of_steps_runs_exactly():
     s, p0 = _sampler(2)
-    burn, notes = run_until_converged(s, p0, steps=400)
-    assert (burn, notes) == (100, []) and s.iteration == 400
+    burn, notes, thin = run_until_converged(s, p0, steps=400)
+    assert (burn, notes, thin) == (100, [], 1) and s.iteration == 400
