@@ -54,7 +54,7 @@ def run(args) -> int:
     incomplete = None
     try:
         ctx = run_demo(args.out, force=args.force, scene_path=args.scene, progress=args.progress,
-                       echo=lambda line: print(line, file=sys.stderr, flush=True))    # progress: stderr
+                       stage_echo=lambda line: print(line, file=sys.stderr, flush=True))   # results stay on stdout
     except DemoIncomplete as exc:                  # the closing table still; the exit status says it failed
         incomplete, ctx = exc, exc.ctx
     out = ctx["out"]

@@ -158,10 +158,14 @@ def _check_robot_scene(scene_path: Path) -> None:
 
 def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | None = None,
              stages=None, echo: Callable[[str], None] = print, scenes: dict | None = None,
-             discriminate_scans: int | None = None, progress: bool | None = None) -> dict:
+             discriminate_scans: int | None = None, progress: bool | None = None,
+             stage_echo: Callable[[str], None] | None = None) -> dict:
     """Run the demo stages into ``out``; returns the context (scene, scans, features, table...).
 
     Args:
+        echo: prints the stages' results (tables, verdicts).
+        stage_echo: prints the line before each stage and a stage's failure (default ``echo``;
+            the command gives stderr, where progress goes).
         scene_path: the robot-scan scene (default the shipped four-plates).
         scenes: other scene files by name ("sensor-calibration", "psychophysics-2afc",
             "finger-steps") instead of the shipped ones (smaller runs, e.g. in tests).
@@ -191,22 +195,23 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
                "seconds": {}, "cpu_seconds": {}, "scenes": dict(scenes or {}),
                "discriminate_scans": discriminate_scans, "progress": progress}
         todo = STAGES if stages is None else stages
+        say = stage_echo or echo
         start = time.perf_counter()
         failed, skipped = {}, []
         for i, (name, stage) in enumerate(todo, 1):
             if NEEDS.get(name) in failed:
                 skipped.append(name)
-                echo(f"[{i}/{len(todo)}] {name}: skipped, it needs {NEEDS[name]}, which failed")
+                say(f"[{i}/{len(todo)}] {name}: skipped, it needs {NEEDS[name]}, which failed")
                 continue
             if progress is not False:
                 so_far = f" ({duration(time.perf_counter() - start)} so far)" if i > 1 else ""
-                echo(f"[{i}/{len(todo)}] {name} ...{so_far}")
+                say(f"[{i}/{len(todo)}] {name} ...{so_far}")
             t0, c0 = time.perf_counter(), time.process_time()
             try:
                 stage(ctx)
             except StageFailed as exc:                 # the others still run: the report shows them all
                 failed[name] = exc
-                echo(f"{name}: FAILED ({exc}); going on with the stages that do not need it")
+                say(f"{name}: FAILED ({exc}); going on with the stages that do not need it")
             ctx["seconds"][name] = time.perf_counter() - t0
             ctx["cpu_seconds"][name] = time.process_time() - c0
         if failed:

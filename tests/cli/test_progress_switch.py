@@ -103,3 +103,18 @@ def test_demo_passes_no_progress_to_its_simulation(tmp_path, capsys):
     said.clear()
     run_demo(tmp_path / "b", scene_path=scene, stages=STAGES[:1], echo=said.append, progress=False)
     assert said == [] and capsys.readouterr().err == ""
+
+
+def test_the_demo_says_its_stages_apart_from_its_results(tmp_path):
+    """`feeler demo` printed its "[i/n] stage ..." lines on stdout among the results; the
+    command gives them to stderr (``stage_echo``) and keeps the results' tables on stdout."""
+    from feeler.demo import STAGES, run_demo
+
+    scene = tmp_path / "four-plates-small.toml"
+    scene.write_text((SCENES / "four-plates.toml").read_text(encoding="utf-8")
+                     .replace("scans_per_plate = 24", "scans_per_plate = 6"), encoding="utf-8")
+    results, stages = [], []
+    run_demo(tmp_path / "a", scene_path=scene, stages=STAGES[:3], echo=results.append, stage_echo=stages.append)
+    assert [ln.split(" ...")[0] for ln in stages] == ["[1/3] simulate", "[2/3] features", "[3/3] table"]
+    assert results and not any(ln.startswith("[") for ln in results)
+    assert any("step_mm" in ln for ln in results)                   # the table stage's table
