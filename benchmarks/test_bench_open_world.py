@@ -24,7 +24,7 @@ The family (``SEED``) is the one the decoder's changes since session 42 were mea
 (16 sets a scene), 4 of its 10 scenes in the range had ECE <= 0.03 (mean 0.028, largest
 0.048), 38 of 43 plates were covered 0.85-0.95 (0.82-0.95), and log-loss was below the
 plug-in's in 10 of 10. Of its six misses (ECE 0.031-0.048), four are over-confident
-(accuracy 0.63-0.68, mean confidence 0.02-0.05 above it; three of them three plates of 10-11
+(accuracy 0.63-0.68, mean confidence 0.02-0.05 above it; three of them three plates of 9-11
 touches) and two under-confident (accuracy 0.80 and 0.91, confidence 0.02-0.03 below).
 """
 import os
