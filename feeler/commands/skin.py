@@ -67,7 +67,8 @@ def run_ladder(args) -> int:
 
     from feeler.rundir import prepare_out_dir
     out = prepare_out_dir(args.out, ladder_files(), force=args.force)
-    print(f"skin ladder ({'small' if args.small else 'full'} study) into {out} ...", flush=True)
+    if args.progress is not False:                      # what it is doing: stderr, as every command's progress
+        print(f"skin ladder ({'small' if args.small else 'full'} study) into {out} ...", file=sys.stderr, flush=True)
     summary = run_ladder_study(out, small=args.small, progress=args.progress)
     for line in summary["lines"]:
         print(line)

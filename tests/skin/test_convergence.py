@@ -48,3 +48,7 @@ def test_ladder_exit_status_judges_the_goals_of_a_full_study_only(tmp_path, monk
     assert f"results are kept in {tmp_path / 'full'}" in err
     monkeypatch.setattr(study, "run_ladder_study", lambda out, **kw: {**full, "met": small["met"] | {"l0_speedup": True}})
     assert main(["skin", "ladder", "--no-progress", "--out", str(tmp_path / "met")]) == 0
+    assert "into" not in capsys.readouterr().err                    # --no-progress: no "what it is doing" line
+    assert main(["skin", "ladder", "--out", str(tmp_path / "said")]) == 0
+    out, err = capsys.readouterr()                                  # that line is progress: stderr, not the result
+    assert f"skin ladder (full study) into {tmp_path / 'said'} ..." in err and "into" not in out
