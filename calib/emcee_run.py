@@ -108,6 +108,6 @@ def _summarising(sampler, kept: int, progress: bool | None) -> None:
     posterior and checks it (predictive check, R-hat, ESS), which took a minute of silence
     after "converged" on the shipped M1 data (an outside audit)."""
     if progress is not False:
-        walkers = int(getattr(sampler, "nwalkers", 0)) or sampler.get_chain().shape[1]
+        walkers = sampler.nwalkers
         print(f"emcee: summarising the last {kept} steps of its {walkers} walkers ({kept * walkers:,} draws: "
               f"posterior, predictive check, R-hat, ESS) ...", file=sys.stderr, flush=True)

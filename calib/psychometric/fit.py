@@ -46,14 +46,16 @@ from feeler.calib.psychometric.model.task import Task
 from feeler.errors import ArgumentError
 from feeler.rundir import prepare_out_dir
 
-__all__ = ["fit_psychometric", "threshold_table", "save_psychometric", "BACKENDS", "ESTIMANDS",
+__all__ = ["fit_psychometric", "check_arguments", "threshold_table", "save_psychometric", "BACKENDS", "ESTIMANDS",
            "Priors", "THRESHOLD_COLUMNS", "with_problems", "ApproximationWarning", "LAPSE_PER"]
 
 BACKENDS = ("exact", "laplace", "nuts")
 ESTIMANDS = {"pooled": "pooled trials", "population": "population mean"}
 
 
-def _check_args(backend, chains, draws, tune, target_accept, lapse_per, all_estimand, hierarchical, pc, nafc):
+def check_arguments(backend, chains, draws, tune, target_accept, lapse_per, all_estimand, hierarchical, pc, nafc):
+    """The arguments of :func:`fit_psychometric` other than the data, checked (the command
+    calls it before reading the data). Raises ArgumentError naming the first bad one."""
     if backend not in BACKENDS:
         raise ArgumentError("backend", backend, f"allowed: {', '.join(BACKENDS)}")
     for name, value, low in (("chains", chains, 1), ("draws", draws, 1), ("tune", tune, 0)):
@@ -100,7 +102,7 @@ def fit_psychometric(trials: pd.DataFrame, *, rng: np.random.Generator, backend:
         ArgumentError: a bad argument (too few chains or draws), a table without trials, a hierarchical model with
             fewer than two subjects.
     """
-    _check_args(backend, chains, draws, tune, target_accept, lapse_per, all_estimand, hierarchical, pc, nafc)
+    check_arguments(backend, chains, draws, tune, target_accept, lapse_per, all_estimand, hierarchical, pc, nafc)
     task = Task(nafc)
     pc = task.default_pc if pc is None else float(pc)
     cells = make_cells(trials, task).canonical()

@@ -194,7 +194,7 @@ def _drop_cut_scan(decoder, path) -> None:
 def _summary(decoder) -> None:
     import numpy as np
 
-    from feeler.calib.neuron.live.table import claims_check
+    from feeler.calib.neuron.live.table import claims_check, on_a_plate
     from feeler.calib.neuron.classify import chance_mode_notes
 
     t = decoder.table()
@@ -212,7 +212,7 @@ def _summary(decoder) -> None:
     if "step_mm" in t.columns:                          # a run of other plates than the fit's (another scene)
         plates = np.asarray(decoder.live.plates_mm, float)
         step = t["step_mm"].to_numpy(float)
-        new = np.isfinite(step) & ~np.isclose(step[:, None], plates[None, :], atol=1e-9).any(axis=1)
+        new = np.isfinite(step) & ~on_a_plate(step, plates)
         if new.any():
             print(f"note: {int(new.sum())} of {len(t)} scans are labelled with steps the fit has no plate for "
                   f"({', '.join(f'{v:g}' for v in np.unique(step[new]))} mm; its plates: "

@@ -239,20 +239,17 @@ _SHOW = ("subject", "standard_um", "standard_speed_mm_s", "comparison_speed_mm_s
 
 def run_psychophysics(args) -> int:
     from feeler.calib.progress import stage
+    from feeler.calib.psychometric.fit import check_arguments
     from feeler.calib.psychometric.model.task import Task
-    from feeler.errors import ArgumentError
 
     from feeler.calib.psychometric.independent import check_draw_counts
 
-    task = Task(args.nafc)                     # --nafc, --pc, --chains and --draws checked before any work
+    task = Task(args.nafc)                     # every option checked before any work
     if args.pc is not None:
         task.check_pc(args.pc, "--pc")
     check_draw_counts(args.chains, args.draws, flag="--")
-    if not 0.0 < args.target_accept < 1.0:
-        raise ArgumentError("--target-accept", args.target_accept, "a number in (0, 1), e.g. 0.99")
-    if args.all_estimand == "population" and (args.backend != "nuts" or args.separate):
-        raise ArgumentError("--all", args.all_estimand, "a population mean needs the hierarchical model "
-                                                        "(--backend nuts without --separate); --all pooled otherwise")
+    check_arguments(args.backend, args.chains, args.draws, args.tune, args.target_accept, args.lapse,
+                    args.all_estimand, not args.separate, args.pc, args.nafc)
     stage(f"fit psychophysics: reading {args.data}", args.progress)     # stderr: stdout is the result
     import warnings
 

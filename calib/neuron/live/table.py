@@ -12,7 +12,7 @@ import numpy as np
 
 from feeler.errors import DataFileError
 
-__all__ = ["plate_column", "unit_mistake", "labelled_summary", "claims_check", "coverage_note"]
+__all__ = ["plate_column", "unit_mistake", "labelled_summary", "claims_check", "coverage_note", "on_a_plate"]
 
 # a labelled batch contradicts the fit when what it claims is this improbable (one-sided)…
 CLAIM_P = 1e-3
@@ -43,6 +43,12 @@ def unit_mistake(path, scan_ids, flags) -> None:
                                           "(README, 'Scan CSV format')")
 
 
+def on_a_plate(step_mm, plates_mm) -> np.ndarray:
+    """Which labels ``step_mm (ndarray[n])`` are the step of one of the fit's plates
+    (ndarray[n] bool; NaN, no label, is on none)."""
+    return np.isclose(np.asarray(step_mm, float)[:, None], np.asarray(plates_mm, float)[None, :]).any(axis=1)
+
+
 def _usable_labels(table, plates_mm):
     """(the labelled, unflagged scans of ``table`` (a frame), how many labelled ones were
     flagged, which of the unflagged carry the step of a trained plate (ndarray[bool]));
@@ -54,8 +60,7 @@ def _usable_labels(table, plates_mm):
         return None
     flagged = lab["flagged"].to_numpy(bool) if "flagged" in lab.columns else np.zeros(len(lab), bool)
     lab = lab[~flagged]
-    known = np.isclose(lab["step_mm"].to_numpy(float)[:, None], np.asarray(plates_mm, float)[None, :]).any(axis=1)
-    return lab, int(flagged.sum()), known
+    return lab, int(flagged.sum()), on_a_plate(lab["step_mm"], plates_mm)
 
 
 def _inside(lab) -> np.ndarray:
