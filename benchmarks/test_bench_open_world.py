@@ -21,11 +21,14 @@ scenes run 8 sets each: that run measures time, and its counts are those of sets
 
 The family (``SEED``) is the one the decoder's changes since session 42 were measured on.
 ``FEELER_OPEN_WORLD_SEED=N`` draws another. On family 20261129, which no change was tuned on
-(16 sets a scene), 4 of its 10 scenes in the range had ECE <= 0.03 (mean 0.028, largest
-0.048), 38 of 43 plates were covered 0.85-0.95 (0.82-0.95), and log-loss was below the
-plug-in's in 10 of 10. Of its six misses (ECE 0.031-0.048), four are over-confident
-(accuracy 0.63-0.68, mean confidence 0.02-0.05 above it; three of them three plates of 9-11
-touches) and two under-confident (accuracy 0.80 and 0.91, confidence 0.02-0.03 below).
+(16 sets a scene), 5 of its 10 scenes in the range had ECE <= 0.03 (mean 0.027, largest
+0.043), 38 of 43 plates were covered 0.85-0.95 (0.82-0.95), and log-loss was below the
+plug-in's in 10 of 10. Of its five misses (ECE 0.031-0.043), three are over-confident
+(accuracy 0.63-0.68, mean confidence 0.02-0.04 above it; the rides of two of them read at
+chance) and two under-confident (accuracy 0.80 and 0.91, confidence 0.02-0.03 below).
+Before session 47, when ln γ had one prior sd (0.35) on both sides
+(:mod:`feeler.calib.neuron.recalibrate`), it was 4 of 10 (mean 0.028, largest 0.048), and
+family 20261128's figures were 14 of 16 (mean 0.0184, largest 0.043) and 64 of 64.
 """
 import os
 import re

@@ -25,7 +25,7 @@ from feeler.calib.neuron.decoder import MAX_UNDECODABLE, undecodable_draws
 from feeler.calib.neuron.grid import sample_grid
 from feeler.calib.neuron.model import NOISE_MODELS, Plates, Priors, make_priors
 from feeler.calib.neuron.modes import Cells, snap_flags, within_noise
-from feeler.calib.neuron.recalibrate import FLOOR, LOG_GAMMA_SD, fit_sharpness, recalibrated
+from feeler.calib.neuron.recalibrate import FLOOR, LOG_GAMMA_SD, LOG_GAMMA_SD_FLAT, fit_sharpness, recalibrated
 from feeler.calib.neuron.window import (choose_noise, loo_class_cond, loo_elpd, pooled_class_log_prob,
                                         tau_log_weights, usable_noise_models)
 from feeler.errors import ArgumentError
@@ -287,5 +287,6 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
         warnings.warn("decoder misfit: " + "; ".join(fit_problems), DecoderMisfitWarning, stacklevel=2)
     priors_text = pri.as_text(noise) | {
         "plate probabilities": f"pooled over tau, then p^gamma renormalised with a floor {FLOOR:g}/plates; "
-                               f"ln gamma ~ Normal(0, {LOG_GAMMA_SD:g}^2), fitted by leave-one-out (gamma = {sharpness:.3g})"}
+                               f"ln gamma ~ Normal(0, {LOG_GAMMA_SD:g}^2) above 0 and Normal(0, {LOG_GAMMA_SD_FLAT:g}^2) below, "
+                               f"fitted by leave-one-out (gamma = {sharpness:.3g})"}
     return make_result(tree, backend=backend, priors=priors_text, seconds=seconds, checks=problems)

@@ -52,6 +52,23 @@ def test_fit_sharpness_recovers_the_power_of_a_tempered_forecaster(gamma_true):
     assert got == pytest.approx(gamma_true, rel=0.08)
 
 
+def test_fit_sharpness_flattens_scans_read_at_chance(monkeypatch):
+    """Twenty scans whose leave-one-out probabilities are confident but unrelated to their
+    labels (a mode read at chance): γ goes well below 1, towards even odds. Under the
+    sharpening side's prior (sd 0.35) on both sides it would stay above 0.55 (0.38 against 0.61)."""
+    from feeler.calib.neuron import recalibrate
+
+    rng = np.random.default_rng(3)
+    g = np.arange(20) % 3
+    lp = np.log(softmax(1.5 * rng.standard_normal((20, 3)), axis=1))
+    flat = fit_sharpness(lp, g)
+    read = recalibrated(lp, flat, FLOOR)[np.arange(20), g].mean()
+    assert flat < 0.45
+    assert read > -np.log(3) - 0.05                     # about what even odds score
+    monkeypatch.setattr(recalibrate, "LOG_GAMMA_SD_FLAT", recalibrate.LOG_GAMMA_SD)
+    assert fit_sharpness(lp, g) > 0.55
+
+
 def test_fit_sharpness_without_information_is_one_and_checks_shapes():
     assert fit_sharpness(np.full((10, 3), -np.log(3)), np.zeros(10, int)) == 1.0
     with pytest.raises(ArgumentError, match="loo_log_prob"):
