@@ -27,6 +27,13 @@ EVIL = "<script>alert(1)</script>"
 TINY_PLAN = ROOT / "tests" / "hardware" / "data" / "tiny-plan.toml"
 
 
+@pytest.fixture(scope="session")
+def evil_name() -> str:
+    """The robot scene's name in the report tests: markup that must come out escaped (a
+    fixture, not an import: with tests/psy collected too, ``conftest`` is another module)."""
+    return EVIL
+
+
 def small_scenes(tmp: Path) -> tuple[Path, dict]:
     """(four-plates with 6 scans per plate and an evil name, {"finger-steps": a small one})."""
     robot = tmp / "four-plates.toml"                  # the demo files its scans under the file's name

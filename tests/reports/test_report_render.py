@@ -15,7 +15,6 @@ import pytest
 from PIL import Image
 
 from chromium_cdp import OVERFLOW_JS, chromium_path, open_page
-from conftest import EVIL
 from feeler.reports.build import MANIFEST, write_pdf
 
 ON_CI = os.environ.get("CI", "").lower() == "true"
@@ -38,9 +37,9 @@ def fill(image: Image.Image, margin: float = 0.045) -> float:
     return 0.0 if rows.size == 0 else (rows[-1] + 1) / (bottom - top)
 
 
-def test_scene_text_is_escaped(report):
+def test_scene_text_is_escaped(report, evil_name):
     html = (report / "report.html").read_text(encoding="utf-8")
-    assert EVIL not in html and "<script" not in html.lower()
+    assert evil_name not in html and "<script" not in html.lower()
     assert "&lt;script&gt;alert(1)&lt;/script&gt;:" in html                      # robot section
     assert 'name = &#34;&lt;script&gt;alert(1)&lt;/script&gt;&#34;' in html       # appendix copy
 
