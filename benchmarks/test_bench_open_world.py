@@ -28,7 +28,9 @@ plug-in's in 10 of 10. Of its five misses (ECE 0.031-0.043), three are over-conf
 chance) and two under-confident (accuracy 0.80 and 0.91, confidence 0.02-0.03 below).
 Before session 47, when ln γ had one prior sd (0.35) on both sides
 (:mod:`feeler.calib.neuron.recalibrate`), it was 4 of 10 (mean 0.028, largest 0.048), and
-family 20261128's figures were 14 of 16 (mean 0.0184, largest 0.043) and 64 of 64.
+family 20261128's figures were 14 of 16 (mean 0.0184, largest 0.043) and 64 of 64. Family
+20261130 (8 sets a scene, untuned too): 7 of 10 (mean 0.024, largest 0.056; three misses,
+all over-confident at accuracy 0.61-0.66), 43 of 47 plates covered (0.85-0.955).
 """
 import os
 import re
