@@ -80,6 +80,12 @@ def read_calibration_csv(path: str | Path) -> CalibrationData:
         raise DataFileError(path, f"columns {', '.join(F_COLUMNS)} are 0 in every row: the force gauge read "
                                   f"nothing (unplugged, or its readings not written into the file); a calibration "
                                   f"needs the measured forces")
+    dead = [c for c in F_COLUMNS if not np.any(values[c])]
+    if dead:
+        # one axis exactly 0 in every row: its noise's posterior collapses onto 0 and its row of K is 0/0
+        raise DataFileError(path, f"column {', '.join(dead)} is 0 in every row: that axis of the force gauge "
+                                  f"read nothing (unplugged, or its readings not written into the file); a 3x3 "
+                                  f"calibration needs the measured forces of all three axes")
     return CalibrationData(u_mm=np.column_stack([values[c] for c in U_COLUMNS]),
                            f_n=np.column_stack([values[c] for c in F_COLUMNS]),
                            point_id=(table["point_id"].to_numpy() if "point_id" in table.columns

@@ -73,6 +73,8 @@ def test_scene_errors_name_the_key(tmp_path, old, new, match):
     ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3, "3 points; a 3x3 matrix needs at least 4"),
     ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,0,0,0\n" * 4,
      "columns fx_n, fy_n, fz_n are 0 in every row: the force gauge read nothing"),
+    ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "".join(f"{k},0.{k},0.1,0,1.{k},2,0\n" for k in range(5)),
+     "column fz_n is 0 in every row: that axis of the force gauge read nothing"),
     ("", "empty: no header and no rows"),
 ])
 def test_csv_errors_name_the_file(tmp_path, content, match):
