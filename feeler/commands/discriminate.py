@@ -80,13 +80,28 @@ def mcse_text(p) -> str:
         "-  (touches overlap in under 0.1 % of draws)"
 
 
+def share_text(u: float) -> str:
+    """A share of draws in per cent, never rounded to 0 or 100 when it is neither."""
+    pct = 100 * u
+    if 0 < pct < 0.5:
+        return "under 1"
+    if 99.5 <= pct < 100:
+        return "over 99"
+    return f"{pct:.0f}"
+
+
 def threshold_text(th, scale: float = 1e3, unit: str = "um") -> str:
     """The threshold as printed: an estimate with its interval, or a bound when draws
-    do not reach 75 % within the searched range."""
+    do not reach 75 % within the searched range. A bound whose draws all reach 75 % on the
+    touches as simulated says that it is their resamples (the simulation error) that do not."""
     from feeler.commands._fit_output import format_estimate
 
     d, top = th.delta75_mm, th.searched_mm * scale
-    missing = f" ({100 * (1 - th.found):.0f} % of draws do not reach 75 % within {top:.2f} {unit})"
+    if th.found < 1:
+        missing = f" ({share_text(1 - th.found)} % of draws do not reach 75 % within {top:.2f} {unit})"
+    else:
+        missing = (f" (every draw reaches 75 % within {top:.2f} {unit} on the touches simulated, but more than "
+                   f"2.5 % do not once their simulation error is resampled)")
     if d.median == float("inf"):
         return f"> {top:.2f} {unit}{missing}"
     est = d.estimate
@@ -156,7 +171,7 @@ def run(args) -> int:
     w = th.weber
     weber = (f"> {th.searched_mm / args.reference:.4f}" if w.median == float("inf") else
              format_estimate(w.estimate, w.lo95, w.hi95, 4) if not th.is_bound else
-             f"{w.median:.4f} [{w.lo95:.4f}, > {th.searched_mm / args.reference:.4f}]")
+             f"{w.estimate:.4f} [{w.lo95:.4f}, > {th.searched_mm / args.reference:.4f}]")
     print(f"threshold at 75 % around {args.reference:g} mm: {threshold_text(th)}; Weber fraction {weber}")
     v_ref, v_test = args.speeds or (scene.motion.speed_mm_s, 2 * scene.motion.speed_mm_s)
     stage(f"PSE of {args.reference:g} mm between {v_ref:g} and {v_test:g} mm/s", args.progress)
@@ -174,9 +189,10 @@ def run(args) -> int:
             "pairs": [{k: (_num(v) if isinstance(v, float) else v) for k, v in r.items()} for r in rows],
             "reference_mm": args.reference, "n_scans": args.n_scans, "n_draws": int(disc.a.size),
             "scene": str(args.scene or "recorded in the fit"),
-            "threshold_mm": {"mean": _num(est) if _num(est) is not None else th.searched_mm,
-                             "lo95": _num(d.lo95) if _num(d.lo95) is not None else th.searched_mm,
-                             "hi95": th.searched_mm if bound else _num(d.hi95), "found": th.found,
+            # a threshold no draw's median reaches is a bound, "> searched" (as the report reads it),
+            # not a zero-width interval at the top of the search
+            "threshold_mm": {"mean": f"> {th.searched_mm:g}" if _num(est) is None else _num(est),
+                             "lo95": _num(d.lo95), "hi95": th.searched_mm if bound else _num(d.hi95), "found": th.found,
                              "median": _num(d.median), "mcse": _num(d.mcse), "searched_mm": th.searched_mm,
                              "hi95_is_bound": bound, "estimate_is_bound": d.median == float("inf")},
             "weber": interval_json(w, median=_num(w.median), hi95_is_bound=bound) | {"mean": _num(w.estimate)},

@@ -68,6 +68,23 @@ def test_more_than_a_fortieth_of_draws_unreached_makes_the_upper_end_a_bound():
     assert not th(2).is_bound and "> 80" not in threshold_text(th(2))
 
 
+def test_a_bound_whose_draws_all_reach_says_it_is_their_resamples_that_do_not():
+    """Every draw reaches 75 % on the touches as simulated, but more than 2.5 % of their
+    resamples do not: the upper end is a bound, and the text says why instead of "0 % of
+    draws do not reach" (an outside audit). A share of 0.3 % or 99.7 % never prints as 0 or
+    100."""
+    from feeler.calib.neuron.discriminate import Threshold
+    from feeler.commands.discriminate import share_text, threshold_text
+
+    v = np.linspace(0.01, 0.02, 100)
+    d = Interval.of(v, np.r_[np.linspace(0.01, 0.02, 95), np.full(5, np.inf)])
+    th = Threshold(reference_mm=0.1, delta75_mm=d, weber=d, found=d.found, searched_mm=0.025)
+    text = threshold_text(th)
+    assert th.found == 1 and th.is_bound and ", > 25.00] um (every draw reaches 75 %" in text
+    assert "0 % of draws" not in text and "resampled" in text
+    assert (share_text(0.003), share_text(0.997), share_text(0.5), share_text(1.0)) == ("under 1", "over 99", "50", "100")
+
+
 def test_a_threshold_around_a_small_reference_is_found(disc):
     """Around 2 µm the threshold (several µm: it does not shrink with the reference near
     the noise floor) lies far beyond a quarter of the reference, where the search used to
