@@ -189,6 +189,7 @@ def run(args) -> int:
             "pairs": [{k: (_num(v) if isinstance(v, float) else v) for k, v in r.items()} for r in rows],
             "reference_mm": args.reference, "n_scans": args.n_scans, "n_draws": int(disc.a.size),
             "scene": str(args.scene or "recorded in the fit"),
+            "posterior_verdict": result.verdict.as_dict(),     # failed, with --accept-failed: said here too
             # a threshold no draw's median reaches is a bound, "> searched" (as the report reads it),
             # not a zero-width interval at the top of the search
             "threshold_mm": {"mean": f"> {th.searched_mm:g}" if _num(est) is None else _num(est),

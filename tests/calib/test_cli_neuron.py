@@ -79,7 +79,15 @@ def test_refusals_and_errors(run_and_fit, tmp_path, capsys):
     (fit / "verdict.json").write_text(json.dumps({"ok": False, "problems": ["a: R-hat 1.2 > 1.01"]}))
     try:
         assert main(["classify", str(fit), str(run)]) != 0                       # a failed fit is refused
+        capsys.readouterr()
         assert main(["classify", str(fit), str(run), "--n-draws", "20", "--accept-failed"]) == 0
+        err = capsys.readouterr().err          # used, but never silently (an outside audit)
+        assert "failed its diagnostics (1 problem; the first: a: R-hat 1.2 > 1.01); --accept-failed" in err
+        assert main(["discriminate", str(fit), "--pair", "0.1", "0.2", "--n-scans", "10", "--n-draws", "5",
+                     "--accept-failed", "--no-progress", "--out", str(tmp_path / "d-failed")]) == 0
+        assert "failed its diagnostics" in capsys.readouterr().err
+        d = json.loads((tmp_path / "d-failed" / "discrimination.json").read_text())
+        assert d["posterior_verdict"] == {"ok": False, "problems": ["a: R-hat 1.2 > 1.01"]}
         assert main(["classify", str(fit), str(run), "--n-draws", "1", "--accept-failed"]) == 2
     finally:
         (fit / "verdict.json").write_text(json.dumps({"ok": True, "problems": []}))
