@@ -26,6 +26,8 @@ __all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_t
            "proportion_correct"]
 
 COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
+#: columns a scans file may leave out: no scan reader uses them (the neuron reads U_y); absent, they read as 0
+UNREAD_COLUMNS = ("ux_mm", "uz_mm")
 
 
 @dataclass(frozen=True)
@@ -333,9 +335,12 @@ def read_scans(path: str | Path) -> Scans:
 def _scans_of(frame, path: Path, names: dict[int, str] | None = None) -> Scans:
     """:func:`read_scans` of a frame (``path`` names it in errors; ``names``: the file of
     each scan id, for a directory of scan files)."""
-    problem = missing_columns_problem(frame, COLUMNS)
+    problem = missing_columns_problem(frame, [c for c in COLUMNS if c not in UNREAD_COLUMNS])
     if problem:
         raise DataFileError(path, problem)
+    for col in UNREAD_COLUMNS:
+        if col not in frame.columns:
+            frame[col] = 0.0
     if len(frame) == 0:
         if Path(path).name == "scans.csv" and (Path(path).parent / "journal.jsonl").is_file():
             raise DataFileError(path, "no rows: no complete scan yet (an acquisition stopped before its first scan "

@@ -30,8 +30,18 @@ def test_round_trip_of_a_small_file(tmp_path):
     assert read_scans(tmp_path).uy_mm.shape == (2, 4)          # a run directory works too
 
 
+def test_the_displacements_no_reader_uses_may_be_left_out(tmp_path):
+    """U_x and U_z: the neuron reads U_y alone, so a file without them reads, with them 0
+    (an outside audit's scans of t, x, U_y, step and speed were refused for lacking them)."""
+    cols = [c for c in COLUMNS if c not in ("ux_mm", "uz_mm")]
+    rows = [[r[COLUMNS.index(c)] for c in cols] for r in good_rows()]
+    scans = read_scans(write_csv(tmp_path / "scans.csv", rows, cols))
+    np.testing.assert_allclose(scans.uy_mm[1], [0.05, 0.06, 0.07, 0.08])
+    assert not scans.ux_mm.any() and not scans.uz_mm.any()
+
+
 @pytest.mark.parametrize("mutate, words", [
-    (lambda rows: ([r[:-1] for r in rows], COLUMNS[:-1]), "missing column(s) uz_mm"),
+    (lambda rows: ([r[:4] + r[5:] for r in rows], COLUMNS[:4] + COLUMNS[5:]), "missing column(s) x_mm"),
     (lambda rows: (rows[:3] + [rows[3][:6] + ["nan"] + rows[3][7:]] + rows[4:], COLUMNS), "column uy_mm"),
     (lambda rows: (rows[:5] + [rows[5][:6] + ["inf"] + rows[5][7:]] + rows[6:], COLUMNS),
      "column uy_mm: inf at data row 6; values must be finite"),
