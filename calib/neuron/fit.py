@@ -41,6 +41,10 @@ class DecoderMisfitWarning(UserWarning):
     """The decoder's predictive checks say it does not describe the labelled scans."""
 
 
+#: samples a training scan needs: its windows, one sample interval to half the scan, must differ
+MIN_SAMPLES = 5
+
+
 def _check_arguments(data: NeuronData, backend: str, noise: str) -> np.ndarray:
     if backend not in BACKENDS:
         raise ArgumentError("backend", backend, ", ".join(BACKENDS))
@@ -68,6 +72,11 @@ def _check_arguments(data: NeuronData, backend: str, noise: str) -> np.ndarray:
                             "plate needs that plate's one step (these change from touch to touch, like measured "
                             "heights" + _rounding_hint(d) + ")")
     s = np.asarray(data.strain, float)
+    if s.shape[-1] < MIN_SAMPLES:
+        # the windows run from one sample interval to half a scan: fewer samples leave no window at all
+        raise ArgumentError("t_s", f"{s.shape[-1]} samples a scan", f"scans of at least {MIN_SAMPLES} samples (the "
+                            "neuron's windows run from one sample interval to half the scan; the paper's scans "
+                            "have 41)")
     if not np.all(np.isfinite(s)):
         raise ArgumentError("scans", "non-finite displacements", "finite U_y in every sample")
     if np.all(np.ptp(s, axis=-1) == 0):

@@ -100,7 +100,7 @@ def run(args) -> int:
                                 progress=args.progress, scene_toml=scene_toml,
                                 scene_path=str(scene_path.resolve()) if scene_toml else None)
         except ArgumentError as err:
-            column = {"step_mm": "step_mm", "scans": "uy_mm"}.get(err.name)     # the data's fault: name the file
+            column = {"step_mm": "step_mm", "scans": "uy_mm", "t_s": "t_s"}.get(err.name)   # the data's fault: name the file
             if column is None:
                 raise
             raise DataFileError(csv, f"column {column}: {err.value}: {err.allowed}") from None
