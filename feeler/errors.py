@@ -83,6 +83,8 @@ def _short(value: object, limit: int = 60) -> str:
     if isinstance(value, os.PathLike):
         value = os.fspath(value)
     text = repr(value)
+    if isinstance(value, str) and " " in value and len(text) <= 4 * limit:
+        return text                              # a value described in words: cut, it lost its meaning ('deco...')
     if len(text) <= limit:
         return text
     if isinstance(value, str) and ("/" in value or os.sep in value):

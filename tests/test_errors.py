@@ -26,3 +26,11 @@ def test_other_long_values_keep_their_start_and_short_ones_are_whole():
 def test_a_missing_argument_is_named_without_a_value():
     assert str(ArgumentError("--c0", None, "needed: give --c0")) == "argument --c0: needed: give --c0"
     assert str(ArgumentError("--c0", 0, "> 0")) == "argument --c0=0: > 0"
+
+
+def test_a_value_in_words_is_not_cut_mid_word():
+    """'4000 of 4000 draws with a non-finite or zero-spread deco...' (an outside audit): a
+    value described in words is shown whole; a long value without spaces is still cut."""
+    words = "4000 of 4000 draws with a non-finite or zero-spread decoder"
+    assert str(ArgumentError("posterior", words, "a fit whose plates can be decoded")) == \
+        f"argument posterior='{words}': a fit whose plates can be decoded"
