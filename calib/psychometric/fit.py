@@ -188,6 +188,8 @@ def _rows_and_checks(cells: Cells, r, fitted, task: Task, pc: float, label: str,
             what = "PSE" if not task.is_nafc else "location"
             problems += checks.bracket_problems(name, what, stats["pse"]["lb"], stats["pse"]["ub"], lo[c], hi[c])
             problems += checks.conflict_problems(name, c, r, d)
+            if np.isfinite(dev):                    # not a population mean: the row's own cells
+                problems += checks.drag_problems(name, task, x, n, k, point, what)
             if np.isfinite(dev) and not (o < 0 and len(cells.subjects) == 1):      # 'all' = the one subject
                 spread = checks.spread_problems(name, task, x, n, k, dev, point["lapse"],
                                                 standard_um=float(cells.conditions[c][0]))

@@ -108,6 +108,25 @@ def test_a_pse_far_from_its_prior_is_a_conflict():
     assert any("lapse 0.450" in p for p in checks.conflict_problems("A", 0, r, draws))
 
 
+def test_a_prior_that_holds_the_pse_where_the_data_would_not_is_a_conflict(simulate):
+    """--prior-pse-sd 0.01 pinned every PSE at the prior's 10 µm and nothing was named (an
+    outside audit): the posterior sits on its prior, so comparing the two shows no
+    conflict. Refitting the location to the row's cells alone shows it; with the default
+    prior the same data raise no such line."""
+    trials, _ = simulate(3, n_subjects=1, n_trials=80)
+    trials = trials.assign(comparison_um=trials.comparison_um - 1.0)        # the PSE ~1 µm above the standard
+    held = _fit(trials, priors=Priors(pse_sd_um=0.01))
+    drag = [p for p in held.verdict.problems if "the data alone put the PSE at" in p]
+    assert drag and not held.verdict.ok and "--prior-pse-sd" in drag[0]
+    assert not [p for p in _fit(trials).verdict.problems if "the data alone put" in p]
+    x = LEVELS                                                                # exact: a curve at its own ML location
+    n = np.full(x.size, 40)
+    k = np.round(n * Task(2).p(x, 10.0, 1.0, 0.02)).astype(int)
+    assert checks.drag_problems("A", Task(2), x, n, k, {"pse": 10.0, "sigma": 1.0, "lapse": 0.02}) == []
+    assert "data alone put the PSE at 10" in checks.drag_problems("A", Task(2), x, n, k,
+                                                                    {"pse": 8.5, "sigma": 1.0, "lapse": 0.02})[0]
+
+
 def test_a_single_level_fails_with_its_reason(simulate):
     trials, _ = simulate(6, n_subjects=2)
     result = _fit(trials[trials.comparison_um == 10.8])

@@ -33,7 +33,7 @@ from scipy.stats import beta as beta_dist
 
 from feeler.models.psychometric import LAPSE_MAX
 
-__all__ = ["deviance", "gof", "worst_cell", "unit_problems", "conflict_problems", "level_problems",
+__all__ = ["deviance", "gof", "worst_cell", "unit_problems", "conflict_problems", "drag_problems", "level_problems",
            "bracket_problems", "gof_problems", "interior_problems", "threshold_problems", "MIN_LEVELS",
            "MIN_INTERIOR", "spread_problems", "one_answer_problem", "GOF_ALPHA", "CONFLICT_Z",
            "CONFLICT_TAIL", "PLAUSIBLE_UM", "BOUNDARY_LR", "FALLING_LR", "speed_problems", "PLAUSIBLE_SPEED_MM_S"]
@@ -179,6 +179,35 @@ def conflict_problems(label: str, c: int, r, draws: dict) -> list[str]:
                    f"{100 * (1 - CONFLICT_TAIL):.2f} % quantile (P = {tail:.1e}): the responses do not "
                    f"follow a rising psychometric function")
     return out
+
+
+def drag_problems(label: str, task, x, n, k, point: dict, what: str = "PSE") -> list[str]:
+    """Prior–data conflict seen from the data: a prior so tight that it holds the location
+    where the data would not put it. :func:`conflict_problems` compares the posterior with
+    the prior, and a tight prior drags the posterior onto itself (--prior-pse-sd 0.01 printed
+    every PSE as 10.000 [9.98, 10.02] µm, the data alone saying 10.76 [10.51, 11.02]: no
+    conflict was named; an outside audit). Here the location alone is refitted to the row's
+    cells by maximum likelihood, with the spread and lapse of ``point``; a deviance at
+    ``point`` worse than that by more than CONFLICT_Z² (the location a z of 4 away) fails."""
+    from scipy.optimize import minimize_scalar
+
+    x, n, k = (np.asarray(v, float) for v in (x, n, k))
+    sig, lam, m0 = float(point["sigma"]), float(point["lapse"]), float(point["pse"])
+    if x.size < 2 or not (np.isfinite(sig) and sig > 0 and np.isfinite(m0)):
+        return []
+
+    def dev(m):
+        return float(deviance(n, k, np.clip(task.p(x, m, sig, lam), 1e-300, 1 - 1e-16)))
+
+    span = max(float(np.ptp(x)), sig)
+    best = minimize_scalar(dev, bounds=(float(x.min()) - span, float(x.max()) + span), method="bounded",
+                           options={"xatol": 1e-6 * span})
+    worse = dev(m0) - min(best.fun, dev(m0))
+    if worse <= CONFLICT_Z ** 2:
+        return []
+    return [f"{label}: prior–data conflict: the data alone put the {what} at {best.x:.4g} µm, and the posterior's "
+            f"{m0:.4g} µm fits them worse by a deviance of {worse:.1f} (> {CONFLICT_Z ** 2:g}): the prior holds it "
+            f"there; check the prior (--prior-pse-sd) or the data"]
 
 
 def level_problems(label: str, n_levels: int, x_um: np.ndarray) -> list[str]:
