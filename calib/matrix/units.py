@@ -34,6 +34,8 @@ MODERATE_SLIPS = ((9.80665, "forces probably in kgf (expected N; 1 kgf = 9.807 N
                   (0.1, "displacements probably in cm (expected mm), or forces 10 times too large"),
                   (1 / 25.4, "displacements probably in inches (expected mm; 1 in = 25.4 mm)"))
 SLIP_WINDOW = 1.35
+#: share of the outputs' variance a least-squares fit must explain before its scale is read as a unit
+MIN_EXPLAINED = 0.5
 
 
 def lstsq_rows(x, y):
@@ -43,8 +45,15 @@ def lstsq_rows(x, y):
 
 
 def unit_problems(x: np.ndarray, y: np.ndarray, c0: np.ndarray, *, forward: bool) -> list[str]:
-    """The data's compliance against the nominal one, by the Frobenius norm."""
+    """The data's compliance against the nominal one, by the Frobenius norm; nothing when
+    the outputs barely follow the inputs (a least-squares fit explains under
+    :data:`MIN_EXPLAINED` of their variance): rows whose forces do not belong to their
+    displacements give a compliance of any scale, and shuffled rows were named "forces
+    probably in kgf" (an outside audit; the pairing check names them)."""
     b = lstsq_rows(x, y)
+    spread = float(np.sum((y - y.mean(axis=0)) ** 2))
+    if spread > 0 and 1.0 - float(np.sum((y - x @ b.T) ** 2)) / spread < MIN_EXPLAINED:
+        return []
     try:
         c = b if forward else np.linalg.inv(b)
     except np.linalg.LinAlgError:
@@ -103,7 +112,7 @@ def _scale_line(ratio: float, slip: str | None, subject: str) -> str | None:
             return (f"{subject}: forces probably in gram-force (expected N; 1 N = {GRAMS_FORCE_PER_N:.4g} gf, "
                     f"a force gauge's usual unit)")
         return f"{subject}: forces probably in mN (expected N) or displacements in m (expected mm)"
-    return f"{subject}: {slip}" if slip is not None else None
+    return f"{subject}: {slip}, or a nominal C0 that far off (check --c0)" if slip is not None else None
 
 
 def _slip(ratio: float) -> str | None:

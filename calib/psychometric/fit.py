@@ -187,7 +187,7 @@ def _rows_and_checks(cells: Cells, r, fitted, task: Task, pc: float, label: str,
         if n_levels >= 2:
             what = "PSE" if not task.is_nafc else "location"
             problems += checks.bracket_problems(name, what, stats["pse"]["lb"], stats["pse"]["ub"], lo[c], hi[c])
-            problems += checks.conflict_problems(name, c, r, d)
+            problems += checks.conflict_problems(name, c, r, d, levels_um=np.concatenate([cells.x_um, cells.standard_um]))
             if np.isfinite(dev):                    # not a population mean: the row's own cells
                 problems += checks.drag_problems(name, task, x, n, k, point, what)
             if np.isfinite(dev) and not (o < 0 and len(cells.subjects) == 1):      # 'all' = the one subject

@@ -75,6 +75,18 @@ def test_smaller_unit_slips_are_named(u_scale, f_scale, words):
     assert words in unit_problems(f_scale * d.f_n, u_scale * d.u_mm, PRIOR.c0, forward=True)[0]
 
 
+def test_forces_that_do_not_follow_their_displacements_name_no_unit():
+    """Force rows shuffled against the displacements: the least-squares compliance has any
+    scale (9.1 times the nominal was named "forces probably in kgf"; an outside audit).
+    A fit explaining under half the forces' variance says no unit; the same data in kgf,
+    rows in order, still do."""
+    d = _campaign()
+    for seed in range(12):          # 8 of these 12 shuffles were named a unit or a flipped axis before
+        shuffled = d.f_n[np.random.default_rng(seed).permutation(len(d.f_n))]
+        assert unit_problems(d.u_mm, shuffled, PRIOR.c0, forward=False) == [], seed
+    assert "kgf" in unit_problems(d.u_mm, d.f_n / 9.80665, PRIOR.c0, forward=False)[0]
+
+
 def test_a_compliance_a_few_times_the_nominal_is_no_unit_slip():
     for k in (2.0, 3.0, 1 / 3.0):
         scene = dataclasses.replace(SCENE, sensor=dataclasses.replace(

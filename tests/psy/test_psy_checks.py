@@ -187,7 +187,7 @@ def test_a_step_on_the_standard_with_half_the_responses_there_bounds_the_spread_
     assert not _spread(_fit(_counts([0, 1, 4, 10, 16, 19, 20])))
 
 
-def test_responses_that_fall_as_the_comparison_rises_are_named_as_coded_the_other_way_round():
+def test_responses_that_fall_as_the_comparison_rises_are_named_as_coded_the_other_way_round(simulate):
     """Counts of 'standard judged higher' in the comparison column: the rising curve fits
     no better than a flat line, and the check said the threshold lies beyond the tested
     levels ('test a wider range'), the wrong advice."""
@@ -197,6 +197,12 @@ def test_responses_that_fall_as_the_comparison_rises_are_named_as_coded_the_othe
                                                    "rises across 7.6–12.4 µm (a falling curve fits with deviance ")
     assert "give n_trials minus them as n_comparison_higher" in lines[0]
     assert not any("do not rise" in p for p in result.verdict.problems)
+    # the very wide curve such counts fit is no unit slip: heights in µm are not called nm (an outside audit)
+    flipped = simulate(5, n_subjects=3, n_trials=80)[0]            # the pooled row: σ 193 µm, "in nm?"
+    flipped = flipped.assign(n_comparison_higher=flipped.n_trials - flipped.n_comparison_higher)
+    problems = _fit(flipped).verdict.problems
+    assert any("σ" in p and "prior–data conflict" in p for p in problems)
+    assert not any("instead of µm" in p for p in problems), problems
     # chance at every level falls no more than it rises: still 'do not rise'
     assert "do not rise" in _spread(_fit(_counts([11, 10, 12, 10, 9, 10, 9])))[0]
 

@@ -157,8 +157,10 @@ def _unit_hint(ratio: float) -> str:
     return ""
 
 
-def conflict_problems(label: str, c: int, r, draws: dict) -> list[str]:
-    """Prior–data conflict of one row (``r``: the resolved priors; ``draws`` of the row)."""
+def conflict_problems(label: str, c: int, r, draws: dict, levels_um=None) -> list[str]:
+    """Prior–data conflict of one row (``r``: the resolved priors; ``draws`` of the row;
+    ``levels_um``, the tested heights: a unit is named for the spread only when they look
+    like it too)."""
     out = []
     pse = float(np.mean(draws["pse"]))
     z = (pse - r.pse_mean[c]) / r.pse_sd[c]
@@ -169,9 +171,13 @@ def conflict_problems(label: str, c: int, r, draws: dict) -> list[str]:
     log_s = float(np.mean(np.log(draws["sigma"])))
     z = (log_s - r.log_sigma_mean[c]) / r.log_sigma_sd
     if abs(z) > CONFLICT_Z:
+        # a unit named only when the tested heights look like it too: falling responses fit a very
+        # wide curve, and "heights in nm instead of µm?" misled on heights in µm (an outside audit)
+        hint = _unit_hint(math.exp(log_s - r.log_sigma_mean[c]))
+        if levels_um is not None and not unit_problems(levels_um):
+            hint = ""
         out.append(f"{label}: prior–data conflict: σ {math.exp(log_s):.3g} µm lies {abs(z):.1f} prior sds "
-                   f"(log scale) from the prior's median {math.exp(r.log_sigma_mean[c]):.3g} µm"
-                   f"{_unit_hint(math.exp(log_s - r.log_sigma_mean[c]))}")
+                   f"(log scale) from the prior's median {math.exp(r.log_sigma_mean[c]):.3g} µm{hint}")
     lam = float(np.median(draws["lapse"]))
     tail = float(beta_dist.sf(lam / LAPSE_MAX, r.lapse_a, r.lapse_b))
     if tail < CONFLICT_TAIL:
