@@ -82,6 +82,14 @@ def _check_arguments(data: NeuronData, backend: str, noise: str) -> np.ndarray:
     if np.all(np.ptp(s, axis=-1) == 0):
         raise ArgumentError("scans", "U_y constant in every scan (all-zero displacements?)",
                             "scans whose U_y changes over the plate")
+    # a plate the sensor read nothing on (U_y exactly 0 in every sample) was called noise-free and
+    # 'labels swapped' (an outside audit); a constant nonzero U_y is a noise-free flat plate: the verdict's
+    zero = ~np.any(np.atleast_2d(s) != 0, axis=-1)
+    dead = [float(v) for v in np.unique(d) if np.all(zero[d == v])]
+    if dead:
+        raise ArgumentError("scans", f"U_y 0 in every sample of plate(s) {', '.join(f'{v:g}' for v in dead)} mm",
+                            "scans whose U_y changes over the plate (the sensor read nothing there: unplugged, or "
+                            "its readings not written?)")
     return d
 
 

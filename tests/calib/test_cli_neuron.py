@@ -217,7 +217,8 @@ def test_each_label_its_own_and_constant_scans_name_the_file_and_column(run_and_
     gauge = dict(zip(ids, np.random.default_rng(1).normal(0.0, 0.005, ids.size)))
     cases = {"distinct": frame.assign(step_mm=frame.step_mm + frame.scan_id.map(gauge)),
              "flat": frame.assign(uy_mm=0.0),
-             "short": frame[frame.groupby("scan_id").cumcount() < 2]}
+             "short": frame[frame.groupby("scan_id").cumcount() < 2],
+             "dead": frame.assign(uy_mm=frame.uy_mm.where(frame.step_mm != 0.1, 0.0))}
     for name, table in cases.items():
         (tmp_path / name).mkdir()
         table.to_csv(tmp_path / name / "scans.csv", index=False)
@@ -228,7 +229,10 @@ def test_each_label_its_own_and_constant_scans_name_the_file_and_column(run_and_
                                      "they form 4 plates (0, 0.05, 0.1, 0.2 mm) of 24 scans each)"),
                         ("flat", "column uy_mm: U_y constant in every scan (all-zero displacements?)"),
                         # two samples a scan named 'argument tau range=(0.5, 0.25)', not the file (an outside audit)
-                        ("short", "column t_s: 2 samples a scan: scans of at least 5 samples")):
+                        ("short", "column t_s: 2 samples a scan: scans of at least 5 samples"),
+                        # one plate read as 0 was called noise-free and 'labels swapped' (an outside audit)
+                        ("dead", "column uy_mm: U_y 0 in every sample of plate(s) 0.1 mm: scans whose U_y "
+                                 "changes over the plate (the sensor read nothing there")):
         csv = tmp_path / name / "scans.csv"
         assert main(["calibrate", "neuron", str(csv), "--length-mm", "3", "--out", str(tmp_path / "f"),
                      "--no-progress"]) == 2
