@@ -123,13 +123,23 @@ def load(directory: str | Path) -> FitResult:
 
 
 def require_ok(result: FitResult, *, accept_failed: bool = False, what: str = "calibration") -> FitResult:
-    """Return ``result`` if its verdict is ok or ``accept_failed``; else raise.
+    """Return ``result`` if its verdict is ok or ``accept_failed``; else raise. A failed fit
+    accepted is used, but never silently: a :class:`DiagnosticWarning` names its first problem
+    (a fit in the wrong units gave P(correct) 0.5000 [0.5000, 0.5000] with exit 0 and nothing
+    said it had failed; an outside audit).
 
     Raises:
         CalibrationFailed: carrying the verdict.
     """
-    if not result.verdict.ok and not accept_failed:
-        raise CalibrationFailed(result.verdict, what)
+    if not result.verdict.ok:
+        if not accept_failed:
+            raise CalibrationFailed(result.verdict, what)
+        import warnings
+
+        problems = result.verdict.problems
+        warnings.warn(f"{what} failed its diagnostics ({len(problems)} problem{'s' if len(problems) != 1 else ''}; "
+                      f"the first: {problems[0] if problems else 'none recorded'}); --accept-failed uses it anyway, "
+                      f"so what follows comes from a fit its verdict refused", DiagnosticWarning, stacklevel=2)
     return result
 
 

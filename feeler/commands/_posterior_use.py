@@ -38,13 +38,4 @@ def load_checked(args):
         print(f"note: --n-draws {args.n_draws} is more than the fit's {available} posterior draws: all "
               f"{available} are used")
         args.n_draws = available
-    result = require_ok(result, accept_failed=args.accept_failed, what="neuron calibration")
-    if not result.verdict.ok:                     # --accept-failed: used, but never silently
-        import sys
-
-        problems = result.verdict.problems
-        print(f"note: {args.posterior} failed its diagnostics ({len(problems)} problem"
-              f"{'s' if len(problems) != 1 else ''}; the first: {problems[0] if problems else 'none recorded'}); "
-              f"--accept-failed uses it anyway, so what follows comes from a fit its verdict refused",
-              file=sys.stderr)
-    return result
+    return require_ok(result, accept_failed=args.accept_failed, what="neuron calibration")

@@ -208,7 +208,8 @@ def drag_problems(label: str, task, x, n, k, point: dict, what: str = "PSE") -> 
     span = max(float(np.ptp(x)), sig)
     best = minimize_scalar(dev, bounds=(float(x.min()) - span, float(x.max()) + span), method="bounded",
                            options={"xatol": 1e-6 * span})
-    worse = dev(m0) - min(best.fun, dev(m0))
+    at_point = dev(m0)
+    worse = at_point - min(best.fun, at_point)
     if worse <= CONFLICT_Z ** 2:
         return []
     return [f"{label}: prior–data conflict: the data alone put the {what} at {best.x:.4g} µm, and the posterior's "
