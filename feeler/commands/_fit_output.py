@@ -92,7 +92,8 @@ def add_fit_arguments(parser, *, draws: int | None = 1000, tune: int | None = 10
 def print_summary(result, *, skip_prefixes: tuple[str, ...] = ()) -> None:
     """The summary table, the priors and the verdict on stdout. A quantity the model fixes
     at every draw (two-mode's snap offset on a plate of step 0) shows R-hat "fixed": its
-    R-hat is 0/0, and the verdict does not check it."""
+    R-hat is 0/0, and the verdict does not check it. A quantity without a finite draw (one
+    plate: no gain, no offset) shows dashes, not NaN; the verdict names it."""
     import pandas as pd
 
     table = result.summary[~result.summary["name"].str.startswith(skip_prefixes)] if skip_prefixes \
@@ -102,7 +103,9 @@ def print_summary(result, *, skip_prefixes: tuple[str, ...] = ()) -> None:
     for i, row in _without_rounding_noise(table[cols]).iterrows():   # mean, interval: same rounding, mean inside
         shown.loc[i, ["mean", "eti95_lb", "eti95_ub"]] = _estimate_columns(row)
         shown.loc[i, "sd"] = f"{row['sd']:.3g}"
-        if row["sd"] == 0 and not math.isfinite(row["r_hat"]):      # the same at every draw: nothing to mix
+        if not math.isfinite(row["mean"]):             # no finite draw (the verdict names it): no numbers
+            shown.loc[i, cols[1:]] = "—"
+        elif row["sd"] == 0 and not math.isfinite(row["r_hat"]):      # the same at every draw: nothing to mix
             shown.loc[i, ["r_hat", "ess_bulk", "ess_tail"]] = ("fixed", "-", "-")
         else:
             shown.loc[i, ["r_hat", "ess_bulk", "ess_tail"]] = (f"{row['r_hat']:.4f}", f"{row['ess_bulk']:.0f}",

@@ -133,3 +133,21 @@ def test_summary_prints_rounding_noise_of_a_pinned_quantity_as_zero(capsys):
     assert "plate_mean_mm[1] 0.10000 0 0.10000 0.10000" in out
     assert "e-17" not in out and "e-18" not in out
     assert "s 3.2000e-15 1e-16 3.0000e-15 3.4000e-15" in out        # a small quantity on its own scale stays
+
+
+def test_summary_prints_a_quantity_without_finite_draws_as_dashes(capsys):
+    """A neuron fit of one plate has no gain or offset: its summary printed whole rows of
+    'nan' (an outside audit). They print as dashes; the verdict names why."""
+    from feeler.calib.fit import FitResult, Verdict
+    from feeler.commands._fit_output import print_summary
+    nan = float("nan")
+    rows = [{"name": "a", "mean": nan, "sd": nan, "eti95_lb": nan, "eti95_ub": nan, "r_hat": nan,
+             "ess_bulk": nan, "ess_tail": nan},
+            {"name": "tau_s", "mean": 3.1, "sd": 2.5, "eti95_lb": 0.53, "eti95_ub": 9.3, "r_hat": 1.0,
+             "ess_bulk": 4369.0, "ess_tail": 4012.0}]
+    print_summary(FitResult(posterior=None, summary=pd.DataFrame(rows),
+                            verdict=Verdict(False, ("a: no finite posterior draws",))))
+    out = capsys.readouterr().out
+    assert "nan" not in out.lower()
+    assert " ".join(out.split()).count("a — — — — — — —") == 1
+    assert "tau_s 3.1000 2.5 0.5300 9.3000 1.0000 4369 4012" in " ".join(out.split())
