@@ -6,7 +6,9 @@ scan is fed to the streaming decoder one sample at a time; a scan is decided at 
 first sample where its response has passed its peak (fallen below 1 − --drop of its
 maximum) and the most probable plate has probability >= --threshold; the lowest plate
 only at the scan's end (before the step the response looks like it), a scan flagged as
-unlike the fit's training scans never; before its 20th sample, not while one sample
+unlike the fit's training scans not while it is flagged (a flag the rest of the scan
+raises comes after its decision: the summary counts such scans, and a decision of a
+flagged scan does not hold); before its 20th sample, not while one sample
 stands off both neighbours by half the scan's rise (a possible glitch, too early to
 judge). Writes RUN/decisions.csv (or into --out DIR; next to a CSV given as RUN): per
 scan the probability of every plate and the decoded height with its 90 % interval at the
@@ -209,6 +211,10 @@ def _summary(decoder) -> None:
         line += f"; median decision at {np.median(t['decided_at_t_s'].to_numpy(float)[decided]):.3g} s"
     flagged = int(t["flagged"].sum())
     print(line + (f"; {flagged} flagged as unlike the fit's training scans" if flagged else ""))
+    late = int(np.sum(decided & t["flagged"].to_numpy(bool)))
+    if late:
+        print(f"note: {late} decided scan{'s were' if late > 1 else ' was'} flagged later in the scan (the rest of "
+              f"it showed what its first samples had not; see the flag column): those decisions do not hold")
     if "step_mm" in t.columns:                          # a run of other plates than the fit's (another scene)
         plates = np.asarray(decoder.live.plates_mm, float)
         step = t["step_mm"].to_numpy(float)

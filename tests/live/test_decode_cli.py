@@ -302,3 +302,24 @@ def test_an_aborted_attempt_gets_no_line_of_its_own(small_fit, scans_frame):
     decoder.end_scan()
     assert [r["scan_id"] for r in ended] == ids
     assert ended[1]["n_samples"] == len(second)
+
+
+def test_decode_counts_decided_scans_that_the_rest_of_the_scan_flags(fit_dir, scans_frame, tmp_path, capsys):
+    """A scan is decided on what its samples so far show. A one-sample glitch of 50 um near
+    each scan's end (its fifth-last sample) flags it only after its decision: decode's
+    summary says how many decided scans were flagged later and that those decisions do not
+    hold (decisions.csv has both columns; an outside audit found scans decided and flagged
+    with nothing said)."""
+    import numpy as np
+
+    place = scans_frame.groupby("scan_id").cumcount(ascending=False).to_numpy() == 4
+    glitched = scans_frame.assign(uy_mm=scans_frame.uy_mm + np.where(place, 0.05, 0.0))
+    glitched.to_csv(tmp_path / "late.csv", index=False)
+    assert main(["decode", str(fit_dir), str(tmp_path / "late.csv"), "--n-draws", "40", "--no-live"]) == 0
+    said = capsys.readouterr().out
+    table = pd.read_csv(tmp_path / "decisions.csv")
+    both = int((table.decided_mm.notna() & table.flagged).sum())
+    assert both > 0, said
+    assert table.flag[table.flagged].str.contains(r"^U_y jumps \+\d+\.\d+ um at t = 18 s", regex=True).all()
+    assert f"note: {both} decided scan{'s were' if both > 1 else ' was'} flagged later in the scan" in said
+    assert "those decisions do not hold" in said

@@ -25,7 +25,10 @@ scan is decided at the first sample where
 4. the scan so far lies inside the fit's training envelope (no flags): a scan at another
    speed, period, length, response scale or read-out noise, with a one-sample spike, or
    whose reading lies far from every training plate (a step the fit was not trained on),
-   is never decided, only flagged;
+   is not decided while it is flagged (the read-out noise and spike checks read the
+   whole scan so far at that sample); a flag that only the rest of the scan raises (its
+   noise over all its samples, a later glitch) comes after the decision, and
+   ``decode`` counts such scans;
 5. before the spike check can judge (20 samples), no sample stands off both neighbours
    by half the scan's rise without it (:func:`.envelope.early_spike`): it may be a glitch
    that alone sets the peak.
@@ -246,8 +249,12 @@ class LiveDecoder:
         k = int(np.argmax(prob))
         if (self._decision is None and peaked and k > 0 and prob[k] >= self.threshold and not flags
                 and not early_spike(self._uy)):
-            self._decision = Decision(float(self.plates_mm[k]), float(prob[k]), self.sums.n - 1, t, self._x1)
-            new = True
+            # the noise and spike checks are refreshed only as the scan grows by an eighth: a decision reads
+            # them on the scan so far (a 28 um glitch 10 samples back, judged at the 20th sample, was decided)
+            flags = tuple(self._flags(t, final=False, peaked=peaked, fresh=True))
+            if not flags:
+                self._decision = Decision(float(self.plates_mm[k]), float(prob[k]), self.sums.n - 1, t, self._x1)
+                new = True
         self._state = LiveState(self.sums.n, t, prob, height, z, peaked, self._decision, new, flags)
         return self._state
 
@@ -276,10 +283,10 @@ class LiveDecoder:
                                 "areas or frames")
         return self.camera
 
-    def _flags(self, t: float, *, final: bool, peaked: bool = False) -> list[str]:
+    def _flags(self, t: float, *, final: bool, peaked: bool = False, fresh: bool = False) -> list[str]:
         moved = np.isfinite(self._x0) and np.isfinite(self._x1) and self._x1 != self._x0
         ends = (self._x0, self._x1) if (moved or final) and np.isfinite(self._x0) else None
-        noise, spike = self._quality_of(final) if (peaked or final) else (None, None)     # as classify
+        noise, spike = self._quality_of(final or fresh) if (peaked or final) else (None, None)     # as classify
         out = self.env.problems_of(self.sums.n, self._t0, t, self.p_at_tau, x_ends_mm=ends,
                                    speed_mm_s=self.speed_label, final=final, noise_mm=noise)
         if peaked or final:                     # the reading is the scan's once its response has peaked
