@@ -163,6 +163,12 @@ def test_a_directory_of_one_file_per_scan_classifies_naming_each_file(fit_dir, s
     assert b.file.tolist() == [f"touch{k + 1}.csv" for k in range(len(ids))]       # touch2 before touch10
     p_cols = [c for c in a.columns if c.startswith("p_")] + ["height_mm", "lo90_mm", "hi90_mm", "step_mm"]
     np.testing.assert_allclose(b[p_cols].to_numpy(), a[p_cols].to_numpy(), rtol=1e-12)
+    # one file's U_y in um: the error names that file, not an internal scan_id (an outside audit)
+    eighth = pd.read_csv(lab / "touch8.csv")
+    eighth.assign(uy_mm=eighth.uy_mm * 1e3).to_csv(lab / "touch8.csv", index=False)
+    assert _run(fit_dir, lab, "--out", str(tmp_path / "c")) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(f"feeler: error: {lab}: scan file touch8.csv: response ") and "probably in um" in err[-1]
 
 
 def test_scans_named_by_the_lab_keep_their_names(fit_dir, scans_frame, tmp_path, capsys):

@@ -32,13 +32,14 @@ def plate_column(step_mm: float) -> str:
     return f"p_{step_mm:g}mm"
 
 
-def unit_mistake(path, scan_ids, flags) -> None:
+def unit_mistake(path, scans, flags) -> None:
     """Raise a one-line DataFileError for the first scan whose flags name a unit mistake
-    (``flags``: one list of reasons per scan)."""
-    for sid, reasons in zip(scan_ids, flags):
+    (``scans``: how each scan is named, ``scan_id 7`` or ``scan file touch8.csv``;
+    ``flags``: one list of reasons per scan)."""
+    for name, reasons in zip(scans, flags):
         for r in reasons:
             if "probably in" in r:
-                who = "" if r.startswith("these ") else f"scan_id {sid}: "        # a batch's reason names no scan
+                who = "" if r.startswith("these ") else f"{name}: "        # a batch's reason names no scan
                 raise DataFileError(path, f"{who}{r}; the scan CSV takes t_s in s and uy_mm, x_mm in mm "
                                           "(README, 'Scan CSV format')")
 
