@@ -66,7 +66,8 @@ def run(args) -> int:
     flags = [env.problems(r.t_s, c.p_at_tau[:, k], x_mm=r.x_mm, speed_mm_s=r.speed_mm_s, uy_mm=r.uy_mm,
                           noise=not batch)
              + ([batch] if batch else [])
-             + [f for f in [env.plates(c.plate_sds[k], c.nearest_mm[k], c.height_mm[k])] if f]
+             + [f for f in [env.plates(c.plate_sds[k], c.nearest_mm[k], c.height_mm[k]),
+                            env.falling(r.uy_mm, c.plates_mm, c.height_mm[k])] if f]
              for k, r in enumerate(records)]
     unit_mistake(path, [f"scan file {r.file}" if r.file else f"scan_id {r.scan_id if r.name is None else repr(r.name)}"
                         for r in records], flags)

@@ -260,3 +260,20 @@ def test_more_draws_than_the_fit_has_is_a_note_with_the_true_count(fit_dir, scan
     assert f"note: --n-draws {10 * have} is more than the fit's {have} posterior draws: all {have} are used" in out
     assert main(["classify", str(fit_dir), str(tmp_path / "lab.csv"), "--n-draws", "40"]) == 0
     assert "note: --n-draws" not in capsys.readouterr().out
+
+
+def test_scans_with_u_y_negated_are_flagged_by_classify_and_decode(fit_dir, scans_frame, tmp_path, capsys):
+    """U_y with its sign flipped reads as its plate (the window sums follow how much U_y
+    changes): classify flags every riser's scan as falling, and decode decides none of them."""
+    import pandas as pd
+
+    scans_frame.assign(uy_mm=-scans_frame.uy_mm).to_csv(tmp_path / "negated.csv", index=False)
+    assert _run(fit_dir, tmp_path / "negated.csv", "--out", str(tmp_path / "c")) == 0
+    table = pd.read_csv(tmp_path / "c" / "classification.csv")
+    riser = table.step_mm > 0
+    assert table.flag[riser].str.contains("U_y falls by").all() and not table.flagged[~riser].any()
+    assert main(["decode", str(fit_dir), str(tmp_path / "negated.csv"), "--out", str(tmp_path / "d"), "--n-draws", "40",
+                 "--no-live"]) == 0
+    decided = pd.read_csv(tmp_path / "d" / "decisions.csv")
+    assert decided.decided_mm[riser.to_numpy()].isna().all()
+    capsys.readouterr()

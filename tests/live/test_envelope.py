@@ -172,3 +172,32 @@ def test_an_early_glitch_holds_until_the_spike_check_can_judge():
     assert early_spike(big)
     longer = np.concatenate([glitch, 0.05 + 0.001 * rng.standard_normal(SPIKE_MIN_DIFFERENCES + 5)])
     assert not early_spike(longer)                      # long enough: spike_of's to judge
+
+
+def test_a_scan_that_falls_as_a_touch_rises_is_flagged(small_fit):
+    """U_y reversed in time or with its sign flipped: the window sums follow how much U_y
+    changes, so such a scan still read as its plate, at p 0.999, with intervals holding for
+    59-60 % (an outside audit). A scan that falls by more than half its range, within a
+    fifth of a training scan, by 8 read-out noise sds or more, while read as a riser, is flagged.
+    Not flagged: every training scan as it is; a flat plate drifting down (read as plate 0);
+    a step down when the fit has steps below 0."""
+    from feeler.calib.neuron.classify import classify
+
+    data, res = small_fit
+    length = float(res.posterior["posterior"].attrs["length_mm"])
+    u = data.strain * length
+    c = classify(res, data.strain, data.t_s, rng=np.random.default_rng(0))
+    env = Envelope.of_fit(res, c.tau_s)
+    riser = data.step_mm > 0
+    assert not any(env.falling(u[k], c.plates_mm, c.height_mm[k]) for k in range(len(u)))
+    for turned in (u[:, ::-1], -u):
+        r = classify(res, turned / length, data.t_s, rng=np.random.default_rng(0))
+        said = [env.falling(turned[k], r.plates_mm, r.height_mm[k]) for k in range(len(u))]
+        assert all(s is not None and s.startswith("U_y falls by ") for s, up in zip(said, riser) if up)
+        assert not any(s for s, up in zip(said, riser) if not up)            # a flat plate has no step to turn
+    t = np.asarray(data.t_s)
+    drifting = u[~riser][0] - 0.002 * t                                      # 40 um down over a flat plate
+    assert env.falling(drifting, c.plates_mm, 0.0) is None
+    assert env.falling(-u[riser][0], np.r_[-0.1, c.plates_mm], 0.1) is None     # steps down were trained
+    calls = []
+    assert env.falling(u[riser][0], c.plates_mm, lambda: calls.append(1) or 0.1) is None and not calls

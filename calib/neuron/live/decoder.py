@@ -295,6 +295,9 @@ class LiveDecoder:
             _, height, _, (distance, k), _ = self._answer
             if distance > self.env.plate_sds:   # the height (a bisection) only for the message
                 out.append(self.env.plates(distance, float(self.plates_mm[k]), height.get()[0]))
+            fall = self.env.falling(self._uy, self.plates_mm, lambda: height.get()[0])
+            if fall:
+                out.append(fall)
         return out
 
     def _quality_of(self, final: bool):
