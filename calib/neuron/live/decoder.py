@@ -192,7 +192,7 @@ class LiveDecoder:
         self._x1 = np.nan
         self._uy: list[float] = []                   # the scan's U_y and times, for its read-out noise
         self._ts: list[float] = []                   # and a one-sample spike
-        self._quality, self._recheck_at = (None, None), 0
+        self._quality, self._recheck_at = (None, None, None), 0
         self._state = None
         self._decision = None
         self._answer = self._answer_of(np.zeros(self.dec.size))
@@ -286,7 +286,7 @@ class LiveDecoder:
     def _flags(self, t: float, *, final: bool, peaked: bool = False, fresh: bool = False) -> list[str]:
         moved = np.isfinite(self._x0) and np.isfinite(self._x1) and self._x1 != self._x0
         ends = (self._x0, self._x1) if (moved or final) and np.isfinite(self._x0) else None
-        noise, spike = self._quality_of(final or fresh) if (peaked or final) else (None, None)     # as classify
+        noise, spike, fall = self._quality_of(final or fresh) if (peaked or final) else (None, None, None)  # as classify
         out = self.env.problems_of(self.sums.n, self._t0, t, self.p_at_tau, x_ends_mm=ends,
                                    speed_mm_s=self.speed_label, final=final, noise_mm=noise)
         if peaked or final:                     # the reading is the scan's once its response has peaked
@@ -295,18 +295,20 @@ class LiveDecoder:
             _, height, _, (distance, k), _ = self._answer
             if distance > self.env.plate_sds:   # the height (a bisection) only for the message
                 out.append(self.env.plates(distance, float(self.plates_mm[k]), height.get()[0]))
-            fall = self.env.falling(self._uy, self.plates_mm, lambda: height.get()[0])
             if fall:
                 out.append(fall)
         return out
 
     def _quality_of(self, final: bool):
-        """(read-out noise, spike line) of the scan so far. Both read the whole scan, so they
-        are computed again only when it has grown by an eighth (and at its end): every push
-        after the peak of a 2000-sample scan cost 0.2 ms more when they were computed each time."""
+        """(read-out noise, spike line, falling line) of the scan so far. They read the whole
+        scan, so they are computed again only when it has grown by an eighth (and at its end,
+        and before a decision): every push after the peak of a 2000-sample scan cost 0.2 ms
+        more when they were computed each time."""
         n = len(self._uy)
         if final or n >= self._recheck_at:
-            self._quality = (readout_noise_mm(self._uy), spike_problem(self._uy, self._ts))
+            uy = np.asarray(self._uy, float)
+            self._quality = (readout_noise_mm(uy), spike_problem(uy, self._ts),
+                             self.env.falling(uy, self.plates_mm, lambda: self._answer[1].get()[0]))
             self._recheck_at = max(n + 1, n + n // 8)
         return self._quality
 
