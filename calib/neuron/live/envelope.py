@@ -251,9 +251,10 @@ class Envelope:
         riser of ``plates_mm`` (the fit's steps, all ≥ 0: a touch rises onto a step), or
         None. The fall must happen within a fifth of a training scan's samples (a step's: a
         snap in one frame, a ride while the pad passes the edge; a drift spreads over the
-        whole scan) and be :data:`FALL_NOISE_SDS` of its read-out noise. Such a scan is reversed in time or has U_y's sign flipped, and it is still
-        read as the right plate, since the window sums follow how much U_y changes, but
-        with intervals that hold for 59-60 % of them (an outside audit, four-plates).
+        whole scan) and be :data:`FALL_NOISE_SDS` of its read-out noise. Such a scan is
+        reversed in time or has U_y's sign flipped, and it is still read as the right
+        plate, since the window sums follow how much U_y changes, but with intervals that
+        hold for 59-60 % of them (an outside audit, four-plates).
         ``height_mm``: the decoded height, or a callable giving it (only asked when the
         scan falls)."""
         plates = np.asarray(plates_mm, float)
@@ -265,9 +266,8 @@ class Envelope:
         net = median_of(u[-k:]) - median_of(u[:k])
         if not net < -0.5 * float(np.ptp(u)):
             return None
-        # a step's fall happens within a fifth of the scan (a snap in one frame, a ride while the
-        # pad passes the edge); a drift's is spread over all of it (a flat plate drifting down by
-        # 6-16 um read as 0.013-0.066 mm: 13 of 4120 fresh scans of the shipped, hard and random scenes)
+        # without the two conditions below, 13 of 4120 fresh scans of the shipped, hard and random
+        # scenes were flagged: flat plates drifting down by 6-16 um in noise, read as 0.013-0.066 mm
         fifth = int(round(self.duration_s / self.period_s / 5.0))            # samples, as a stream has none yet
         windows = np.lib.stride_tricks.sliding_window_view(u, min(u.size, max(2, fifth)))
         drop = float(np.max(windows[:, 0] - windows.min(axis=1)))       # the largest fall within a fifth
