@@ -34,6 +34,14 @@ def register(parser) -> None:
     parser.set_defaults(run=run)
 
 
+#: a batch of at least this many scans with this share of them off every trained plate is
+#: itself in doubt: fresh touches of the training plates lie within 4 sds (8200 of the hard
+#: scenes and four-plates: largest 3.9), and U_y × 0.7 on four-plates put 30 of 96 scans
+#: off-plate while 19 of the other 66 were read wrong at p >= 0.9 (an outside audit)
+OFF_PLATE_MIN_SCANS = 20
+OFF_PLATE_SHARE = 0.2
+
+
 def run(args) -> int:
     from pathlib import Path
 
@@ -88,6 +96,11 @@ def run(args) -> int:
                  else "the flag column of the classification.csv that --out DIR writes")
         print(f"... {len(flagged) - FLAG_LINES} more flagged scans ({len(flagged)} of {len(table)} in all); "
               f"every scan's reason is in {where}")
+    off = int(np.sum(c.plate_sds > env.plate_sds))
+    if len(table) >= OFF_PLATE_MIN_SCANS and off >= OFF_PLATE_SHARE * len(table):
+        print(f"note: {off} of {len(table)} scans read more than {env.plate_sds:g} sds from every trained plate: "
+              f"a batch on another scale (a gain, a unit or a set-up unlike the training's) or of steps the fit "
+              f"was not trained on, so the other scans' probabilities may not hold either")
     if c.note:
         print(c.note)
     for line in chance_mode_notes(result.posterior["posterior"].attrs, c.snap):

@@ -277,3 +277,28 @@ def test_scans_with_u_y_negated_are_flagged_by_classify_and_decode(fit_dir, scan
     decided = pd.read_csv(tmp_path / "d" / "decisions.csv")
     assert decided.decided_mm[riser.to_numpy()].isna().all()
     capsys.readouterr()
+
+
+def test_a_batch_a_fifth_off_every_plate_is_noted(small_fit, fit_dir, tmp_path, capsys):
+    """U_y x 0.7 (a gain inside the response check's x2): some scans read between plates and
+    are flagged, and the others are read as usual, some wrong at p >= 0.9 (an outside audit).
+    When a fifth or more of a batch of 20 or more lies off every plate, classify says the
+    batch itself is in doubt; the scans as they are, none."""
+    import pandas as pd
+
+    data, res = small_fit
+    length = float(res.posterior["posterior"].attrs["length_mm"])
+    n, m = data.strain.shape
+    frame = pd.DataFrame({"scan_id": np.repeat(np.arange(n), m), "t_s": np.tile(data.t_s, n),
+                          "uy_mm": (data.strain * length).ravel()})
+    frame.to_csv(tmp_path / "as_is.csv", index=False)
+    frame.assign(uy_mm=frame.uy_mm * 0.7).to_csv(tmp_path / "gain.csv", index=False)
+    assert _run(fit_dir, tmp_path / "as_is.csv") == 0
+    assert "sds from every trained plate: a batch on another scale" not in capsys.readouterr().out
+    assert _run(fit_dir, tmp_path / "gain.csv", "--out", str(tmp_path / "g")) == 0
+    said = [ln for ln in capsys.readouterr().out.splitlines() if "sds from every trained plate: a batch" in ln]
+    off = int(pd.read_csv(tmp_path / "g" / "classification.csv").flag.str.contains("sds from the nearest").sum())
+    assert off >= 0.2 * n and said == [f"note: {off} of {n} scans read more than 5 sds from every trained plate: a "
+                                       "batch on another scale (a gain, a unit or a set-up unlike the training's) or "
+                                       "of steps the fit was not trained on, so the other scans' probabilities may "
+                                       "not hold either"]
