@@ -117,8 +117,8 @@ def _excursions(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a, np.where(np.abs(u[2:] - u[:-2]) < 0.25 * size, size, 0.0)
 
 
-#: a scan's fall over it must be this many of its read-out noise sds to be called one
-#: (noisy flat plates drift down 6-11 um at 2-3 um of noise, and read as the lowest riser)
+#: a scan's fall over it must be this many of its read-out noise sds to be called one (a
+#: noisy flat plate drifting down can fall by more than half its range and read as a riser)
 FALL_NOISE_SDS = 8.0
 
 
@@ -267,7 +267,8 @@ class Envelope:
         if not net < -0.5 * float(np.ptp(u)):
             return None
         # without the two conditions below, 13 of 4120 fresh scans of the shipped, hard and random
-        # scenes were flagged: flat plates drifting down by 6-16 um in noise, read as 0.013-0.066 mm
+        # scenes were flagged (the six printed fell 6-16 um, read as 0.013-0.066 mm; the three looked at, of
+        # uneven-steps, were flat plates drifting down in noise)
         fifth = int(round(self.duration_s / self.period_s / 5.0))            # samples, as a stream has none yet
         windows = np.lib.stride_tricks.sliding_window_view(u, min(u.size, max(2, fifth)))
         drop = float(np.max(windows[:, 0] - windows.min(axis=1)))       # the largest fall within a fifth
