@@ -171,7 +171,7 @@ def test_a_one_sample_glitch_is_named_in_the_scans_flags(small_fit):
     by an eighth, a glitch at the 11th sample of a flat plate's scan was decided as 0.05 mm at
     the 20th (an outside audit). A decision is never taken where the scan so far shows the
     glitch; on a tall plate the spike may stand out only once the whole scan is read."""
-    from feeler.calib.neuron.live.envelope import spike_of
+    from feeler.calib.neuron.live.envelope import SPIKE_SDS_STREAM, spike_of
 
     data, res = small_fit
     dec = LiveDecoder(res, n_draws=40)
@@ -183,9 +183,43 @@ def test_a_one_sample_glitch_is_named_in_the_scans_flags(small_fit):
             states, last = _stream(dec, glitch, t)
             assert any(f.startswith("U_y jumps +") and f"at t = {t[at]:.4g} s and back" in f for f in last.flags)
             made = [s for s in states if s.new_decision]
-            assert all(spike_of(glitch[:s.n] * dec.length_mm) is None for s in made), (k, size, at)
+            assert all(spike_of(glitch[:s.n] * dec.length_mm, sds=SPIKE_SDS_STREAM) is None for s in made), (k, size, at)
             if at == 5 or data.step_mm[k] == 0.0:
                 assert last.decision is None and all(s.decision is None for s in states), (k, size, at)
     k = int(np.flatnonzero(data.step_mm == 0.0)[0])
     _, clean = _stream(dec, data.strain[k], t)
     assert clean.decision is not None and clean.decision.plate_mm == 0.0 and clean.flags == ()
+
+
+def test_a_spike_judged_at_the_stream_threshold_is_flagged_when_the_scan_ends(small_fit):
+    """A spike of 15-20 read-out noise sds: a stream so far is judged at 20 (its prefixes
+    are judged at every sample, so clean ones reach 13.5), the whole scan at 15, as classify
+    judges it. The scan's final flags name it, as classify's do, and any decision was taken
+    where the scan so far did not show it at 20."""
+    from feeler.calib.neuron.classify import classify
+    from feeler.calib.neuron.live.envelope import SPIKE_SDS, SPIKE_SDS_STREAM, Envelope, spike_of
+
+    data, res = small_fit
+    dec = LiveDecoder(res, n_draws=40)
+    t = np.asarray(data.t_s)
+    k = int(np.flatnonzero(data.step_mm == 0.0)[1])
+    uy = data.strain[k] * dec.length_mm
+
+    def spiked(size):
+        out = uy.copy()
+        out[25] += size
+        return out
+
+    lo, hi = 0.0, 0.1                                  # the size that reads as 17.5 sds, by bisection
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if (spike_of(spiked(mid), sds=0.0) or (0, 0.0, 0.0))[2] < 17.5 else (lo, mid)
+    glitch = spiked(hi)
+    sds = spike_of(glitch, sds=0.0)[2]
+    assert SPIKE_SDS < sds < SPIKE_SDS_STREAM, sds
+    states, last = _stream(dec, glitch / dec.length_mm, t)
+    assert any(f.startswith("U_y jumps +") for f in last.flags)
+    assert all(spike_of(glitch[:s.n], sds=SPIKE_SDS_STREAM) is None for s in states if s.new_decision)
+    c = classify(res, (glitch / dec.length_mm)[None], t, rng=np.random.default_rng(1), n_draws=40)
+    flags = Envelope.of_fit(res, c.tau_s).problems(t, c.p_at_tau[:, 0], uy_mm=glitch)
+    assert any(f.startswith("U_y jumps +") for f in flags)

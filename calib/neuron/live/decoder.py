@@ -27,8 +27,10 @@ scan is decided at the first sample where
    whose reading lies far from every training plate (a step the fit was not trained on),
    is not decided while it is flagged (the read-out noise and spike checks read the
    whole scan so far at that sample); a flag that only the rest of the scan raises (its
-   noise over all its samples, a later glitch) comes after the decision, and
-   ``decode`` counts such scans;
+   noise over all its samples, a later glitch, or a spike of 15-20 read-out noise sds,
+   which is judged at 20 while the scan streams and at 15 once it ends: see
+   :data:`.envelope.SPIKE_SDS_STREAM`) comes after the decision, and ``decode`` counts
+   such scans;
 5. before the spike check can judge (20 samples), no sample stands off both neighbours
    by half the scan's rise without it (:func:`.envelope.early_spike`): it may be a glitch
    that alone sets the peak.
@@ -43,7 +45,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from feeler.calib.neuron.classify import scan_modes
-from feeler.calib.neuron.live.envelope import early_spike, median_of, readout_noise_mm, spike_problem
+from feeler.calib.neuron.live.envelope import (SPIKE_SDS, SPIKE_SDS_STREAM, early_spike, median_of, readout_noise_mm,
+                                                spike_problem)
 from feeler.errors import ArgumentError
 
 __all__ = ["Decision", "LiveState", "LiveDecoder"]
@@ -286,7 +289,8 @@ class LiveDecoder:
     def _flags(self, t: float, *, final: bool, peaked: bool = False, fresh: bool = False) -> list[str]:
         moved = np.isfinite(self._x0) and np.isfinite(self._x1) and self._x1 != self._x0
         ends = (self._x0, self._x1) if (moved or final) and np.isfinite(self._x0) else None
-        noise, spike, fall = self._quality_of(final or fresh) if (peaked or final) else (None, None, None)  # as classify
+        noise, spike, fall = (self._quality_of(final or fresh, whole=final) if (peaked or final)
+                              else (None, None, None))                               # as classify
         out = self.env.problems_of(self.sums.n, self._t0, t, self.p_at_tau, x_ends_mm=ends,
                                    speed_mm_s=self.speed_label, final=final, noise_mm=noise)
         if peaked or final:                     # the reading is the scan's once its response has peaked
@@ -299,15 +303,18 @@ class LiveDecoder:
                 out.append(fall)
         return out
 
-    def _quality_of(self, final: bool):
+    def _quality_of(self, refresh: bool, *, whole: bool = False):
         """(read-out noise, spike line, falling line) of the scan so far. They read the whole
-        scan, so they are computed again only when it has grown by an eighth (and at its end,
-        and before a decision): every push after the peak of a 2000-sample scan cost 0.2 ms
-        more when they were computed each time."""
+        scan, so they are computed again only when it has grown by an eighth (and when
+        ``refresh``: at its end, and before a decision): every push after the peak of a
+        2000-sample scan cost 0.2 ms more when they were computed each time. A spike is judged
+        as a stream's until the scan is ``whole`` (:data:`.envelope.SPIKE_SDS_STREAM`), then
+        as classify judges it."""
         n = len(self._uy)
-        if final or n >= self._recheck_at:
+        if refresh or n >= self._recheck_at:
             uy = np.asarray(self._uy, float)
-            self._quality = (readout_noise_mm(uy), spike_problem(uy, self._ts),
+            self._quality = (readout_noise_mm(uy),
+                             spike_problem(uy, self._ts, sds=SPIKE_SDS if whole else SPIKE_SDS_STREAM),
                              self.env.falling(uy, self.plates_mm, lambda: self._answer[1].get()[0]))
             self._recheck_at = max(n + 1, n + n // 8)
         return self._quality

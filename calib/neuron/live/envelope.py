@@ -47,7 +47,7 @@ import numpy as np
 from feeler.errors import ArgumentError
 
 __all__ = ["Envelope", "UNIT_FACTOR", "stage_units", "training_speed_mm_s", "median_of", "readout_noise_mm",
-           "spike_of", "spike_problem"]
+           "spike_of", "spike_problem", "SPIKE_SDS", "SPIKE_SDS_STREAM"]
 
 
 def median_of(x: np.ndarray) -> float:
@@ -78,19 +78,32 @@ def _noise_of(d2: np.ndarray) -> float:
 
 
 #: a single sample this many read-out noise sds off both its neighbours (which agree) is a
-#: glitch, not a touch: 6750 whole scans of the eleven shipped scenes reach 6.9, and a
-#: stream's prefixes (the live decoder's view: 60 750 of them, judged from 20 samples on) 12.6
-SPIKE_SDS = 20.0
+#: glitch, not a touch, in a whole scan (classify, a fit's training scans, a stream at its
+#: end). On clean scans it reaches 6.9 over 6750 whole scans of the eleven shipped scenes,
+#: and 12.4 over 58 750 fresh ones of 53 scenes (the hard ones, a control, four-plates and
+#: two families of random scenes no check was tuned on): 18 beyond 8, 6 beyond 10, 1 beyond
+#: 12, none beyond 15; the tail is the 21-sample scans', whose noise rests on 16 second
+#: differences. At 20, one-sample spikes of 15 um on flat scans of 1 um noise (8.4-25.9
+#: sds by this measure) were caught in 2 of 8 and read as 0.05 mm at p 0.999 (an outside
+#: audit); at 15, in 5 of 8 (and 20 um ones in 7 of 8, was 5)
+SPIKE_SDS = 15.0
+#: the same for a stream's prefixes (the live decoder's view before the scan ends), judged
+#: at every sample from the 20th on, so their largest lies further out: 60 750 prefixes of
+#: the shipped scenes reach 12.6, and the prefixes of 6050 fresh scans of 40 of the scenes
+#: above 13.5. A spike of 15-20 sds is then flagged only when the scan ends, after any
+#: decision, which ``decode`` reports as not holding
+SPIKE_SDS_STREAM = 20.0
 #: second differences away from the spike that its noise is measured on (a stream's first
 #: samples are not judged: with 3, prefixes of shipped scans reached 2700 sds by chance)
 SPIKE_MIN_DIFFERENCES = 15
 
 
-def spike_of(uy_mm) -> tuple[int, float, float] | None:
+def spike_of(uy_mm, *, sds: float = SPIKE_SDS) -> tuple[int, float, float] | None:
     """The largest single-sample spike of a scan's U_y: (sample index, its size in mm, in
-    read-out noise sds) when beyond :data:`SPIKE_SDS`, else None. A spike jumps away from
-    both neighbours in the same direction while they agree (within a quarter of it): a
-    snap steps up and stays, a ride ramps."""
+    read-out noise sds) when beyond ``sds`` (:data:`SPIKE_SDS` for a whole scan,
+    :data:`SPIKE_SDS_STREAM` for a stream so far), else None. A spike jumps away from both
+    neighbours in the same direction while they agree (within a quarter of it): a snap
+    steps up and stays, a ride ramps."""
     u = np.asarray(uy_mm, float).ravel()
     if u.size < SPIKE_MIN_DIFFERENCES + 5:
         return None
@@ -103,7 +116,7 @@ def spike_of(uy_mm) -> tuple[int, float, float] | None:
     if rest.size < SPIKE_MIN_DIFFERENCES:        # too few to know the noise (3 can agree by chance)
         return None
     noise = _noise_of(rest)
-    if not noise > 0 or size[k] <= SPIKE_SDS * noise:
+    if not noise > 0 or size[k] <= sds * noise:
         return None
     return k + 1, float(size[k] * np.sign(a[k])), float(size[k] / noise)
 
@@ -145,9 +158,9 @@ def early_spike(uy_mm) -> bool:
     return bool(size[k] >= EARLY_SPIKE_SHARE * (others.max() - others.min()))
 
 
-def spike_problem(uy_mm, t_s=None) -> str | None:
-    """One line for a scan's spike (:func:`spike_of`), or None."""
-    found = spike_of(uy_mm)
+def spike_problem(uy_mm, t_s=None, *, sds: float = SPIKE_SDS) -> str | None:
+    """One line for a scan's spike (:func:`spike_of` beyond ``sds``), or None."""
+    found = spike_of(uy_mm, sds=sds)
     if found is None:
         return None
     k, size, sds = found
