@@ -7,7 +7,9 @@ step_mm and speed_mm_s are labels that add the accuracy and coverage summary (RE
 their 90 % intervals, or fewer classified right than the probabilities promised. Strain
 uses the posterior's representative length. A scan unlike the fit's training scans
 (speed, sampling period, length, response scale, read-out noise; a whole batch noisier
-than the training scans; a one-sample spike) is flagged with the reason; one whose times
+than the training scans; a one-sample spike; a reading far from every trained plate; U_y
+falling where a touch rises) is flagged with the reason, and a note says when a fifth or
+more of a batch of 20 or more scans reads far from every plate; one whose times
 or displacements look like the wrong units is refused. For each scan: the probability of
 every training plate and the decoded step height with its 90 % interval (inverting each
 plate's predictive band: at any true step the interval covers it 90 % of the time),
@@ -34,14 +36,6 @@ def register(parser) -> None:
     parser.set_defaults(run=run)
 
 
-#: a batch of at least this many scans with this share of them off every trained plate is
-#: itself in doubt: fresh touches of the training plates lie within 4 sds (8200 of the hard
-#: scenes and four-plates: largest 3.9), and U_y × 0.7 on four-plates put 30 of 96 scans
-#: off-plate while 19 of the other 66 were read wrong at p >= 0.9 (an outside audit)
-OFF_PLATE_MIN_SCANS = 20
-OFF_PLATE_SHARE = 0.2
-
-
 def run(args) -> int:
     from pathlib import Path
 
@@ -51,8 +45,8 @@ def run(args) -> int:
     from feeler.calib.neuron.classify import chance_mode_notes, classify
     from feeler.calib.neuron.live.envelope import Envelope, readout_noise_mm
     from feeler.calib.neuron.live.scan_csv import read_scan_records
-    from feeler.calib.neuron.live.table import (claims_check, coverage_note, labelled_summary, plate_column,
-                                                unit_mistake)
+    from feeler.calib.neuron.live.table import (claims_check, coverage_note, labelled_summary, off_plate_note,
+                                                plate_column, unit_mistake)
     from feeler.rundir import prepare_out_dir
 
     from feeler.commands._checks import check_out_dir
@@ -96,11 +90,9 @@ def run(args) -> int:
                  else "the flag column of the classification.csv that --out DIR writes")
         print(f"... {len(flagged) - FLAG_LINES} more flagged scans ({len(flagged)} of {len(table)} in all); "
               f"every scan's reason is in {where}")
-    off = int(np.sum(c.plate_sds > env.plate_sds))
-    if len(table) >= OFF_PLATE_MIN_SCANS and off >= OFF_PLATE_SHARE * len(table):
-        print(f"note: {off} of {len(table)} scans read more than {env.plate_sds:g} sds from every trained plate: "
-              f"a batch on another scale (a gain, a unit or a set-up unlike the training's) or of steps the fit "
-              f"was not trained on, so the other scans' probabilities may not hold either")
+    off = off_plate_note(int(np.sum(c.plate_sds > env.plate_sds)), len(table), env.plate_sds)
+    if off:
+        print(off)
     if c.note:
         print(c.note)
     for line in chance_mode_notes(result.posterior["posterior"].attrs, c.snap):

@@ -17,7 +17,8 @@ position; empty if none), and whether the scan was flagged, with the reason. Wit
 labels, a warning when the decisions were right less often than the probabilities they
 were taken at promised, or the intervals held for too few labels (README, "Scan CSV
 format"); as classify, a note on scans of a mode the fit reads no better than its plates'
-shares.
+shares, and on a batch a fifth or more of whose scans (of 20 or more) read far from every
+trained plate (another scale, or steps the fit was not trained on).
 
 --follow decodes a run another process is still acquiring: it tails RUN/samples.csv
 (a partial last line waits for its end) and stops when the acquisition lets go of the
@@ -189,6 +190,7 @@ def _drop_cut_scan(decoder, path) -> None:
     decoder.discard()
     decoder.rows.pop(sid, None)                         # an earlier attempt of it, cut too
     decoder.snapped.pop(sid, None)
+    decoder.off_plate.pop(sid, None)
     print(f"scan {sid} was cut short when the acquisition stopped: it gets no row in decisions.csv (as `feeler "
           f"decode` of the run leaves it out); `feeler acquire --resume` scans it again")
 
@@ -196,7 +198,7 @@ def _drop_cut_scan(decoder, path) -> None:
 def _summary(decoder) -> None:
     import numpy as np
 
-    from feeler.calib.neuron.live.table import claims_check, on_a_plate
+    from feeler.calib.neuron.live.table import claims_check, off_plate_note, on_a_plate
     from feeler.calib.neuron.classify import chance_mode_notes
 
     t = decoder.table()
@@ -215,6 +217,10 @@ def _summary(decoder) -> None:
     if late:
         print(f"note: {late} decided scan{'s were' if late > 1 else ' was'} flagged later in the scan (the rest of "
               f"it showed what its first samples had not; see the flag column): those decisions do not hold")
+    off = off_plate_note(sum(decoder.off_plate[k] for k in decoder.rows), len(t), decoder.live.env.plate_sds,
+                         "probabilities and decisions")
+    if off:
+        print(off)
     if "step_mm" in t.columns:                          # a run of other plates than the fit's (another scene)
         plates = np.asarray(decoder.live.plates_mm, float)
         step = t["step_mm"].to_numpy(float)

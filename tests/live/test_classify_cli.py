@@ -283,7 +283,8 @@ def test_a_batch_a_fifth_off_every_plate_is_noted(small_fit, fit_dir, tmp_path, 
     """U_y x 0.7 (a gain inside the response check's x2): some scans read between plates and
     are flagged, and the others are read as usual, some wrong at p >= 0.9 (an outside audit).
     When a fifth or more of a batch of 20 or more lies off every plate, classify says the
-    batch itself is in doubt; the scans as they are, none."""
+    batch itself is in doubt, and so does decode of the same scans; the scans as they are,
+    neither."""
     import pandas as pd
 
     data, res = small_fit
@@ -302,3 +303,13 @@ def test_a_batch_a_fifth_off_every_plate_is_noted(small_fit, fit_dir, tmp_path, 
                                        "batch on another scale (a gain, a unit or a set-up unlike the training's) or "
                                        "of steps the fit was not trained on, so the other scans' probabilities may "
                                        "not hold either"]
+    for name, noted in (("as_is", False), ("gain", True)):
+        assert main(["decode", str(fit_dir), str(tmp_path / f"{name}.csv"), "--n-draws", "40", "--no-progress",
+                     "--out", str(tmp_path / f"d_{name}")]) == 0
+        said = [ln for ln in capsys.readouterr().out.splitlines() if "sds from every trained plate: a batch" in ln]
+        flags = pd.read_csv(tmp_path / f"d_{name}" / "decisions.csv", keep_default_na=False).flag
+        off = int(flags.str.contains("sds from the nearest").sum())
+        assert said == ([f"note: {off} of {n} scans read more than 5 sds from every trained plate: a batch on "
+                         "another scale (a gain, a unit or a set-up unlike the training's) or of steps the fit was "
+                         "not trained on, so the other scans' probabilities and decisions may not hold either"]
+                        if noted else []), (name, off)

@@ -177,6 +177,13 @@ class LiveDecoder:
         return self.dec.steps_mm
 
     @property
+    def off_plate(self) -> bool:
+        """Whether the scan so far reads more than the envelope's ``plate_sds`` from every
+        trained plate (:meth:`~feeler.calib.neuron.decoder.DecoderDraws.plate_distance`; the
+        flag a scan of a step the fit was not trained on gets once its response has peaked)."""
+        return bool(self._answer[3][0] > self.env.plate_sds)
+
+    @property
     def snapped(self) -> bool | None:
         """Whether the scan is read as one that snapped onto the upper level (after
         :meth:`finish`: the mode ``classify`` reads); None when the fit is not two-mode."""

@@ -53,6 +53,7 @@ class RunDecoder:
         self.live, self.on_state, self.on_scan = live, on_state, on_scan
         self.rows: dict[int, dict] = {}
         self.snapped: dict[int, bool | None] = {}      # each scan's mode as read at its end (None: one-mode fit)
+        self.off_plate: dict[int, bool] = {}             # each scan read off every trained plate at its end
         self._key = None
         self._labels: dict = {}
         self.labelled = False
@@ -94,6 +95,7 @@ class RunDecoder:
                "n_samples": end.n, "flagged": bool(end.flags), "flag": "; ".join(end.flags)}
         self.rows[sid] = row
         self.snapped[sid] = self.live.snapped
+        self.off_plate[sid] = self.live.off_plate
         if self.on_scan is not None:
             self.on_scan(row)
         return row

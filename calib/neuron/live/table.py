@@ -12,7 +12,8 @@ import numpy as np
 
 from feeler.errors import DataFileError
 
-__all__ = ["plate_column", "unit_mistake", "labelled_summary", "claims_check", "coverage_note", "on_a_plate"]
+__all__ = ["plate_column", "unit_mistake", "labelled_summary", "claims_check", "coverage_note", "on_a_plate",
+           "off_plate_note", "OFF_PLATE_MIN_SCANS", "OFF_PLATE_SHARE"]
 
 # a labelled batch contradicts the fit when what it claims is this improbable (one-sided)…
 CLAIM_P = 1e-3
@@ -25,6 +26,26 @@ CLAIM_COVERAGE_MIN = 0.85
 CLAIM_COVERAGE_MAX = 0.95
 CLAIM_ACCURACY_SHORT = 0.05
 CLAIM_MIN_SCANS = 20     # fewer usable scans than this: no judgement
+
+
+#: a batch of at least this many scans with this share of them off every trained plate is
+#: itself in doubt: fresh touches of the training plates lie within 4 sds (8200 of the hard
+#: scenes and four-plates: largest 3.9), and U_y × 0.7 on four-plates put 30 of 96 scans
+#: off-plate while 19 of the other 66 were read wrong at p >= 0.9 (an outside audit)
+OFF_PLATE_MIN_SCANS = 20
+OFF_PLATE_SHARE = 0.2
+
+
+def off_plate_note(off: int, n: int, plate_sds: float, what: str = "probabilities") -> str | None:
+    """A note when ``off`` of a batch of ``n`` scans read more than ``plate_sds`` sds from
+    every trained plate and that is :data:`OFF_PLATE_SHARE` or more of a batch of
+    :data:`OFF_PLATE_MIN_SCANS` or more (the batch itself, not only those scans, is then in
+    doubt), else None; ``what`` names the other scans' answers."""
+    if n < OFF_PLATE_MIN_SCANS or off < OFF_PLATE_SHARE * n:
+        return None
+    return (f"note: {off} of {n} scans read more than {plate_sds:g} sds from every trained plate: a batch on "
+            f"another scale (a gain, a unit or a set-up unlike the training's) or of steps the fit was not "
+            f"trained on, so the other scans' {what} may not hold either")
 
 
 def plate_column(step_mm: float) -> str:
