@@ -4,7 +4,9 @@ writes them to ``runs/benchmarks/ratios.csv`` plus one table per benchmark modul
 The demo copies these tables into its run directory for the report's speed/accuracy
 section.
 
-Columns: ratios.csv has ``benchmark, ratio, goal, measured_at`` and, for median
+A run of some benchmarks (one module, ``-k``) replaces their rows of ratios.csv and keeps
+the others, each with the time it was measured at. Columns: ratios.csv has ``benchmark,
+ratio, goal, measured_at`` and, for median
 figures (``_ratios.record_median_ratio``), ``p10, p90, best, load, rounds``;
 ``<module>.csv`` has ``benchmark, min_s, mean_s, rounds, median_s, q1_s, q3_s`` (the
 pytest-benchmark rounds) then each benchmark's ``extra_info`` (median figures as
@@ -52,6 +54,22 @@ def _write_tables(config, stamp: str) -> list[Path]:
     return written
 
 
+RATIO_COLUMNS = ["benchmark", "ratio", "goal", "measured_at", "p10", "p90", "best", "load", "rounds"]
+
+
+def _earlier_rows(path: Path) -> dict[str, list[str]]:
+    """The rows of an earlier ``ratios.csv`` by benchmark name (each keeps its own
+    ``measured_at``); none when there is no such file or it has other columns."""
+    try:
+        with path.open(newline="", encoding="utf-8") as fh:
+            table = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return {}
+    if not table or table[0] != RATIO_COLUMNS:
+        return {}
+    return {row[0]: row for row in table[1:] if len(row) == len(RATIO_COLUMNS)}
+
+
 def pytest_terminal_summary(terminalreporter):
     if not RATIOS:
         return
@@ -63,14 +81,15 @@ def pytest_terminal_summary(terminalreporter):
     OUT.mkdir(parents=True, exist_ok=True)
     path = OUT / "ratios.csv"
     stamp = time.strftime("%Y-%m-%dT%H:%M:%S")
+    rows = _earlier_rows(path)            # a partial run (one module, -k) replaces only what it measured
+    for name, ratio, goal, *extra in RATIOS:
+        e = extra[0] if extra else {}
+        rows[name] = [name, f"{ratio:.6g}", goal, stamp, *(f"{e[k]:.6g}" if k in e else "" for k in ("p10", "p90", "best")),
+                      e.get("load", ""), e.get("rounds", "")]
     with path.open("w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         # ratio: the median ratio for median figures, the best-of ratio for the others
-        w.writerow(["benchmark", "ratio", "goal", "measured_at", "p10", "p90", "best", "load", "rounds"])
-        for name, ratio, goal, *extra in RATIOS:
-            e = extra[0] if extra else {}
-            w.writerow([name, f"{ratio:.6g}", goal, stamp,
-                        *(f"{e[k]:.6g}" if k in e else "" for k in ("p10", "p90", "best")),
-                        e.get("load", ""), e.get("rounds", "")])
+        w.writerow(RATIO_COLUMNS)
+        w.writerows(rows.values())
     for written in [path, *_write_tables(terminalreporter.config, stamp)]:
         terminalreporter.write_line(f"wrote {written}")

@@ -109,8 +109,11 @@ def _bench_blocks(inv, part) -> list:
     stamp = ""
     if "ratios.csv" in names:
         ratios = read_table(inv.run_dir / part.path("ratios.csv"))
-        stamp = str(ratios["measured_at"].iloc[0]) if "measured_at" in ratios and len(ratios) else ""
-    provenance = f"measured by `make bench`{' at ' + stamp if stamp else ''}"
+        stamps = sorted(set(ratios["measured_at"].astype(str))) if "measured_at" in ratios and len(ratios) else []
+        stamp = (f" at {stamps[0]}" if len(stamps) == 1 else
+                 f" in {len(stamps)} runs from {stamps[0]} to {stamps[-1]} (each row's time in ratios.csv)" if stamps
+                 else "")
+    provenance = f"measured by `make bench`{stamp}"
     return [Note(f"Tables of {part.label}: {provenance}.", level="measured",
                  sources=tuple(part.path(n) for n in names))] + _tables(inv, part, names, provenance)
 
