@@ -95,6 +95,24 @@ class Threshold:
     weber: Interval
     found: float
     searched_mm: float = float("nan")
+    curve: dict | None = None
+
+    @staticmethod
+    def curve_of(deltas_mm: np.ndarray, point: np.ndarray, boot: np.ndarray, n_scans: int) -> dict:
+        """The psychometric curve the threshold is read from, per increment ``deltas_mm``:
+        ``pc`` the mean over draws of P(correct) on the touches as simulated (what each
+        draw's crossing is taken on, so the curve crosses 75 % at the threshold) and
+        ``lo95``/``hi95`` the 2.5/97.5 % quantiles of the resampled values (posterior and
+        simulation error, as the threshold's interval; bounded as :meth:`Discriminator.pc`
+        bounds touches that never overlap). Where nearly every pair is told apart, a few
+        draws can put the mean below the resampled quantiles (80 touches: 0.9986 under
+        [0.99999, 1]); the band is then widened to hold it, so the curve stays monotone
+        inside its band."""
+        ivs = [_separated(Interval.of(point[:, k], boot[:, k]), n_scans) for k in range(point.shape[1])]
+        mean = point.mean(axis=0)
+        return {"delta_mm": [float(d) for d in deltas_mm], "pc": [float(v) for v in mean],
+                "lo95": [float(min(iv.lo95, m)) for iv, m in zip(ivs, mean)],
+                "hi95": [float(max(iv.hi95, m)) for iv, m in zip(ivs, mean)]}
 
     @property
     def is_bound(self) -> bool:
@@ -229,7 +247,7 @@ class Discriminator:
         d75 = Interval.of(cross, cross_boot)
         weber = Interval.of(d75.draws / reference_mm, cross_boot / reference_mm)
         return Threshold(reference_mm=float(reference_mm), delta75_mm=d75, weber=weber, found=d75.found,
-                         searched_mm=float(top))
+                         searched_mm=float(top), curve=Threshold.curve_of(deltas, point, boot, self.n_scans))
 
     def pse_range_mm(self, reference_mm: float) -> tuple[float, float]:
         """The heights :meth:`pse` searches by default (mm): the reference ± the reference

@@ -155,10 +155,11 @@ def run(args) -> int:
           f"{args.n_scans} touches per height, {disc.a.size} posterior draws")
     print(RULE)
     pairs = args.pair or list(combinations(sorted(scene.surface.heights_mm), 2))
-    for note in (disc.note, scene_note(result, args.scene), disc.outside_note(args.reference),
-                 disc.outside_note([v for pair in pairs for v in pair], option="--pair")):
-        if note:
-            print(note)
+    outside = [n for n in (disc.outside_note(args.reference),
+                           disc.outside_note([v for pair in pairs for v in pair], option="--pair")) if n]
+    notes = [n for n in (disc.note, scene_note(result, args.scene)) if n] + outside
+    for note in notes:
+        print(note)
     rows = []
     print(f"{'low mm':>8} {'high mm':>8}  P(correct) [95 % interval]   MC se")
     for lo, hi in progress(pairs, desc="2AFC pairs", enabled=args.progress, lines=True):
@@ -189,6 +190,9 @@ def run(args) -> int:
             "pairs": [{k: (_num(v) if isinstance(v, float) else v) for k, v in r.items()} for r in rows],
             "reference_mm": args.reference, "n_scans": args.n_scans, "n_draws": int(disc.a.size),
             "scene": str(args.scene or "recorded in the fit"),
+            # what the command printed before its table (the report shows them), and whether a height
+            # it was asked about lies outside the trained plates (the figures then extrapolate)
+            "notes": notes, "extrapolated": bool(outside),
             "posterior_verdict": result.verdict.as_dict(),     # failed, with --accept-failed: said here too
             # a threshold no draw's median reaches is a bound, "> searched" (as the report reads it),
             # not a zero-width interval at the top of the search
@@ -197,6 +201,7 @@ def run(args) -> int:
                              "median": _num(d.median), "mcse": _num(d.mcse), "searched_mm": th.searched_mm,
                              "hi95_is_bound": bound, "estimate_is_bound": d.median == float("inf")},
             "weber": interval_json(w, median=_num(w.median), hi95_is_bound=bound) | {"mean": _num(w.estimate)},
+            "curve": th.curve,          # the curve the threshold was read from (the report draws it)
             "pse": {"speed_ref_mm_s": v_ref, "speed_test_mm_s": v_test, "mean_mm": _num(pse.estimate),
                     "lo95": _num(pse.lo95), "hi95": _num(pse.hi95), "mcse": _num(pse.mcse), "found": pse.found}})
         print(f"wrote {out / 'discrimination.json'}")

@@ -72,6 +72,11 @@ def test_classify_and_discriminate_use_the_fit(run_and_fit, tmp_path, capsys):
     assert set(d["threshold_mm"]) >= {"mean", "lo95", "hi95", "found", "median", "mcse", "hi95_is_bound"}
     assert set(d["pairs"][0]) >= {"low_mm", "high_mm", "pc", "lo95", "hi95", "mcse"}
     assert d["pairs"][0]["lo95"] <= d["pairs"][0]["pc"] <= d["pairs"][0]["hi95"]
+    # the notes reach the file the report reads (an outside review found the extrapolation said only
+    # on the terminal, and the report marking a threshold outside the plates as reproduced)
+    assert d["extrapolated"] is True
+    assert any(n.startswith("note: pair height 0.25 mm lies outside the plates") for n in d["notes"])
+    assert not any("reference" in n for n in d["notes"])           # the reference, 0.1 mm, is a trained plate
 
 
 def test_refusals_and_errors(run_and_fit, tmp_path, capsys):

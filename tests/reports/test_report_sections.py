@@ -172,14 +172,37 @@ def test_robot_and_human_numbers(run_dir):
     assert "SYNTHETIC — SYNTHETIC" not in notes[0].text and "seed 20040616" in notes[0].text
 
 
-def test_robot_curve_drawn_from_the_demo_file(run_dir):
-    curve = pd.read_csv(run_dir / "discriminate/threshold_curve.csv", comment="#")
+def test_robot_curve_is_the_one_the_threshold_is_read_from(run_dir):
+    """discriminate records the curve it reads its threshold from. An outside review found the
+    demo's curve drawn from 400 touches a height beside a threshold from 1000: it crossed 75 %
+    at 4.24 um under a threshold marked at 4.49 um, its band (posterior only) lay below it and
+    excluded 0.5 at no difference."""
     disc = json.loads((run_dir / "discriminate/discrimination.json").read_text())
-    assert curve["pc"].iloc[0] == pytest.approx(0.5, abs=0.05) and curve["pc"].is_monotonic_increasing
-    # the same touches as the command: the curve crosses 75 % where its threshold lies
-    crossing = np.interp(0.75, curve["pc"], curve["delta_mm"])
-    assert crossing == pytest.approx(disc["threshold_mm"]["mean"], rel=0.15)
+    curve = pd.DataFrame(disc["curve"])
+    assert not (run_dir / "discriminate/threshold_curve.csv").exists()
+    assert curve["lo95"].iloc[0] <= 0.5 <= curve["hi95"].iloc[0] and curve["pc"].is_monotonic_increasing
+    th = disc["threshold_mm"]
+    assert np.interp(0.75, curve["pc"], curve["delta_mm"]) == pytest.approx(th["mean"], rel=0.01)
+    # its band crosses 75 % at the ends of the threshold's interval (both: posterior and simulation error)
+    assert np.interp(0.75, curve["hi95"], curve["delta_mm"]) == pytest.approx(th["lo95"], rel=0.05)
+    assert np.interp(0.75, curve["lo95"], curve["delta_mm"]) == pytest.approx(th["hi95"], rel=0.05)
     assert np.all(curve["lo95"] <= curve["pc"] + 1e-12) and np.all(curve["pc"] <= curve["hi95"] + 1e-12)
+
+
+def test_an_older_output_gets_the_same_curve_from_the_demo_stage(run_dir, tmp_path):
+    """A discrimination.json written before the command recorded its curve: the demo stage
+    computes it as the command does, from the touches and draws the file records."""
+    from feeler.demo.curve import write_threshold_curve
+
+    disc = json.loads((run_dir / "discriminate/discrimination.json").read_text())
+    old = {k: v for k, v in disc.items() if k != "curve"}
+    (tmp_path / "discrimination.json").write_text(json.dumps(old))
+    path = write_threshold_curve(run_dir / "m2", tmp_path)
+    curve = pd.read_csv(path, comment="#")
+    assert f"{disc['n_scans']} touches per height" in path.read_text().splitlines()[0]
+    for column, values in disc["curve"].items():
+        assert np.allclose(curve[column], values, rtol=1e-5, atol=1e-9), column
+    assert write_threshold_curve(run_dir / "m2", run_dir / "discriminate") is None      # it has its curve
 
 
 def test_every_source_is_a_file_of_the_run(report, run_dir):
@@ -189,7 +212,7 @@ def test_every_source_is_a_file_of_the_run(report, run_dir):
         sources |= {s.strip() for s in block.split(",")}
     assert {"four-plates/scans.csv", "m1/posterior.nc", "m4/thresholds.csv", "classify/classification.csv",
             "finger/strain.csv", "skin-ladder/trade.csv", "speed/backends.csv", "finger-route/tau_report.json",
-            "discriminate/threshold_curve.csv"} <= sources
+            "discriminate/discrimination.json"} <= sources
     for s in sources:
         assert (run_dir / s).exists(), s
 
