@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from feeler.reports.model import fmt, interval
-from feeler.reports.stats import bootstrap_interval
+from feeler.reports.stats import bootstrap_interval, pc_interval
 
 __all__ = ["Claim", "MARKS", "paper_claims", "absent"]
 
@@ -114,8 +114,7 @@ def claim_rate_vs_z(inv) -> Claim:
     if min(rate[lo_s].size, rate[hi_s].size) < MIN_SCANS:
         return _too_few(key, claim, paper, crit, [rate[lo_s].size, rate[hi_s].size], rd)
     pc_r, pc_z = proportion_correct(rate[lo_s], rate[hi_s]), proportion_correct(z[lo_s], z[hi_s])
-    ci_r = bootstrap_interval(proportion_correct, [rate[lo_s], rate[hi_s]])
-    ci_z = bootstrap_interval(proportion_correct, [z[lo_s], z[hi_s]])
+    ci_r, ci_z = pc_interval(rate[lo_s], rate[hi_s]), pc_interval(z[lo_s], z[hi_s])
     if ci_z[0] >= 0.75 and pc_r < 0.75 and ci_r[1] < ci_z[0]:
         mark = "reproduced"
     elif ci_r[0] >= 0.75 or ci_z[1] < 0.75:            # U̇_y clearly separates them, or z clearly does not

@@ -33,7 +33,7 @@ def plate_rows(rd, where: tuple = ()) -> tuple:
 
 def _pairs_table(rd, src) -> Table:
     from feeler.datasets import proportion_correct
-    from feeler.reports.stats import bootstrap_interval
+    from feeler.reports.stats import pc_interval
 
     rows = []
     for lo, hi in zip(sorted(rd.steps)[:-1], sorted(rd.steps)[1:]):
@@ -41,7 +41,7 @@ def _pairs_table(rd, src) -> Table:
         cells = []
         for v in (rd.peak_z, rd.peak_rate_uy_mm_s):
             pc = proportion_correct(v[a], v[b])
-            cells.append(interval(pc, *bootstrap_interval(proportion_correct, [v[a], v[b]])))
+            cells.append(interval(pc, *pc_interval(v[a], v[b])))
         rows.append((fmt(lo), fmt(hi), *cells))
     return Table("2AFC proportion correct of adjacent plates (95 % bootstrap intervals over scans)",
                  ("lower mm", "higher mm", "by peak z", "by raw U̇_y peak"), tuple(rows), src,

@@ -10,7 +10,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-__all__ = ["bootstrap_interval", "N_BOOT"]
+__all__ = ["bootstrap_interval", "pc_interval", "N_BOOT"]
 
 N_BOOT = 2000
 
@@ -36,3 +36,24 @@ def bootstrap_interval(stat: Callable[..., float], samples: Sequence[np.ndarray]
     tail = (1.0 - level) / 2
     lo, hi = np.quantile(ok, [tail, 1.0 - tail])
     return float(lo), float(hi)
+
+
+def pc_interval(lower, higher) -> tuple[float, float]:
+    """95 % interval of the proportion of pairs whose ``higher`` value is the larger
+    (:func:`~feeler.datasets.proportion_correct`), by :func:`bootstrap_interval`, except
+    when every pair is told apart (or none is): every resample then says the same, and the
+    interval "1 [1, 1]" claimed a certainty 24 scans a plate cannot give (an outside review
+    of the report). Its lower end is then the bound of n = the smaller plate's scans
+    disjoint pairs all correct (:func:`~feeler.calib.neuron.discriminate.separation_bound`:
+    0.86 at 24)."""
+    from feeler.calib.neuron.discriminate import separation_bound
+    from feeler.datasets import proportion_correct
+
+    a, b = np.asarray(lower, float), np.asarray(higher, float)
+    lo, hi = bootstrap_interval(proportion_correct, [a, b])
+    bound = separation_bound(min(a.size, b.size))
+    if lo >= 1.0:
+        return min(bound, lo), hi
+    if hi <= 0.0:
+        return lo, max(1.0 - bound, hi)
+    return lo, hi

@@ -37,7 +37,7 @@ from feeler.calib.neuron.scene_record import fit_scene_path
 from feeler.calib.neuron.synth import scene_scans
 from feeler.errors import ArgumentError
 
-__all__ = ["Interval", "Discriminator", "Threshold", "proportion_correct"]
+__all__ = ["Interval", "Discriminator", "Threshold", "proportion_correct", "separation_bound"]
 
 
 @dataclass(frozen=True)
@@ -274,6 +274,13 @@ class Discriminator:
     proportion_correct = staticmethod(proportion_correct)
 
 
+def separation_bound(n_scans: int) -> float:
+    """The 97.5 % lower bound of a P(correct) when all n_scans × n_scans pairs of touches
+    are told apart: n of the pairs are disjoint and independent, so all correct has
+    probability at most pⁿ, and p ≥ 0.025^(1/n) (:func:`_separated`)."""
+    return 0.025 ** (1.0 / n_scans)
+
+
 def _separated(iv: Interval, n_scans: int) -> Interval:
     """``iv`` with the Monte Carlo bound of touches that never overlap. When every touch of
     one height lies above every touch of the other, in the simulated set and in every
@@ -281,7 +288,7 @@ def _separated(iv: Interval, n_scans: int) -> Interval:
     [1.0000, 1.0000]", MC se 0. Of the n² pairs, n are disjoint and independent, so all
     pairs correct has probability at most pⁿ, and P(correct) ≥ 0.025^(1/n) at 97.5 %
     (0.29 at n = 3, 0.9963 at 1000); the MC se is then not defined (NaN)."""
-    bound = 0.025 ** (1.0 / n_scans)
+    bound = separation_bound(n_scans)
     if iv.lo95 >= 1.0:
         return replace(iv, lo95=bound, mcse=float("nan"))
     if iv.hi95 <= 0.0:
