@@ -73,7 +73,9 @@ def _plot(path: Path, task: Task, row, data, draws, synthetic: bool) -> None:
     grid = np.linspace(lo - pad, hi + pad, 200)
     p = task.p(grid[None, :], pse[:, None], sig[:, None], lam[:, None])
     band = np.quantile(p, [0.025, 0.5, 0.975], axis=0)
-    fig, ax = plt.subplots(figsize=(4.6, 3.4), dpi=110)
+    # drawn at about the size the report's gallery shows it (two a row, ~3.2 in): at 4.6 in with
+    # 6.5 pt text, four a row, the annotations printed at 3-4 pt (an outside reader of the report)
+    fig, ax = plt.subplots(figsize=(3.3, 2.6), dpi=170)
     ax.fill_between(grid, band[0], band[2], color="C0", alpha=0.25, lw=0, label="95 % band")
     ax.plot(grid, band[1], color="C0", lw=1.5, label="posterior median")
     with np.errstate(invalid="ignore"):
@@ -81,7 +83,7 @@ def _plot(path: Path, task: Task, row, data, draws, synthetic: bool) -> None:
         hi_ci = np.where(k < n, beta.ppf(0.975, k + 1, n - k), 1.0)
     prop = k / n
     ax.errorbar(x, prop, yerr=[prop - lo_ci, hi_ci - prop], fmt="none", ecolor="k", lw=0.8, capsize=2)
-    ax.scatter(x, prop, s=12 + 60 * n / n.max(), color="k", zorder=3, label="data (area ∝ trials)")
+    ax.scatter(x, prop, s=6 + 30 * n / n.max(), color="k", zorder=3, label="data (area ∝ trials)")
     ax.axvline(row.pse_um, color="C1", ls=":", lw=1)
     if np.isfinite(row.threshold_um):
         ax.axvline(row.threshold_um, color="C2", ls="--", lw=1)
@@ -96,9 +98,13 @@ def _plot(path: Path, task: Task, row, data, draws, synthetic: bool) -> None:
            else "population mean: no deviance")
     text = (f"{what} {row.pse_um:.3g} [{row.pse_lb_um:.3g}, {row.pse_ub_um:.3g}] µm\n"
             f"threshold@{row.pc:g} {th['threshold_um']} µm, slope {th['slope_per_um']}/µm\n{fit}")
-    ax.text(0.02, 0.98, text, transform=ax.transAxes, va="top", fontsize=6.5)
-    ax.legend(fontsize=6.5, loc="lower right")
-    ax.title.set_fontsize(8)
+    ax.text(0.02, 0.98, text, transform=ax.transAxes, va="top", fontsize=6.5,
+            bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8, "pad": 1.0})   # over the lines it names
+    ax.legend(fontsize=6, loc="lower right", framealpha=0.8)
+    ax.title.set_fontsize(7.5)
+    ax.xaxis.label.set_fontsize(7.5)
+    ax.yaxis.label.set_fontsize(7.5)
+    ax.tick_params(labelsize=6.5)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
