@@ -176,17 +176,21 @@ def mode_decoders(table, plates: Plates, priors: Priors, noise: str, elpd: np.nd
     leave-one-out densities (:func:`.window.tau_log_weights` on those columns of
     ``elpd``), the sharpness γ is fitted on its own scans' leave-one-out plate
     probabilities, and the whole model is drawn at those windows; :mod:`.decoder` reads a
-    scan of each mode with its mode's draws. The posterior itself (summary, verdict,
+    scan of each mode with its mode's draws. A mode's scans are those read in it as
+    classify reads a new scan, the plate unknown (:attr:`.model.Plates.read`): a flat
+    plate's scan whose noise reads as a snap goes to the snaps' decoder. With every flat
+    scan counted as a ride, the snaps' window and γ were fitted on riser snaps alone (on
+    an untuned random scene: training snaps read at accuracy 1.0, fresh ones at 0.90-0.93). The posterior itself (summary, verdict,
     discriminate) keeps the joint weights. ``cond``: the leave-one-out plate
     probabilities per node (:func:`.window.loo_class_cond`), if the caller has them."""
     from feeler.calib.neuron.grid import sample_grid
 
-    if min(int(plates.snap.sum()), int((~plates.snap).sum())) < MODE_DECODER_MIN:
+    if min(int(plates.read.sum()), int((~plates.read).sum())) < MODE_DECODER_MIN:
         return {}
     if cond is None:
         cond = loo_class_cond(table, plates, noise, growth_max=priors.growth_max)
     out = {}
-    for name, mask in (("ride", ~plates.snap), ("snap", plates.snap)):
+    for name, mask in (("ride", ~plates.read), ("snap", plates.read)):
         log_w = tau_log_weights(elpd[:, mask], rng)
         lp = pooled_class_log_prob(cond, log_w)
         gamma = fit_sharpness(lp[mask], plates.group[mask])
@@ -220,7 +224,7 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
     d = _check_arguments(data, backend, noise)
     start = time.perf_counter()
     table = data.table()
-    plates = Plates.of(d, snap_flags(data.strain, d))
+    plates = Plates.of(d, snap_flags(data.strain, d), snap_flags(data.strain, np.ones(d.size)))
     pri = priors or make_priors(table)
     rng = np.random.default_rng(seed)
     names = data.scan_names if data.scan_names is not None and len(data.scan_names) == d.size else None

@@ -133,21 +133,34 @@ class Plates:
         counts (ndarray[C] int): scans per plate.
         snap (ndarray[n_scans] bool | None): which scans snapped onto the upper level
             (:mod:`.modes`; the ``two-mode`` noise model's cells), None when not read.
+        read_snap (ndarray[n_scans] bool | None): which scans read as snaps when the
+            plate is not known, as ``classify`` reads a new scan (a flat plate's scan never
+            snaps, but its noise can read as a snap): the mode whose decoder, window and γ
+            read it in the leave-one-out (:attr:`read`). None: as ``snap``.
     """
     steps_mm: np.ndarray
     group: np.ndarray
     counts: np.ndarray
     snap: np.ndarray | None = None
+    read_snap: np.ndarray | None = None
 
     @classmethod
-    def of(cls, step_mm, snap=None) -> "Plates":
+    def of(cls, step_mm, snap=None, read_snap=None) -> "Plates":
         steps, group = np.unique(np.asarray(step_mm, float), return_inverse=True)
         return cls(steps_mm=steps, group=group, counts=np.bincount(group, minlength=steps.size),
-                   snap=None if snap is None else np.asarray(snap, bool))
+                   snap=None if snap is None else np.asarray(snap, bool),
+                   read_snap=None if read_snap is None else np.asarray(read_snap, bool))
+
+    @property
+    def read(self) -> np.ndarray | None:
+        """Each scan's mode as a new scan's is read (the plate unknown): ``read_snap``, else ``snap``."""
+        return self.snap if self.read_snap is None else self.read_snap
 
     def subset(self, keep) -> "Plates":
         """The plates of the scans ``keep`` (bool or index array), their modes kept."""
-        return Plates.of(self.steps_mm[self.group[keep]], None if self.snap is None else self.snap[keep])
+        def kept(v):
+            return None if v is None else v[keep]
+        return Plates.of(self.steps_mm[self.group[keep]], kept(self.snap), kept(self.read_snap))
 
     @property
     def x(self) -> np.ndarray:

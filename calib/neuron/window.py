@@ -212,7 +212,7 @@ def loo_two_mode(table: PeakTable, plates: Plates, within: str = "constant", *, 
     empty_r, empty_s = ~np.isfinite(ride), ~np.isfinite(snap)
     ride, s_ride = np.where(empty_r, snap, ride), np.where(empty_r, s_snap, s_ride)
     snap, s_snap = np.where(empty_s, ride, snap), np.where(empty_s, s_ride, s_snap)
-    own = plates.snap[None, :, None]
+    own = plates.read[None, :, None]
     views = np.where(own, snap, ride), np.where(own, s_snap, s_ride)
     if not mixture:
         return views
@@ -303,9 +303,10 @@ def loo_class_cond(table: PeakTable, plates: Plates, noise: str, *, growth_max: 
     pooled = cells.size if cells is not None else nk.shape[1]                      # means fitted
     dof = nk - 1 if noise == "per-plate" else np.full(nk.shape, p.shape[1] - 1.0 - pooled)
     if cells is not None and cells.own_spreads:          # a scan's mode pools its own cells
-        per_mode = np.array([cells.as_plates.counts[cells.mode == k].sum() - 1.0 - np.sum(cells.mode == k)
+        per_mode = np.array([cells.as_plates.counts[cells.mode == k].sum() - np.sum(cells.mode == k)
                              for k in (0, 1)])
-        dof = np.broadcast_to(per_mode[plates.snap.astype(int)][:, None], nk.shape)
+        read = plates.read.astype(int)          # the pool a scan is read by; less itself when it is in it
+        dof = np.broadcast_to((per_mode[read] - (read == plates.snap))[:, None], nk.shape)
     with np.errstate(divide="ignore", invalid="ignore"):
         ll = student_t.logpdf(p, dof, loc=mu, scale=s)
     ll = np.where(np.isfinite(ll), ll, -np.inf)
