@@ -26,7 +26,6 @@ FP, PSY = ("four-plates",), ("finger-route", "m4", "psychophysics")
     (("discriminate",), "discriminate/discrimination.json", b"{not json", "not a readable JSON file"),
     (("discriminate",), "discriminate/discrimination.json", b"[1, 2]", "expected a JSON object"),
     (("discriminate",), "discriminate/discrimination.json", b'{"pairs": []}', "missing key(s) threshold_mm"),
-    (("discriminate",), "discriminate/threshold_curve.csv", b"delta_mm,pc\n0,0.5\n", "a threshold curve needs"),
     (FP, "four-plates/scans.csv", b"scan_id,t_s\n0,0\n", "missing column(s)"),
     (PSY, "finger-route/tau_report.json", b'{"tau_median_s": -1}', "must be > 0"),
     (("finger",), "finger/strain.csv", b"step_um,speed_mm_s,t_s,x_mm,eps_y\n5,20,0,0,0\n", "every step height"),
@@ -42,6 +41,28 @@ def test_corrupt_file_is_named_in_one_line(part_run, tmp_path, parts, rel, conte
     message = str(info.value)
     assert "\n" not in message and rel.split("/")[-1] in message and problem in message
     assert not (tmp_path / "out" / "report.html").exists()
+
+
+@pytest.mark.parametrize("where", ["discrimination.json", "threshold_curve.csv"])
+def test_a_threshold_curve_without_its_columns_is_named(part_run, tmp_path, where):
+    """The curve the threshold was read from, as discriminate records it in its JSON, or in
+    threshold_curve.csv beside an older JSON without it: either without its columns is named."""
+    import json
+
+    run = part_run("discriminate")
+    path = run / "discriminate" / "discrimination.json"
+    obj = json.loads(path.read_text(encoding="utf-8"))
+    bad = {"delta_mm": [0.0], "pc": [0.5]}
+    if where == "discrimination.json":
+        obj["curve"] = bad
+    else:
+        del obj["curve"]
+        (run / "discriminate" / where).write_text("delta_mm,pc\n0,0.5\n", encoding="utf-8")
+    path.write_text(json.dumps(obj), encoding="utf-8")
+    with pytest.raises(DataFileError) as info:
+        build_report(run, tmp_path / "out", pdf=False)
+    message = str(info.value)
+    assert "\n" not in message and where in message and "a threshold curve needs" in message
 
 
 def test_cli_corrupt_netcdf_exit_2(part_run, capsys):

@@ -10,9 +10,11 @@ from feeler.cli import main
 
 def test_the_campaign_ran_every_stage(run_dir):
     printed = (run_dir.parent / "printed.txt").read_text(encoding="utf-8")
-    for heading in ("M1 —", "M2 —", "held-out", "M3 —", "M4 —", "SYNTHETIC", "the curve behind the threshold",
+    for heading in ("M1 —", "M2 —", "held-out", "M3 —", "M4 —", "SYNTHETIC",
                     "measuring small versions now", "skin ladder (two coarse meshes)", "report:"):
         assert heading in printed, heading
+    assert {"delta_mm", "pc", "lo95", "hi95"} <= set(json.loads((run_dir / "discriminate/discrimination.json")
+                                                             .read_text())["curve"])     # the threshold's own curve
     for fit in ("m1", "m2", "m4", "finger-route"):
         assert json.loads((run_dir / fit / "verdict.json").read_text())["ok"], fit
         assert (run_dir / fit / "posterior.nc").stat().st_size > 0
