@@ -2,7 +2,9 @@
 
 Human numbers come from the pooled (``all``) rows of ``thresholds.csv``; when the trials
 say they are synthetic, every row says so: the mark then checks the method on data
-generated with the effect built in, not the paper.
+generated with the effect built in, not the paper, and a mark that would read "reproduced"
+reads "synthetic: self-consistent". A robot threshold that the discrimination file says
+is extrapolated (outside the trained plates) is marked "extrapolated".
 """
 from __future__ import annotations
 
@@ -25,6 +27,15 @@ def _verdict_ok(inv, part) -> bool | None:
 
 def _synthetic(human) -> str:
     return " — SYNTHETIC human data" if human.label else ""
+
+
+def _self_consistent(mark: str, synthetic: bool) -> str:
+    """On synthetic data a check that passes shows the method recovers what was built in."""
+    return "synthetic: self-consistent" if synthetic and mark == "reproduced" else mark
+
+
+#: the run text's tail when the robot's threshold rests on heights outside the trained plates
+EXTRAPOLATED = " — EXTRAPOLATED: outside the plates the fit was trained on (see the discrimination notes)"
 
 
 def human_reference_rows(human):
@@ -55,6 +66,7 @@ def claim_faster_felt_higher(inv) -> Claim:
         else "inconclusive"
     if _verdict_ok(inv, human.m4) is False:
         mark = "inconclusive"
+    mark = _self_consistent(mark, bool(human.label))
     run = (f"PSE of {fmt(std)} µm at {float(r['standard_speed_mm_s']):g} mm/s against "
            f"{float(r['comparison_speed_mm_s']):g} mm/s: {interval(pse, lo, hi)} µm{_synthetic(human)}")
     return Claim(key, claim, paper, run, crit, mark, (human.thresholds_rel,))
@@ -76,6 +88,7 @@ def claim_tau(inv) -> Claim:
     mark = "reproduced" if p >= 0.95 else "not reproduced" if p <= 0.05 else "inconclusive"
     if ok is False:
         mark = "inconclusive"
+    mark = _self_consistent(mark, bool(rep.get("synthetic_data")))
     synthetic = " — SYNTHETIC human data" if rep.get("synthetic_data") else ""
     failed = " — the fit FAILED its diagnostics" if ok is False else ""
     run = (f"τ {interval(float(rep['tau_median_s']) * 1e3, eti[0] * 1e3, eti[1] * 1e3)} ms; "
@@ -100,8 +113,10 @@ def claim_threshold(inv) -> Claim:
     m2 = inv.first("fit", "m2", prefer="m2")
     if _verdict_ok(inv, m2) is False:
         mark = "inconclusive"
+    elif disc.extrapolated:
+        mark = "extrapolated"
     run = (f"{th.text(3, 'µm')} at {fmt(disc.reference_um, 3)} µm (half the reference: {fmt(half, 3)} µm); "
-           f"Weber fraction {disc.weber.text(3)}")
+           f"Weber fraction {disc.weber.text(3)}" + (EXTRAPOLATED if disc.extrapolated else ""))
     return Claim(key, claim, paper, run, crit, mark, (disc.part.path("discrimination.json"),))
 
 
@@ -110,9 +125,11 @@ def claim_weber(inv) -> Claim:
     from feeler.reports.humandata import human_data
 
     key = "weber"
-    claim = "The robot's Weber fraction against the human's (difference threshold / standard)"
-    paper = "human 0.95–2.0 µm for 6.3–25 µm ridges (Miyaoka et al. 1999)"
-    crit = "finding: which is finer, when the 95 % intervals do not overlap"
+    claim = "The robot's difference threshold against the human's, absolute and relative to each standard"
+    paper = ("no number in Ohka et al.; human DT 0.95–2.0 µm (absolute) for 6.3–25 µm ridges, Miyaoka et al. "
+             "1999 (DESIGN §8)")
+    crit = ("finding: which is finer relative to its standard (Weber fraction DT / standard), when the 95 % "
+            "intervals do not overlap; the absolute thresholds beside it")
     disc, human = robot_disc(inv), human_data(inv)
     rows = human_reference_rows(human)
     if disc is None or not rows:
@@ -124,19 +141,26 @@ def claim_weber(inv) -> Claim:
     hw = [v / std for v in dt]
     rw = disc.weber
     if rw.bound == ">" and rw.value > hw[2]:
-        word = "the robot is coarser"
+        word = "relative to its standard the robot is coarser"
     elif not rw.bound and rw.hi < hw[1]:
-        word = "the robot is finer"
+        word = "relative to its standard the robot is finer"
     elif not rw.bound and rw.lo > hw[2]:
-        word = "the robot is coarser"
+        word = "relative to its standard the robot is coarser"
     else:
-        word = "no difference resolved"
+        word = "relative to the standards no difference resolved"
+    th = disc.threshold_um
+    if np.isfinite(th.value) and dt[0] > 0:
+        ratio = th.value / dt[0]
+        word += (f"; in absolute terms its DT is {fmt(ratio, 2)}× the human's" if ratio >= 1 else
+                 f"; in absolute terms its DT is {fmt(1 / ratio, 2)}× finer than the human's")
+        word += f" (standards {fmt(disc.reference_um, 3)} and {fmt(std)} µm)"
     fits = (("the robot's M2 fit", inv.first("fit", "m2", prefer="m2")), ("the human's M4 fit", human.m4))
     failed = [who for who, part in fits if _verdict_ok(inv, part) is False]
     if failed:
         word = f"not compared: {' and '.join(failed)} FAILED its verdict"
-    run = (f"robot {rw.text(3)} at {fmt(disc.reference_um, 3)} µm; human {interval(*hw)} "
-           f"(DT {interval(*dt)} µm at {fmt(std)} µm, {float(r['standard_speed_mm_s']):g} mm/s)"
-           f"{_synthetic(human)}: {word}")
-    return Claim(key, claim, paper, run, crit, "inconclusive" if failed else "finding",
-                 (disc.part.path("discrimination.json"), human.thresholds_rel))
+    mark = "inconclusive" if failed else "extrapolated" if disc.extrapolated else "finding"
+    run = (f"robot DT {th.text(3, 'µm')} at standard {fmt(disc.reference_um, 3)} µm, Weber {rw.text(3)}; "
+           f"human DT {interval(*dt)} µm at standard {fmt(std)} µm ({float(r['standard_speed_mm_s']):g} mm/s), "
+           f"Weber {interval(*hw)}{_synthetic(human)}: {word}"
+           + (EXTRAPOLATED if disc.extrapolated and not failed else ""))
+    return Claim(key, claim, paper, run, crit, mark, (disc.part.path("discrimination.json"), human.thresholds_rel))

@@ -7,6 +7,8 @@ not every posterior draw reaches is a bound: either written so (``"> 25"``, or a
 shown as "> x µm (n % of draws never reach 75 %)". The psychometric curve behind the
 threshold, P(correct) against the height increment with its 95 % band, is read from the
 JSON (``curve`` or ``threshold_curve``) or from ``threshold_curve.csv`` beside it.
+``notes`` (strings) and ``extrapolated`` (the reference or a compared height lies outside
+the plates the fit was trained on) are read when the file has them (older files do not).
 """
 from __future__ import annotations
 
@@ -68,7 +70,8 @@ def estimate(obj, *, mean_key: str = "mean") -> Estimate:
 class RobotDisc:
     """Attributes: part; reference_um; threshold_um, weber, pse_um (:class:`Estimate`);
     pse_speeds (reference, test speed mm/s); pairs (list of dicts); curve (DataFrame with
-    delta_um, pc, lo95, hi95, or None) and curve_rel."""
+    delta_um, pc, lo95, hi95, or None) and curve_rel; notes (the file's notes, str) and
+    extrapolated (True when the file says a height lies outside the trained plates)."""
     part: object
     reference_um: float
     threshold_um: Estimate
@@ -78,6 +81,8 @@ class RobotDisc:
     pairs: list
     curve: object
     curve_rel: str
+    notes: tuple = ()
+    extrapolated: bool = False
 
 
 def _curve(inv, part, obj):
@@ -106,6 +111,12 @@ def _curve(inv, part, obj):
     return out.sort_values("delta_um").reset_index(drop=True), rel
 
 
+def _notes(raw) -> tuple[str, ...]:
+    """The file's notes: a list of strings (one string is taken as one note; absent: none)."""
+    items = [raw] if isinstance(raw, str) else list(raw or [])
+    return tuple(str(n).strip() for n in items if str(n).strip())
+
+
 def _load(inv, part) -> RobotDisc:
     from feeler.reports.readers import read_json
 
@@ -119,7 +130,8 @@ def _load(inv, part) -> RobotDisc:
                      weber=estimate({**obj["weber"], "found": obj["threshold_mm"].get("found")}
                                     if isinstance(obj["weber"], dict) else obj["weber"]),
                      pse_um=pse_est, pse_speeds=speeds, pairs=list(obj["pairs"] or []), curve=curve,
-                     curve_rel=curve_rel)
+                     curve_rel=curve_rel, notes=_notes(obj.get("notes")),
+                     extrapolated=obj.get("extrapolated") is True)
 
 
 def robot_disc(inv) -> RobotDisc | None:

@@ -51,11 +51,12 @@ def _holds(inv) -> str:
 
 
 def front_section(inv) -> Section:
-    from feeler.reports.claims import paper_claims
+    from feeler.reports.claims import MARKS, mark_class, paper_claims
 
     claims = paper_claims(inv)
     counts = Counter(c.mark for c in claims)
-    summary = ", ".join(f"{n} {m}" for m, n in counts.items())
+    order = [m for m in MARKS if m in counts] + [m for m in counts if m not in MARKS]
+    summary = ", ".join(f"{counts[m]} {m}" for m in order)
     verdicts = fit_verdicts(inv)
     failed = sum(not ok for ok, *_ in verdicts)
     blocks = [Note(f"{len(claims)} claims checked: {summary}. Fits: {len(verdicts) - failed} passed"
@@ -65,7 +66,7 @@ def front_section(inv) -> Section:
     sources = tuple(dict.fromkeys(s for c in claims for s in c.sources if s))
     blocks.append(Table("The paper's claims against this run", ("#", "claim (paper)", "paper", "this run [95 % interval]",
                                                                 "criterion", "mark"), rows, sources,
-                        marks=tuple(c.mark.replace(" ", "-") for c in claims)))
+                        marks=tuple(mark_class(c.mark) for c in claims)))
     if verdicts:
         blocks.append(Table("Verdict of every fit", ("fit", "directory", "backend", "verdict"),
                             tuple(r[1:] for r in verdicts), tuple(p.path("verdict.json") for p in inv.of("fit")),
