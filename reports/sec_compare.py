@@ -106,7 +106,7 @@ def _robot(ax, disc, scale: float) -> None:
     if disc.curve is not None:
         c = disc.curve
         ax.fill_between(c["delta_um"] * scale, c["lo95"], c["hi95"], color="C3", alpha=0.2, lw=0)
-        ax.plot(c["delta_um"] * scale, c["pc"], "-", color="C3", label=f"robot at {fmt(disc.reference_um, 3)} µm")
+        ax.plot(c["delta_um"] * scale, c["pc"], "-", color="C3", label=f"robot at {fmt(disc.reference_um, 3)} µm" + (" (EXTRAPOLATED)" if disc.extrapolated else ""))
     th = disc.threshold_um
     if np.isfinite(th.value):
         lo = th.lo if np.isfinite(th.lo) else th.value
@@ -191,14 +191,29 @@ def _human_data_figure(human, fitted: bool = True):
                        "Dots: proportion of trials judging the comparison higher (Wilson 95 % intervals); " + lines)
 
 
+def _pse_means(height_speed, standard_um, standard_speed) -> str:
+    """What a PSE is, in one reading for every row: "height at 1 mm/s felt equal to 100 µm at 0.5 mm/s"."""
+    if height_speed is None or standard_speed is None:
+        return "–"
+    return f"height at {fmt(height_speed)} mm/s felt equal to {fmt(standard_um, 3)} µm at {fmt(standard_speed)} mm/s"
+
+
+#: the PSE column read the same way for robot and human (an outside review read them as opposite)
+PSE_CAPTION = ("PSE: the height at the test or comparison speed felt equal to the reference or standard at its "
+               "speed (column 'PSE is the'). Faster feels higher when the PSE at the faster speed lies below the "
+               "reference (the robot's rows) or the PSE at the slower speed above the standard (the human's).")
+
+
 def _table(disc, human, shown: Shown = Shown()) -> Table:
     rows, src, marks = [], [], []
     if disc is not None:
-        pse = (f"{disc.pse_um.text(3, 'µm')} at {fmt(disc.pse_speeds[1])} mm/s"
-               if disc.pse_um is not None else "–")
-        who = "robot" + ("" if shown.robot else f" — {FAILED_FIT}")
+        pse = disc.pse_um.text(3, "µm") if disc.pse_um is not None else "–"
+        means = (_pse_means(disc.pse_speeds[1], disc.reference_um, disc.pse_speeds[0])
+                 if disc.pse_um is not None else "–")
+        who = ("robot" + (" — EXTRAPOLATED (outside the trained plates)" if disc.extrapolated else "")
+               + ("" if shown.robot else f" — {FAILED_FIT}"))
         rows.append((who, f"reference {fmt(disc.reference_um, 3)} µm", disc.threshold_um.text(3),
-                     disc.weber.text(3), pse))
+                     disc.weber.text(3), pse, means))
         marks.append("" if shown.robot else "failed")
         src.append(disc.part.path("discrimination.json"))
     if human.pooled is not None:
@@ -211,13 +226,21 @@ def _table(disc, human, shown: Shown = Shown()) -> Table:
             marks.append("" if shown.human else "failed")
             rows.append((who, f"{fmt(std)} µm, {condition_words(r['standard_speed_mm_s'], r['comparison_speed_mm_s'])}",
                          interval(*dt), interval(*(np.array(dt) / std)) if np.isfinite(std) else "–",
-                         interval(*pse) + " µm"))
+                         interval(*pse) + " µm",
+                         _pse_means(float(r["comparison_speed_mm_s"]), std, float(r["standard_speed_mm_s"]))))
         src.append(human.thresholds_rel)
     return Table("Difference thresholds (75 % correct), Weber fractions and PSEs, 95 % intervals",
-                 ("who", "reference or standard", "DT (µm)", "Weber DT / reference", "PSE"), tuple(rows), tuple(src),
-                 caption="Robot PSE: the step at the faster scan judged equal to the reference at the slower one."
-                 + ("" if shown.robot and shown.human else f" Rows marked '{FAILED_FIT}' are not results."),
+                 ("who", "reference or standard", "DT (µm)", "Weber DT / reference", "PSE", "PSE is the"),
+                 tuple(rows), tuple(src),
+                 caption=PSE_CAPTION + ("" if shown.robot and shown.human else f" Rows marked '{FAILED_FIT}' are not results."),
                  marks=tuple(marks) if any(marks) else ())
+
+
+#: M3's pairs against the robot section's table (an outside review found two P(correct) for one pair)
+MODEL_PAIRS = ("Model-based (M3): fresh touches simulated from the calibrated model, each posterior draw deciding "
+               "by the larger peak z (one decoder for every touch), with the Monte Carlo and posterior error. "
+               "The robot section's 'empirical' table counts pairs of this run's own scans instead (a few dozen a "
+               "plate, so its interval is wide): the two estimate different things and need not agree.")
 
 
 def compare_section(inv, spec) -> Section:
@@ -227,6 +250,9 @@ def compare_section(inv, spec) -> Section:
     blocks = list(shown.notes)
     if human.label:
         blocks.append(Note(human.label, level="synthetic", sources=(human.trials_rel or human.thresholds_rel,)))
+    if disc is not None and disc.notes:
+        blocks += [Note(n, level="failed" if disc.extrapolated else "info",
+                        sources=(disc.part.path("discrimination.json"),)) for n in disc.notes]
     if (disc is not None and shown.robot) or (human.pooled is not None and shown.human):
         fig, axes = subplots(2, width_in=3.5, height_in=3.1)
         _draw(axes, disc, human, shown)
@@ -248,7 +274,7 @@ def compare_section(inv, spec) -> Section:
     blocks.append(_table(disc, human, shown))
     if disc is not None and len(disc.pairs):
         pairs = "; ".join(f"{fmt(r[0])} vs {fmt(r[1])} mm: {interval(r[2], r[3], r[4], 4)}" for r in pairs_frame(disc))
-        blocks.append(Note(f"Robot, 2AFC P(correct) [95 %] of pairs of plates"
-                           + ("" if shown.robot else f" ({FAILED_FIT})") + f": {pairs}.",
+        blocks.append(Note(f"Robot, model-based 2AFC P(correct) [95 %] of pairs of plates"
+                           + ("" if shown.robot else f" ({FAILED_FIT})") + f": {pairs}. {MODEL_PAIRS}",
                            sources=(disc.part.path("discrimination.json"),)))
     return Section(spec.key, spec.title, tuple(blocks))

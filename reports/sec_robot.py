@@ -43,9 +43,12 @@ def _pairs_table(rd, src) -> Table:
             pc = proportion_correct(v[a], v[b])
             cells.append(interval(pc, *pc_interval(v[a], v[b])))
         rows.append((fmt(lo), fmt(hi), *cells))
-    return Table("2AFC proportion correct of adjacent plates (95 % bootstrap intervals over scans)",
+    return Table("Empirical 2AFC proportion correct of adjacent plates, from these scans (95 % bootstrap intervals "
+                 "over scans)",
                  ("lower mm", "higher mm", "by peak z", "by raw U̇_y peak"), tuple(rows), src,
-                 caption="P(the higher plate's scan gives the larger value) over all pairs of scans.")
+                 caption="P(the higher plate's scan gives the larger value) over all pairs of this run's simulated "
+                         "scans. Not the model-based P(correct) of the discrimination section (M3), which draws fresh "
+                         "touches from the calibrated model: the two estimate different things and need not agree.")
 
 
 def _figures(rd, src) -> list[Figure]:

@@ -1,0 +1,57 @@
+"""Sections an outside review (s49) read page by page: the discrimination file's notes
+(item 2), one reading of the PSE column (item 10), the two P(correct) estimands (item 4)."""
+from __future__ import annotations
+
+import json
+
+from feeler.reports import discover
+from feeler.reports.sec_compare import compare_section
+from feeler.reports.sec_robot import robot_section
+
+NOTE = ("note: reference 0.1 mm lies outside the plates the fit was trained on (0.05-0.0725 mm): its threshold "
+        "and PSE extrapolate the calibration")
+
+
+def _spec(inv, key):
+    return next(s for s in inv.present if s.key == key)
+
+
+def _compare(run):
+    inv = discover(run)
+    return compare_section(inv, _spec(inv, "compare"))
+
+
+def test_every_note_of_the_discrimination_file_is_shown(copy_run):
+    path = copy_run / "discriminate" / "discrimination.json"
+    obj = json.loads(path.read_text())
+    assert "notes" not in obj or not obj["notes"]                # an old file: nothing to show, no failure
+    before = [b.text for b in _compare(copy_run).blocks if b.kind == "note"]
+    path.write_text(json.dumps({**obj, "notes": [NOTE, "note: a second one"], "extrapolated": True}))
+    section = _compare(copy_run)
+    notes = [b for b in section.blocks if b.kind == "note"]
+    assert [n.text for n in notes if n.text not in before] == [NOTE, "note: a second one"]
+    assert all(n.level == "failed" for n in notes if n.text.startswith("note:"))
+    table = next(b for b in section.blocks if b.kind == "table")
+    assert table.rows[0][0] == "robot — EXTRAPOLATED (outside the trained plates)"
+
+
+def test_the_pse_column_reads_the_same_way_for_robot_and_human(run_dir):
+    table = next(b for b in _compare(run_dir).blocks if b.kind == "table")
+    assert table.columns[-2:] == ("PSE", "PSE is the")
+    disc = json.loads((run_dir / "discriminate/discrimination.json").read_text())["pse"]
+    robot = table.rows[0]
+    assert robot[-1] == (f"height at {disc['speed_test_mm_s']:g} mm/s felt equal to 100 µm at "
+                         f"{disc['speed_ref_mm_s']:g} mm/s")
+    assert " at " not in robot[-2]                     # the speed moved to its own column
+    cross = [r for r in table.rows[1:] if "standard at 40 mm/s vs comparison at 20 mm/s" in r[1]]
+    assert cross and all(r[-1] == "height at 20 mm/s felt equal to 10 µm at 40 mm/s" for r in cross)
+    assert "Faster feels higher when" in table.caption
+
+
+def test_the_two_pc_estimands_are_named_and_told_apart(run_dir):
+    inv = discover(run_dir)
+    robot = robot_section(inv, _spec(inv, "robot:four-plates"))
+    pairs = next(b for b in robot.blocks if b.kind == "table" and "adjacent plates" in b.title)
+    assert pairs.title.startswith("Empirical 2AFC") and "model-based" in pairs.caption
+    m3 = next(b for b in _compare(run_dir).blocks if b.kind == "note" and "pairs of plates" in b.text)
+    assert m3.text.startswith("Robot, model-based 2AFC P(correct)") and "'empirical' table" in m3.text
