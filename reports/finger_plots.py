@@ -10,7 +10,7 @@ import numpy as np
 
 from feeler.reports.model import log_axis, subplots
 
-__all__ = ["fig3", "fig3_detail", "fig4", "fig5", "fig6", "ladder_trade", "SPEED_STYLE"]
+__all__ = ["fig3", "fig3_detail", "fig4", "fig5", "fig6", "ladder_trade", "mesh_name", "SPEED_STYLE"]
 
 #: per speed index: (marker, line style, marker face) so that coinciding points stay visible
 SPEED_STYLE = (("o", "-", "none"), ("s", "--", "full"), ("^", "-.", "none"), ("D", ":", "full"))
@@ -110,21 +110,30 @@ def fig6(taus, heights, speeds, accepted, human=()):
     return fig
 
 
-def ladder_trade(rows):
-    """Seconds per slide against the peak strain-rate error to converged L2, log–log.
+def mesh_name(mesh: str, converged: bool | None) -> str:
+    """The study's finest mesh is named "converged" in its files; called so only when its
+    convergence goal was met (``converged`` False: "finest"; None: not known, as named)."""
+    return "finest" if mesh == "converged" and converged is False else mesh
+
+
+def ladder_trade(rows, converged: bool | None = None):
+    """Seconds per slide against the peak strain-rate error to the L2 reference, log–log.
 
     Args:
         rows: (level, mesh, seconds_per_slide, rate_error) per ladder rung; an error of
             0 (the reference itself) is drawn at the axis floor and said so.
+        converged: the study's verdict on mesh convergence (ladder.json ``met``); False
+            labels the "converged" mesh "finest" (:func:`mesh_name`).
     """
     fig, ax = subplots(width_in=5.6, height_in=3.0)
     errors = np.array([r[3] for r in rows], float)
     floor = max(np.min(errors[errors > 0]) / 3, 1e-6) if np.any(errors > 0) else 1e-4
     markers = {"l2": "s", "l1": "o", "l0": "^", "l0-fitted": "v"}
     for k, (level, mesh, secs, err) in enumerate(rows):
-        ref = " = reference" if err <= 0 else ""
-        ax.plot(secs, max(err, floor), markers.get(level, "D"), color=f"C{k % 10}", ms=6,
-                label=f"{level.upper()} ({mesh}){ref}")
+        name = mesh_name(mesh, converged)
+        label = (f"{level.upper()} ({name}, reference)" if err <= 0 and converged is False else
+                 f"{level.upper()} ({name})" + (" = reference" if err <= 0 else ""))
+        ax.plot(secs, max(err, floor), markers.get(level, "D"), color=f"C{k % 10}", ms=6, label=label)
     log_axis(ax, "x")
     log_axis(ax, "y")
     ax.set(xlabel="seconds per slide", ylabel="peak strain-rate error vs L2 reference",

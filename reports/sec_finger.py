@@ -101,16 +101,22 @@ def ladder_blocks(inv, part) -> list:
                        ("seconds_per_slide", "rate_error"))
     info = read_json(inv.run_dir / part.path("ladder.json")) if inv.has(part.path("ladder.json")) else {}
     where = str(info.get("measured", "by `feeler skin ladder`" + (" --small" if info.get("small") else "")))
+    met = info.get("met")
+    converged = bool(met["convergence"]) if isinstance(met, dict) and "convergence" in met else None
     rows = [(r.level, r.mesh, r.seconds_per_slide, r.rate_error) for r in trade.itertuples(index=False)]
-    blocks = [make_figure("The skin fidelity ladder: seconds per slide against error", fp.ladder_trade(rows), (rel,),
-                          "Error of the peak strain rate against the reference (L2 on the finest mesh)."),
+    shown = trade.assign(level=trade["level"].astype(str).str.upper(),
+                         mesh=[fp.mesh_name(str(m), converged) for m in trade["mesh"]])
+    finest = (" Mesh 'finest' is the study's finest, named 'converged' in its files: its convergence goal was NOT "
+              "met." if converged is False and (trade["mesh"] == "converged").any() else "")
+    blocks = [make_figure("The skin fidelity ladder: seconds per slide against error", fp.ladder_trade(rows, converged),
+                          (rel,), "Error of the peak strain rate against the reference (L2 on the finest mesh)."
+                          + finest),
               Note(f"Measured {where}; the reference is L2 on the finest mesh of the study. Seconds per slide "
                    "exclude each level's one-off setup (its own column).", level="measured", sources=(rel,)),
-              table_from_frame(trade, title="Trade table", sources=(rel,))]
+              table_from_frame(shown, title="Trade table", sources=(rel,), caption=finest.strip())]
     conv = part.path("convergence.csv")
     if inv.has(conv):
         blocks.append(table_from_frame(read_table(inv.run_dir / conv), title="L2 mesh convergence", sources=(conv,)))
-    met = info.get("met")
     if isinstance(met, dict):
         words = "; ".join(f"{k.replace('_', ' ')}: {'met' if v else 'NOT met'}" for k, v in met.items())
         size = info.get("size", "small" if info.get("small") else "full")

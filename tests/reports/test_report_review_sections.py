@@ -55,3 +55,29 @@ def test_the_two_pc_estimands_are_named_and_told_apart(run_dir):
     assert pairs.title.startswith("Empirical 2AFC") and "model-based" in pairs.caption
     m3 = next(b for b in _compare(run_dir).blocks if b.kind == "note" and "pairs of plates" in b.text)
     assert m3.text.startswith("Robot, model-based 2AFC P(correct)") and "'empirical' table" in m3.text
+
+
+def _ladder(run, converged):
+    from feeler.reports.sec_finger import ladder_blocks
+
+    path = run / "skin-ladder" / "ladder.json"
+    info = json.loads(path.read_text())
+    path.write_text(json.dumps({**info, "met": {**info.get("met", {}), "convergence": converged}}))
+    inv = discover(run)
+    return ladder_blocks(inv, inv.first("ladder"))
+
+
+def test_the_ladder_calls_its_finest_mesh_converged_only_when_the_verdict_says_so(copy_run):
+    from feeler.reports.finger_plots import ladder_trade
+
+    rows = [("l2", "converged", 0.3, 0.0), ("l1", "converged", 0.002, 0.018), ("l0", "closed form", 2e-4, 0.34)]
+    labels = [t.get_text() for t in ladder_trade(rows, converged=False).legends[0].get_texts()]
+    assert labels[:2] == ["L2 (finest, reference)", "L1 (finest)"] and not any("converged" in t for t in labels)
+    labels = [t.get_text() for t in ladder_trade(rows, converged=True).legends[0].get_texts()]
+    assert labels[0] == "L2 (converged) = reference"
+    blocks = _ladder(copy_run, False)
+    table = next(b for b in blocks if b.kind == "table" and b.title == "Trade table")
+    assert not any("converged" in cell for row in table.rows for cell in row)
+    assert ("L2", "finest") == table.rows[0][:2] and "NOT met" in table.caption
+    table = next(b for b in _ladder(copy_run, True) if b.kind == "table" and b.title == "Trade table")
+    assert ("L2", "converged") == table.rows[0][:2]
