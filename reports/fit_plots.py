@@ -205,7 +205,17 @@ def _m1(inv, result, draws, sampler, src) -> list:
     return out
 
 
-def _m4(result, draws, attrs, labels, src) -> list:
+#: title tail and caption head of a figure drawn from synthetic human data (the banner promises it)
+SYNTHETIC_TITLE, SYNTHETIC_CAPTION = " (SYNTHETIC human data)", "SYNTHETIC human data, not measurements. "
+
+
+def _synthetic_inv(inv) -> bool:
+    from feeler.reports.humandata import human_data
+
+    return bool(human_data(inv).label)
+
+
+def _m4(result, draws, attrs, labels, src, synthetic: bool = False) -> list:
     conds = conditions_of(attrs)
     fig, axes = subplots(3, width_in=7.0 / 3, height_in=1.9)
     for ax, var, xl in zip(axes, ("pse_all", "dt_all"), ("PSE (µm)", "DT (µm)")):
@@ -220,8 +230,9 @@ def _m4(result, draws, attrs, labels, src) -> list:
     axes[2].set(xlabel="lapse rate (pooled)", yticks=[])
     for ax in axes:
         ax.tick_params(labelsize=6)
-    out = [make_figure("Pooled PSE and difference threshold per condition", fig, src,
-                       "All subjects pooled (the section's estimands); draws pooled over chains.")]
+    title, head = (SYNTHETIC_TITLE, SYNTHETIC_CAPTION) if synthetic else ("", "")
+    out = [make_figure("Pooled PSE and difference threshold per condition" + title, fig, src,
+                       head + "All subjects pooled (the section's estimands); draws pooled over chains.")]
     subjects = _json(attrs.get("subjects"), [])
     fig, axes = subplots(2, width_in=3.5, height_in=min(0.2 * max(len(subjects) * len(conds), 4) + 0.9, 3.6))
     for ax, var, xl in zip(axes, ("pse", "dt"), ("PSE (µm)", "difference threshold (µm)")):
@@ -245,12 +256,12 @@ def _m4(result, draws, attrs, labels, src) -> list:
         ax.set(xlabel=xl)
         ax.tick_params(axis="x", labelsize=6)
         ax.legend(fontsize=5)
-    out.append(make_figure("Every subject's PSE and difference threshold", fig, src,
-                           "Mean and 95 % interval per subject and condition; shaded: the pooled 95 % interval."))
+    out.append(make_figure("Every subject's PSE and difference threshold" + title, fig, src,
+                           head + "Mean and 95 % interval per subject and condition; shaded: the pooled 95 % interval."))
     return out
 
 
-def _finger_route(draws, attrs, src) -> list:
+def _finger_route(draws, attrs, src, synthetic: bool = False) -> list:
     fig, axes = subplots(3, width_in=7.0 / 3, height_in=1.9)
     grid, dens = _json(attrs.get("tau_grid_s"), []), _json(attrs.get("tau_marginal"), [])
     if grid and len(grid) == len(dens):
@@ -268,8 +279,9 @@ def _finger_route(draws, attrs, src) -> list:
         ax.set(xlabel=_UNITS[name], yticks=[])
     for ax in axes:
         ax.tick_params(labelsize=6)
-    return [make_figure("Posterior of τ, σ_d and the lapse", fig, src,
-                        "τ: the grid's marginal density (normalised to its peak); σ_d and lapse: draws pooled. "
+    title, head = (SYNTHETIC_TITLE, SYNTHETIC_CAPTION) if synthetic else ("", "")
+    return [make_figure("Posterior of τ, σ_d and the lapse" + title, fig, src,
+                        head + "τ: the grid's marginal density (normalised to its peak); σ_d and lapse: draws pooled. "
                         "κ is a function of τ and is not drawn.")]
 
 
@@ -283,10 +295,10 @@ def plots_of(inv, part, result, attrs, *, sampler: bool) -> list:
         out = _m1(inv, result, draws, sampler, src)
         key = ["C[0,0]", "C[1,1]", "C[2,2]", "sigma_n[0]", "sigma_n[1]", "sigma_n[2]"]
     elif part.model == "m4":
-        out = _m4(result, draws, attrs, labels, src)
+        out = _m4(result, draws, attrs, labels, src, _synthetic_inv(inv))
         key = [n for n in draws if n.startswith(("pse_all", "dt_all", "lapse_all"))][:_PER_FIG]
     elif part.model == "finger-route":
-        out = _finger_route(draws, attrs, src)
+        out = _finger_route(draws, attrs, src, _synthetic_inv(inv))
         key = [n for n in ("tau_s", "sigma_d_um", "lapse") if n in draws]
     else:
         names = [n for n in result.summary["name"] if n in draws]
@@ -333,7 +345,7 @@ def finger_route_fig6(inv, tau_s: float, level: str, tau_rel: str):
     ax.set(xlabel="presented step height (µm)", ylabel="accepted step height (µm)",
            title=f"At the fitted τ = {tau_s * 1e3:.0f} ms (skin {level.upper()})")
     ax.legend(fontsize=6)
-    return make_figure("Accepted against presented step height at the fitted τ", fig,
-                       (tau_rel, human.thresholds_rel) + ((human.trials_rel,) if human.trials_rel else ()),
-                       "Line: κ(τ)·peak z of the finger chain at the posterior median τ; squares: pooled human "
+    return make_figure("Accepted against presented step height at the fitted τ" + (SYNTHETIC_TITLE if tag else ""),
+                       fig, (tau_rel, human.thresholds_rel) + ((human.trials_rel,) if human.trials_rel else ()),
+                       (SYNTHETIC_CAPTION if tag else "") + "Line: κ(τ)·peak z of the finger chain at the posterior median τ; squares: pooled human "
                        "PSEs of the standard (95 % intervals).")

@@ -17,6 +17,8 @@ from feeler.reports.readers import load_fit
 __all__ = ["fit_section", "SAMPLERS", "summary_table"]
 
 SAMPLERS = ("nuts", "emcee", "pymc", "mcmc")
+#: fits of the human 2AFC trials: labelled SYNTHETIC when the trials are
+HUMAN_MODELS = ("m4", "finger-route")
 
 
 def _is_sampler(backend: str) -> bool:
@@ -78,6 +80,13 @@ def fit_section(inv, spec) -> Section:
         blocks = [Note("Verdict: FAILED — do not use this posterior. " + "; ".join(verdict.problems),
                        level="failed", sources=(verdict_rel,))]
     attrs = dict(result.posterior["posterior"].attrs)
+    if part.model in HUMAN_MODELS:
+        from feeler.reports.humandata import human_data
+
+        label = human_data(inv).label
+        if label:
+            blocks.append(Note(f"Fitted to {label}", level="synthetic",
+                               sources=(human_data(inv).trials_rel or human_data(inv).thresholds_rel,)))
     blocks += plots_of(inv, part, result, attrs, sampler=_is_sampler(result.backend))
     blocks += _ppc_note(attrs, post_rel) + _reading_note(attrs, post_rel)
     blocks.append(summary_table(result, labels_of(part.model, attrs, result.summary["name"]),

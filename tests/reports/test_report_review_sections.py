@@ -81,3 +81,16 @@ def test_the_ladder_calls_its_finest_mesh_converged_only_when_the_verdict_says_s
     assert ("L2", "finest") == table.rows[0][:2] and "NOT met" in table.caption
     table = next(b for b in _ladder(copy_run, True) if b.kind == "table" and b.title == "Trade table")
     assert ("L2", "converged") == table.rows[0][:2]
+
+
+def test_human_fits_carry_the_synthetic_label_in_text_and_figures(run_dir):
+    from feeler.reports.sec_fits import fit_section
+
+    inv = discover(run_dir)
+    for key in ("fit:m4", "fit:finger-route"):
+        section = fit_section(inv, _spec(inv, key))
+        notes = [b for b in section.blocks if b.kind == "note" and b.level == "synthetic"]
+        assert notes and notes[0].text.startswith("Fitted to SYNTHETIC human data"), key
+        figures = [b for b in section.blocks if b.kind == "figure"]
+        assert figures and all("SYNTHETIC" in f.title and f.caption.startswith("SYNTHETIC") for f in figures), \
+            [(f.title, f.caption[:40]) for f in figures]
