@@ -20,7 +20,8 @@ import numpy as np
 
 from feeler.reports.model import Figure, Note, log_axis, make_figure, subplots
 
-__all__ = ["labels_of", "plots_of", "finger_route_fig6", "conditions_of", "split_finite", "NO_FINITE"]
+__all__ = ["labels_of", "plots_of", "finger_route_fig6", "conditions_of", "split_finite", "NO_FINITE",
+           "fixed_and_copies"]
 
 _UNITS = {"a": "a (mm per unit strain)", "tau_s": "τ (s)", "h": "h (mm)", "sigma_mm": "σ (mm)",
           "sigma_d_um": "σ_d (µm)", "lapse": "lapse", "cond_C": "cond(C)", "lapse_all": "lapse (pooled)"}
@@ -40,6 +41,23 @@ def split_finite(draws: dict) -> tuple[dict, list[str]]:
         else:
             empty.append(name)
     return kept, empty
+
+
+def fixed_and_copies(draws: dict, names) -> tuple[dict, dict]:
+    """({name: value} of entries equal at every draw, {name: earlier name} of entries equal
+    draw for draw to an earlier one): neither gets a panel of its own."""
+    fixed, copies, seen = {}, {}, []
+    for name in names:
+        x = np.asarray(draws[name], float)
+        if x.size and np.all(x == x.flat[0]):
+            fixed[name] = float(x.flat[0])
+            continue
+        twin = next((n for n in seen if np.shape(draws[n]) == x.shape and np.array_equal(draws[n], x)), None)
+        if twin is None:
+            seen.append(name)
+        else:
+            copies[name] = twin
+    return fixed, copies
 
 
 def _finite(x) -> np.ndarray:
@@ -302,10 +320,16 @@ def plots_of(inv, part, result, attrs, *, sampler: bool) -> list:
         key = [n for n in ("tau_s", "sigma_d_um", "lapse") if n in draws]
     else:
         names = [n for n in result.summary["name"] if n in draws]
+        fixed, copies = fixed_and_copies(draws, names)
+        names = [n for n in names if n not in fixed and n not in copies]
         out = [_marginals(draws, names[i:i + _PER_FIG], labels, per_chain=sampler, src=src,
                           title="Marginal posteriors" + (f" ({i // _PER_FIG + 1})" if len(names) > _PER_FIG else ""))
                for i in range(0, len(names), _PER_FIG)]
         key = names[:_PER_FIG]
+        if fixed or copies:
+            words = [f"{labels.get(n, n)} = {v:g} at every draw (fixed)" for n, v in fixed.items()]
+            words += [f"{labels.get(n, n)} equals {labels.get(t, t)} draw for draw" for n, t in copies.items()]
+            out.append(Note("Not drawn: " + "; ".join(words) + ".", sources=src))
     if empty:
         out.insert(0, Note(f"{', '.join(labels.get(n, n) for n in empty)}: {NO_FINITE}.", level="failed",
                            sources=src))

@@ -10,11 +10,12 @@ pooled, and a grid's own marginal is drawn as the curve it is.
 from __future__ import annotations
 
 import json
+import re
 
 from feeler.reports.model import Note, Section, Table, fmt, interval
 from feeler.reports.readers import load_fit
 
-__all__ = ["fit_section", "SAMPLERS", "summary_table"]
+__all__ = ["fit_section", "SAMPLERS", "summary_table", "readable_prior", "independent_draws"]
 
 SAMPLERS = ("nuts", "emcee", "pymc", "mcmc")
 #: fits of the human 2AFC trials: labelled SYNTHETIC when the trials are
@@ -25,20 +26,68 @@ def _is_sampler(backend: str) -> bool:
     return any(s in backend.lower() for s in SAMPLERS)
 
 
-def summary_table(result, labels: dict, src: str) -> Table:
-    """Mean, sd, 95 % interval, R-hat and ESS of every parameter entry, named by ``labels``."""
+def _fixed(r) -> bool:
+    """An entry with the same value at every draw (sd 0, its interval one point): the
+    verdict skips it (calib.diagnostics), and R-hat and ESS mean nothing for it."""
+    lo, hi = r.get("eti95_lb", r["mean"]), r.get("eti95_ub", r["mean"])
+    return r.get("sd") == 0 and lo == hi == r["mean"]
+
+
+#: the verdict's rule per kind of fit (calib.diagnostics.diagnose; calib.psychometric.independent)
+RULE_JUDGED = ("A fit passes with R-hat ≤ 1.01 and bulk ESS ≥ 400 for every entry (fixed ones excepted) and no "
+               "divergences.")
+RULE_JUDGED_DRAWS = ("A fit passes with R-hat ≤ 1.01 and bulk ESS ≥ 400 for every entry (fixed ones excepted), "
+                     "estimated here from independent draws, and no divergences.")
+RULE_INDEPENDENT = ("Independent draws: the verdict does not judge the R-hat and ESS shown (R-hat is noise for them, "
+                    "their ESS is their number); it needs at least 400 draws in all and passes the model's own "
+                    "checks.")
+
+
+def independent_draws(model: str, backend: str) -> bool:
+    """True for fits judged by their number of draws: M4 and the finger route without NUTS
+    (calib.psychometric's independent_result); M1 and M2 are judged by R-hat and ESS."""
+    return model in ("m4", "finger-route") and "nuts" not in backend.lower()
+
+
+def summary_table(result, labels: dict, src: str, model: str = "") -> Table:
+    """Mean, sd, 95 % interval, R-hat and ESS of every parameter entry, named by ``labels``;
+    a fixed entry shows "fixed" and no R-hat or ESS; the caption states the verdict's rule
+    for this fit's model and backend."""
     s = result.summary
     has = set(s.columns)
     rows = []
     for _, r in s.iterrows():
+        if _fixed(r):
+            rows.append((labels.get(r["name"], r["name"]), f"{fmt(r['mean'], 4)} (fixed)", "0", "—", "—", "—"))
+            continue
         ci = interval(r["mean"], r.get("eti95_lb"), r.get("eti95_ub"), 4) if {"eti95_lb", "eti95_ub"} <= has \
             else fmt(r["mean"])
         rows.append((labels.get(r["name"], r["name"]), ci, fmt(r.get("sd"), 3), fmt(r.get("r_hat"), 4),
                      fmt(r.get("ess_bulk"), 4), fmt(r.get("ess_tail"), 4)))
+    rule = (RULE_INDEPENDENT if independent_draws(model, result.backend) else
+            RULE_JUDGED if _is_sampler(result.backend) else RULE_JUDGED_DRAWS)
     return Table("Posterior summary and diagnostics", ("parameter", "mean [95 % interval]", "sd", "R-hat",
                                                        "ESS bulk", "ESS tail"), tuple(rows), (src,),
-                 caption="Equal-tailed intervals. A fit passes with R-hat ≤ 1.01 and bulk ESS ≥ 400 for every "
-                         "entry and no divergences.")
+                 caption="Equal-tailed intervals. " + rule
+                 + (" fixed: the same value at every draw (no R-hat or ESS)." if any(r[1].endswith("(fixed)")
+                                                                                  for r in rows) else ""))
+
+
+_MATRIX = re.compile(r"\[\s*\[[-+0-9.eE,\s\[\]]*\]\s*\]")
+
+
+def _matrix_text(match) -> str:
+    """A NumPy repr "[[4., 0.], [0., 5.]]" as rows "(4 0; 0 5)"."""
+    rows = re.findall(r"\[([^\[\]]*)\]", match.group(0))
+    cells = [[fmt(float(x), 4) for x in re.split(r"[,\s]+", r.strip()) if x] for r in rows]
+    return "(" + "; ".join(" ".join(c) for c in cells) + ")"
+
+
+def readable_prior(text: str) -> str:
+    """A prior as written by the fit, with matrices as rows "(4 0 0; 0 5 0; 0 0 4)" and
+    "um" as "µm"."""
+    text = _MATRIX.sub(_matrix_text, text)
+    return re.sub(r"(?<=\d) um\b", " µm", text)
 
 
 def _ppc_note(attrs, src) -> list:
@@ -90,9 +139,9 @@ def fit_section(inv, spec) -> Section:
     blocks += plots_of(inv, part, result, attrs, sampler=_is_sampler(result.backend))
     blocks += _ppc_note(attrs, post_rel) + _reading_note(attrs, post_rel)
     blocks.append(summary_table(result, labels_of(part.model, attrs, result.summary["name"]),
-                                part.path("summary.csv")))
+                                part.path("summary.csv"), part.model))
     if result.priors:
-        rows = tuple((str(k), str(v)) for k, v in result.priors.items())
+        rows = tuple((readable_prior(str(k)), readable_prior(str(v))) for k, v in result.priors.items())
         blocks.append(Table("Priors", ("parameter", "prior"), rows, (post_rel,)))
     if part.model == "finger-route" and inv.has(part.path("tau_report.json")):
         blocks += _tau_blocks(inv, part)

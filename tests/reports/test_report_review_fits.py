@@ -1,0 +1,59 @@
+"""Fit sections an outside review (s49) read: a fixed parameter with ESS values and its own
+empty panel (item 13), a NumPy repr in the priors (item 18), a footnote stating a rule the
+fit's backend is not judged by (item 20)."""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from feeler.reports import discover
+from feeler.reports.fit_plots import fixed_and_copies
+from feeler.reports.sec_fits import RULE_INDEPENDENT, fit_section, independent_draws, readable_prior
+
+
+def _section(run_dir, key):
+    inv = discover(run_dir)
+    return fit_section(inv, next(s for s in inv.present if s.key == key))
+
+
+def _table(section, title):
+    return next(b for b in section.blocks if b.kind == "table" and b.title == title)
+
+
+def test_fixed_and_copied_entries_are_found():
+    x = np.random.default_rng(1).normal(size=(2, 50))
+    draws = {"a": x, "fixed": np.zeros((2, 50)), "copy": x.copy(), "other": x + 1}
+    assert fixed_and_copies(draws, list(draws)) == ({"fixed": 0.0}, {"copy": "a"})
+
+
+def test_a_fixed_parameter_gets_no_diagnostics_and_no_panel(run_dir):
+    section = _section(run_dir, "fit:m2")
+    rows = {r[0]: r for r in _table(section, "Posterior summary and diagnostics").rows}
+    fixed = [r for r in rows.values() if r[1].endswith("(fixed)")]
+    assert fixed and all(r[3:] == ("—", "—", "—") for r in fixed)
+    assert "plate_snap_mm[0]" in [r[0] for r in fixed]
+    note = next(b for b in section.blocks if b.kind == "note" and b.text.startswith("Not drawn: "))
+    assert "plate_snap_mm[0] = 0 at every draw (fixed)" in note.text
+    assert re.search(r"plate_\w+_sd_mm\[0\] equals plate_\w*sd_mm\[0\] draw for draw", note.text), note.text
+
+
+def test_priors_show_matrices_as_rows():
+    text = "K0 = [[4., 0., 0.], [0., 5., 0.], [0., 0., 4.]] N/mm"
+    assert readable_prior(text) == "K0 = (4 0 0; 0 5 0; 0 0 4) N/mm"
+    assert readable_prior("pse[10 um, 20/20 mm/s]") == "pse[10 µm, 20/20 mm/s]"
+
+
+def test_the_demo_priors_hold_no_numpy_repr(run_dir):
+    cells = [c for r in _table(_section(run_dir, "fit:m1"), "Priors").rows for c in r]
+    assert not any("[[" in c or "4.," in c for c in cells) and any("(4 0 0; 0 5 0; 0 0 4)" in c for c in cells)
+
+
+def test_the_footnote_states_the_rule_of_the_fits_backend(run_dir):
+    assert independent_draws("m4", "exact (adaptive grid)") and independent_draws("finger-route", "grid (l0)")
+    assert not independent_draws("m4", "nuts") and not independent_draws("m1", "exact")
+    for key in ("fit:m4", "fit:finger-route"):
+        caption = _table(_section(run_dir, key), "Posterior summary and diagnostics").caption
+        assert RULE_INDEPENDENT in caption and "A fit passes with R-hat" not in caption, key
+    caption = _table(_section(run_dir, "fit:m1"), "Posterior summary and diagnostics").caption
+    assert "A fit passes with R-hat ≤ 1.01 and bulk ESS ≥ 400" in caption and "independent draws" in caption
