@@ -16,7 +16,7 @@ from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Callable
 
-__all__ = ["Figure", "Gallery", "Table", "Note", "Section", "subplots", "make_figure", "fmt", "interval", "log_axis",
+__all__ = ["Figure", "Gallery", "Table", "Note", "Section", "subplots", "make_figure", "fmt", "fmt_sig", "interval", "log_axis",
            "report_style", "STYLE", "on_figure",
            "table_from_frame", "DPI"]
 
@@ -210,10 +210,25 @@ def fmt(value, digits: int = 4) -> str:
     return str(value)
 
 
+def fmt_sig(value, digits: int = 4) -> str:
+    """Like :func:`fmt`, but a float keeps its ``digits`` significant figures, trailing
+    zeros included ("11.0", "2.00", "0.9963"): an estimate and its interval then read with
+    the same precision."""
+    if value is None or isinstance(value, bool) or not isinstance(value, (int, float)) and not hasattr(value, "dtype"):
+        return fmt(value, digits)
+    x = float(value)
+    if not math.isfinite(x) or (x == int(x) and not isinstance(value, float) and "float" not in str(getattr(value, "dtype", ""))):
+        return fmt(value, digits)
+    text = f"{x:#.{digits}g}"
+    mantissa, e, exponent = text.partition("e")
+    return mantissa.rstrip(".") + e + exponent
+
+
 def interval(mean, lo, hi, digits: int = 3, unit: str = "") -> str:
-    """``"4.39 [4.16, 4.59] µm"``: an estimate with its interval."""
+    """``"4.39 [4.16, 4.59] µm"``: an estimate with its interval, each to ``digits``
+    significant figures ("10.8 [10.5, 11.0]", not "10.8 [10.5, 11]")."""
     tail = f" {unit}" if unit else ""
-    return f"{fmt(mean, digits)} [{fmt(lo, digits)}, {fmt(hi, digits)}]{tail}"
+    return f"{fmt_sig(mean, digits)} [{fmt_sig(lo, digits)}, {fmt_sig(hi, digits)}]{tail}"
 
 
 def table_from_frame(frame, *, title: str, sources: tuple[str, ...], caption: str = "",

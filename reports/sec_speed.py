@@ -17,7 +17,7 @@ import numpy as np
 from feeler.reports.model import Note, Section, Table, fmt, log_axis, make_figure, subplots, table_from_frame
 from feeler.reports.readers import read_json, read_table
 
-__all__ = ["speed_section", "trade_columns", "table_columns", "TIME_COLS", "ERROR_COLS", "ACCURACY_COLS"]
+__all__ = ["speed_section", "trade_columns", "table_columns", "TIME_COLS", "ERROR_COLS", "ACCURACY_COLS", "times"]
 
 TIME_COLS = ("latency_s", "decision_latency_s", "seconds_per_slide", "seconds", "fit_s", "median_s", "min_s")
 ERROR_COLS = ("error_ref_sd", "error_sd", "error", "rate_error", "max_abs_mean_err_sd", "max_error")
@@ -130,7 +130,14 @@ def _demo_blocks(inv, part) -> list:
     return blocks + _tables(inv, part, names, provenance)
 
 
+def times(ratio: float) -> str:
+    """A speed-up in plain digits: 1549 (not "1.55e+03"), 156, 1.96."""
+    return f"{ratio:,.0f}" if ratio >= 100 else fmt(ratio, 3)
+
+
 def speed_section(inv, spec) -> Section:
+    from feeler.reports.finger_plots import mesh_name
+
     blocks = []
     for part in spec.parts:
         if part.kind == "benchmarks":
@@ -142,7 +149,10 @@ def speed_section(inv, spec) -> Section:
         t = read_table(inv.run_dir / rel, ("level", "mesh", "seconds_per_slide", "rate_error"),
                        ("seconds_per_slide", "rate_error"))
         ref = t["seconds_per_slide"].max()
-        words = "; ".join(f"{r.level.upper()} ({r.mesh}) {fmt(ref / r.seconds_per_slide, 3)}× faster at "
+        info = read_json(inv.run_dir / part.path("ladder.json")) if inv.has(part.path("ladder.json")) else {}
+        met = info.get("met") if isinstance(info.get("met"), dict) else {}
+        converged = bool(met["convergence"]) if "convergence" in met else None
+        words = "; ".join(f"{r.level.upper()} ({mesh_name(str(r.mesh), converged)}) {times(ref / r.seconds_per_slide)}× faster at "
                           f"{fmt(100 * r.rate_error, 2)} % error" for r in t.itertuples(index=False)
                           if r.seconds_per_slide < ref)
         blocks.append(Note(f"Skin ladder ({part.label}), against its slowest rung: {words}. Plotted with its table "

@@ -147,7 +147,7 @@ def _thresholds_inv(tmp_path, pse, lo, hi, extra=""):
                                                (10.1, 9.8, 10.4, "inconclusive")])
 def test_faster_felt_higher_marks(tmp_path, pse, lo, hi, mark):
     claim = claim_faster_felt_higher(_thresholds_inv(tmp_path, pse, lo, hi, extra="new_column"))
-    assert claim.mark == mark and claim.run.startswith(f"PSE of 10 µm at 40 mm/s against 20 mm/s: {pse:g} [")
+    assert claim.mark == mark and claim.run.startswith(f"PSE of 10 µm at 40 mm/s against 20 mm/s: {pse:#.3g} [")
 
 
 def test_the_demo_claims_come_from_its_files(run_dir):

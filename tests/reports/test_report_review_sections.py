@@ -94,3 +94,28 @@ def test_human_fits_carry_the_synthetic_label_in_text_and_figures(run_dir):
         figures = [b for b in section.blocks if b.kind == "figure"]
         assert figures and all("SYNTHETIC" in f.title and f.caption.startswith("SYNTHETIC") for f in figures), \
             [(f.title, f.caption[:40]) for f in figures]
+
+
+def test_an_estimate_and_its_interval_keep_the_same_significant_figures():
+    import numpy as np
+
+    from feeler.reports.model import interval
+    from feeler.reports.sec_speed import times
+
+    assert interval(10.8, 10.5, 11.0) == "10.8 [10.5, 11.0]"
+    assert interval(9.9, 9.53, 10.3) == "9.90 [9.53, 10.3]"
+    assert interval(1.76, 1.49, 2.0) == "1.76 [1.49, 2.00]"
+    assert interval(np.float64(0.9963), 0.99, 1.0, 4) == "0.9963 [0.9900, 1.000]"
+    assert interval(4.5e-5, 4e-5, 5.1e-5) == "4.50e-05 [4.00e-05, 5.10e-05]"
+    assert interval(4000, 3900, float("nan")) == "4000 [3900, –]"
+    assert times(1549.3) == "1,549" and times(155.6) == "156" and times(1.957) == "1.96"
+
+
+def test_the_speed_section_names_the_ladder_mesh_by_its_verdict(copy_run):
+    from feeler.reports.sec_speed import speed_section
+
+    _ladder(copy_run, False)
+    inv = discover(copy_run)
+    note = next(b.text for b in speed_section(inv, _spec(inv, "speed")).blocks
+                if b.kind == "note" and b.text.startswith("Skin ladder"))
+    assert "(converged)" not in note and "L1 (finest)" in note and "e+" not in note
