@@ -52,6 +52,7 @@ def appendix_section(inv, manifest: list[dict]) -> Section:
         blocks.append(Note("No scene files in this run."))
     if manifest:
         blocks.append(figure_list(manifest))
-    blocks.append(Table("Package versions", ("package", "version"), versions(), (),
-                        caption="Installed when this report was made (not a file of the run)."))
+    # the note in the title, not a caption: a caption alone made the PDF's last page (an outside review)
+    blocks.append(Table("Package versions, installed when this report was made (not a file of the run)",
+                        ("package", "version"), versions(), ()))
     return Section("appendix", "Appendix: scene files, figures and versions", tuple(blocks))

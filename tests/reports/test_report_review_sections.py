@@ -119,3 +119,13 @@ def test_the_speed_section_names_the_ladder_mesh_by_its_verdict(copy_run):
     note = next(b.text for b in speed_section(inv, _spec(inv, "speed")).blocks
                 if b.kind == "note" and b.text.startswith("Skin ladder"))
     assert "(converged)" not in note and "L1 (finest)" in note and "e+" not in note
+
+
+def test_the_last_pdf_page_is_not_a_lone_caption(report):
+    """The demo PDF's last page held one line, the versions table's caption (item 21)."""
+    import pypdfium2
+
+    pdf = pypdfium2.PdfDocument(str(report / "report.pdf"))
+    last = pdf[len(pdf) - 1].get_textpage().get_text_range()
+    lines = [ln for ln in last.splitlines() if ln.strip()]
+    assert len(lines) > 3 and "python" in last and "Installed when this report was made" not in last, lines
