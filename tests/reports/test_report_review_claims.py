@@ -103,3 +103,16 @@ def test_an_extrapolated_robot_threshold_is_not_a_finding(run_dir, tmp_path):
     path.write_text(json.dumps({**json.loads(path.read_text()), "notes": ["note: outside"], "extrapolated": True}))
     inv = discover(run)
     assert claim_weber(inv).mark == "extrapolated" and claim_threshold(inv).mark == "extrapolated"
+
+
+def test_page_one_counts_each_mark_apart_and_styles_it(report):
+    from feeler.reports.sec_front import front_section
+
+    section = front_section(discover(report))
+    summary = section.blocks[0].text
+    assert "1 by construction" in summary and "2 synthetic: self-consistent" in summary, summary
+    assert "6 reproduced" not in summary
+    table = next(b for b in section.blocks if b.kind == "table")
+    assert {"by-construction", "synthetic-self-consistent"} <= set(table.marks)
+    html = (report / "report.html").read_text(encoding="utf-8")
+    assert '<tr class="by-construction">' in html and "tr.synthetic-self-consistent td:last-child" in html
