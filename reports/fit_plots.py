@@ -21,7 +21,7 @@ import numpy as np
 from feeler.reports.model import Figure, Note, log_axis, make_figure, subplots
 
 __all__ = ["labels_of", "plots_of", "finger_route_fig6", "conditions_of", "split_finite", "NO_FINITE",
-           "fixed_and_copies"]
+           "fixed_and_copies", "even_chunk"]
 
 _UNITS = {"a": "a (mm per unit strain)", "tau_s": "τ (s)", "h": "h (mm)", "sigma_mm": "σ (mm)",
           "sigma_d_um": "σ_d (µm)", "lapse": "lapse", "cond_C": "cond(C)", "lapse_all": "lapse (pooled)"}
@@ -45,19 +45,27 @@ def split_finite(draws: dict) -> tuple[dict, list[str]]:
 
 def fixed_and_copies(draws: dict, names) -> tuple[dict, dict]:
     """({name: value} of entries equal at every draw, {name: earlier name} of entries equal
-    draw for draw to an earlier one): neither gets a panel of its own."""
+    draw for draw to an earlier one, to rounding): neither gets a panel of its own."""
     fixed, copies, seen = {}, {}, []
     for name in names:
         x = np.asarray(draws[name], float)
         if x.size and np.all(x == x.flat[0]):
             fixed[name] = float(x.flat[0])
             continue
-        twin = next((n for n in seen if np.shape(draws[n]) == x.shape and np.array_equal(draws[n], x)), None)
+        twin = next((n for n in seen if np.shape(draws[n]) == x.shape
+                     and np.allclose(draws[n], x, rtol=1e-12, atol=0.0)), None)
         if twin is None:
             seen.append(name)
         else:
             copies[name] = twin
     return fixed, copies
+
+
+def even_chunk(n: int, most: int) -> int:
+    """Panels per figure: as few figures as ``most`` a figure allows, filled evenly (19
+    entries: 5, 5, 5, 4, not 6, 6, 6, 1 with a lone full-width panel)."""
+    figures = max(1, -(-n // most))
+    return max(1, -(-n // figures))
 
 
 def _finite(x) -> np.ndarray:
@@ -322,9 +330,10 @@ def plots_of(inv, part, result, attrs, *, sampler: bool) -> list:
         names = [n for n in result.summary["name"] if n in draws]
         fixed, copies = fixed_and_copies(draws, names)
         names = [n for n in names if n not in fixed and n not in copies]
-        out = [_marginals(draws, names[i:i + _PER_FIG], labels, per_chain=sampler, src=src,
-                          title="Marginal posteriors" + (f" ({i // _PER_FIG + 1})" if len(names) > _PER_FIG else ""))
-               for i in range(0, len(names), _PER_FIG)]
+        per = even_chunk(len(names), _PER_FIG)
+        out = [_marginals(draws, names[i:i + per], labels, per_chain=sampler, src=src,
+                          title="Marginal posteriors" + (f" ({i // per + 1})" if len(names) > per else ""))
+               for i in range(0, len(names), per)]
         key = names[:_PER_FIG]
         if fixed or copies:
             words = [f"{labels.get(n, n)} = {v:g} at every draw (fixed)" for n, v in fixed.items()]

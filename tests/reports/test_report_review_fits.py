@@ -8,7 +8,7 @@ import re
 import numpy as np
 
 from feeler.reports import discover
-from feeler.reports.fit_plots import fixed_and_copies
+from feeler.reports.fit_plots import even_chunk, fixed_and_copies
 from feeler.reports.sec_fits import RULE_INDEPENDENT, fit_section, independent_draws, readable_prior
 
 
@@ -23,8 +23,12 @@ def _table(section, title):
 
 def test_fixed_and_copied_entries_are_found():
     x = np.random.default_rng(1).normal(size=(2, 50))
-    draws = {"a": x, "fixed": np.zeros((2, 50)), "copy": x.copy(), "other": x + 1}
+    draws = {"a": x, "fixed": np.zeros((2, 50)), "copy": x * (1 + 1e-15), "other": x + 1}
     assert fixed_and_copies(draws, list(draws)) == ({"fixed": 0.0}, {"copy": "a"})
+
+
+def test_marginal_panels_fill_their_figures_evenly():
+    assert [even_chunk(n, 6) for n in (1, 6, 7, 19, 22, 24)] == [1, 6, 4, 5, 6, 6]
 
 
 def test_a_fixed_parameter_gets_no_diagnostics_and_no_panel(run_dir):
