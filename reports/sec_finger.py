@@ -109,8 +109,7 @@ def ladder_blocks(inv, part) -> list:
     finest = (" Mesh 'finest' is the study's finest, named 'converged' in its files: its convergence goal was NOT "
               "met." if converged is False and (trade["mesh"] == "converged").any() else "")
     blocks = [make_figure("The skin fidelity ladder: seconds per slide against error", fp.ladder_trade(rows, converged),
-                          (rel,), "Error of the peak strain rate against the reference (L2 on the finest mesh)."
-                          + finest),
+                          (rel,), "Error of the peak strain rate against the reference (L2 on the finest mesh)."),
               Note(f"Measured {where}; the reference is L2 on the finest mesh of the study. Seconds per slide "
                    "exclude each level's one-off setup (its own column).", level="measured", sources=(rel,)),
               table_from_frame(shown, title="Trade table", sources=(rel,), caption=finest.strip())]
