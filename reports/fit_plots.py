@@ -283,7 +283,8 @@ def _m4(result, draws, attrs, labels, src, synthetic: bool = False) -> list:
         ax.tick_params(axis="x", labelsize=6)
         ax.legend(fontsize=5)
     out.append(make_figure("Every subject's PSE and difference threshold" + title, fig, src,
-                           head + "Mean and 95 % interval per subject and condition; shaded: the pooled 95 % interval."))
+                           head + "Mean and 95 % interval per subject and condition; shaded: the pooled 95 % "
+                           "interval."))
     return out
 
 
@@ -307,7 +308,8 @@ def _finger_route(draws, attrs, src, synthetic: bool = False) -> list:
         ax.tick_params(labelsize=6)
     title, head = (SYNTHETIC_TITLE, SYNTHETIC_CAPTION) if synthetic else ("", "")
     return [make_figure("Posterior of τ, σ_d and the lapse" + title, fig, src,
-                        head + "τ: the grid's marginal density (normalised to its peak); σ_d and lapse: draws pooled. "
+                        head + "τ: the grid's marginal density (normalised to its peak); σ_d and lapse: draws "
+                        "pooled. "
                         "κ is a function of τ and is not drawn.")]
 
 
@@ -380,5 +382,6 @@ def finger_route_fig6(inv, tau_s: float, level: str, tau_rel: str):
     ax.legend(fontsize=6)
     return make_figure("Accepted against presented step height at the fitted τ" + (SYNTHETIC_TITLE if tag else ""),
                        fig, (tau_rel, human.thresholds_rel) + ((human.trials_rel,) if human.trials_rel else ()),
-                       (SYNTHETIC_CAPTION if tag else "") + "Line: κ(τ)·peak z of the finger chain at the posterior median τ; squares: pooled human "
+                       (SYNTHETIC_CAPTION if tag else "") + "Line: κ(τ)·peak z of the finger chain at the posterior "
+                       "median τ; squares: pooled human "
                        "PSEs of the standard (95 % intervals).")

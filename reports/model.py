@@ -16,7 +16,8 @@ from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Callable
 
-__all__ = ["Figure", "Gallery", "Table", "Note", "Section", "subplots", "make_figure", "fmt", "fmt_sig", "interval", "log_axis",
+__all__ = ["Figure", "Gallery", "Table", "Note", "Section", "subplots", "make_figure", "fmt", "fmt_sig", "interval",
+           "log_axis",
            "report_style", "STYLE", "on_figure",
            "table_from_frame", "DPI"]
 
@@ -217,7 +218,8 @@ def fmt_sig(value, digits: int = 4) -> str:
     if value is None or isinstance(value, bool) or not isinstance(value, (int, float)) and not hasattr(value, "dtype"):
         return fmt(value, digits)
     x = float(value)
-    if not math.isfinite(x) or (x == int(x) and not isinstance(value, float) and "float" not in str(getattr(value, "dtype", ""))):
+    floating = isinstance(value, float) or "float" in str(getattr(value, "dtype", ""))
+    if not math.isfinite(x) or (x == int(x) and not floating):
         return fmt(value, digits)
     text = f"{x:#.{digits}g}"
     mantissa, e, exponent = text.partition("e")

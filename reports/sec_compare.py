@@ -106,7 +106,8 @@ def _robot(ax, disc, scale: float) -> None:
     if disc.curve is not None:
         c = disc.curve
         ax.fill_between(c["delta_um"] * scale, c["lo95"], c["hi95"], color="C3", alpha=0.2, lw=0)
-        ax.plot(c["delta_um"] * scale, c["pc"], "-", color="C3", label=f"robot at {fmt(disc.reference_um, 3)} µm" + (" (EXTRAPOLATED)" if disc.extrapolated else ""))
+        label = f"robot at {fmt(disc.reference_um, 3)} µm" + (" (EXTRAPOLATED)" if disc.extrapolated else "")
+        ax.plot(c["delta_um"] * scale, c["pc"], "-", color="C3", label=label)
     th = disc.threshold_um
     if np.isfinite(th.value):
         lo = th.lo if np.isfinite(th.lo) else th.value
@@ -232,7 +233,8 @@ def _table(disc, human, shown: Shown = Shown()) -> Table:
     return Table("Difference thresholds (75 % correct), Weber fractions and PSEs, 95 % intervals",
                  ("who", "reference or standard", "DT (µm)", "Weber DT / reference", "PSE", "PSE is the"),
                  tuple(rows), tuple(src),
-                 caption=PSE_CAPTION + ("" if shown.robot and shown.human else f" Rows marked '{FAILED_FIT}' are not results."),
+                 caption=PSE_CAPTION + ("" if shown.robot and shown.human else
+                                        f" Rows marked '{FAILED_FIT}' are not results."),
                  marks=tuple(marks) if any(marks) else ())
 
 

@@ -152,7 +152,8 @@ def speed_section(inv, spec) -> Section:
         info = read_json(inv.run_dir / part.path("ladder.json")) if inv.has(part.path("ladder.json")) else {}
         met = info.get("met") if isinstance(info.get("met"), dict) else {}
         converged = bool(met["convergence"]) if "convergence" in met else None
-        words = "; ".join(f"{r.level.upper()} ({mesh_name(str(r.mesh), converged)}) {times(ref / r.seconds_per_slide)}× faster at "
+        words = "; ".join(f"{r.level.upper()} ({mesh_name(str(r.mesh), converged)}) "
+                          f"{times(ref / r.seconds_per_slide)}× faster at "
                           f"{fmt(100 * r.rate_error, 2)} % error" for r in t.itertuples(index=False)
                           if r.seconds_per_slide < ref)
         blocks.append(Note(f"Skin ladder ({part.label}), against its slowest rung: {words}. Plotted with its table "
