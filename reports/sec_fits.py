@@ -174,5 +174,5 @@ def _tau_blocks(inv, part) -> list:
                    + tail, sources=(rel,))]
     fig = finger_route_fig6(inv, tau_s, str(rep.get("skin_level") or "l0"), rel)
     if fig is not None:
-        blocks.insert(0, fig)
+        blocks.append(fig)              # after its summary: a lone line of text made a page (review s49)
     return blocks

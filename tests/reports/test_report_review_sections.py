@@ -129,3 +129,14 @@ def test_the_last_pdf_page_is_not_a_lone_caption(report):
     last = pdf[len(pdf) - 1].get_textpage().get_text_range()
     lines = [ln for ln in last.splitlines() if ln.strip()]
     assert len(lines) > 3 and "python" in last and "Installed when this report was made" not in last, lines
+
+
+def test_short_tables_are_kept_on_one_page_and_the_tau_summary_before_its_figure(report):
+    import re
+
+    html = (report / "report.html").read_text(encoding="utf-8")
+    versions = html[html.index("Package versions, installed"):]
+    assert re.match(r"[^<]*(<span[^>]*>[^<]*</span>)?</h3>\s*<table style=\"break-inside: avoid\">", versions)
+    route = html[html.index('<section id="sec-fit-finger-route">'):]
+    route = route[:route.index("</section>")]
+    assert route.index("τ posterior median") < route.index("Accepted against presented step height at the fitted τ")
