@@ -101,7 +101,7 @@ def run_ladder_study(out: Path, *, small: bool = False, tiny: bool = False, meas
                        + ": " + "; ".join(f"{k.replace('_', ' ')} {'met' if v else 'NOT met'}"
                                           for k, v in result["met"].items())]
     write_json(out / "ladder.json", result)
-    _plot_trade(trade, out / "ladder.png")
+    _plot_trade(trade, out / "ladder.png", converged=bool(result["met"]["convergence"]))
     return result
 
 
@@ -121,14 +121,16 @@ def unmet_goals(result: dict) -> list[str]:
             for name, (key, value, how) in measured.items() if not result["met"][name]]
 
 
-def _plot_trade(trade, path: Path) -> None:
+def _plot_trade(trade, path: Path, *, converged: bool | None = None) -> None:
+    """The ladder's trade figure; ``converged``: the study's verdict on mesh convergence (its
+    finest mesh is labelled converged only when it is)."""
     import matplotlib.pyplot as plt
 
     from feeler.reports.finger_plots import ladder_trade
     from feeler.reports.model import report_style
 
     with report_style():
-        fig = ladder_trade([(t.level, t.mesh, t.seconds_per_slide, t.rate_error) for t in trade])
+        fig = ladder_trade([(t.level, t.mesh, t.seconds_per_slide, t.rate_error) for t in trade], converged)
         fig.savefig(path, dpi=110)
     plt.close(fig)
 

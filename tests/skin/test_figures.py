@@ -111,3 +111,23 @@ def test_ladder_plot_labels_fit_in_the_figure():
     fig.canvas.draw()
     assert check_figure(fig) == ()
     assert "L2 (converged) = reference" in [t.get_text() for t in fig.legends[0].get_texts()]
+
+
+def test_the_ladder_png_calls_its_finest_mesh_converged_only_when_the_study_says_so(tmp_path, monkeypatch):
+    """The report's copy of the figure said "L2 (converged)" under "convergence: NOT met" (an
+    outside reader); the study's own ladder.png now takes the same verdict."""
+    from types import SimpleNamespace
+
+    import feeler.reports.finger_plots as plots
+    from feeler.skin.study import _plot_trade
+
+    seen = []
+    real = plots.ladder_trade
+    monkeypatch.setattr(plots, "ladder_trade", lambda rows, converged=None: seen.append(converged) or real(rows, converged))
+    trade = [SimpleNamespace(level="l2", mesh="converged", seconds_per_slide=1.99, rate_error=0.0),
+             SimpleNamespace(level="l1", mesh="converged", seconds_per_slide=0.0094, rate_error=0.0078)]
+    for verdict in (False, True):
+        _plot_trade(trade, tmp_path / f"ladder_{verdict}.png", converged=verdict)
+    assert seen == [False, True] and (tmp_path / "ladder_False.png").stat().st_size > 0
+    fig = real([(t.level, t.mesh, t.seconds_per_slide, t.rate_error) for t in trade], False)
+    assert "L2 (finest, reference)" in " ".join(t.get_text() for t in fig.legends[0].get_texts())
