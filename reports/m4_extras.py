@@ -16,6 +16,7 @@ from feeler.reports.readers import read_table
 __all__ = ["thresholds_table", "curves_gallery", "CURVE_INDEX"]
 
 CURVE_INDEX = "curves/index.csv"
+CURVE_WIDTH_IN = 3.3        # the width the fit draws each curve at (calib.psychometric.outputs.plots)
 #: further columns shown when the file has them (a page has room for about a dozen); the
 #: caption names the rest of the file's columns
 SHOWN = {"standard_um": "standard (µm)", "estimand": "estimand", "backend": "backend", "pc": "at P",
@@ -81,5 +82,8 @@ def curves_gallery(inv, part) -> Gallery | None:
         title = (f"{r.subject} · {fmt(r.standard_um)} µm at {fmt(r.standard_speed_mm_s)} vs "
                  f"{fmt(r.comparison_speed_mm_s)} mm/s")
         items.append((title, "data:image/png;base64," + base64.b64encode(data).decode("ascii"), png))
+    # two a row at about the size the fit draws them (3.3 in): four a row printed their
+    # annotations at 3-4 pt (an outside reader of the report)
     return Gallery("Psychometric curve of every subject and condition", tuple(items),
-                   (rel,) + tuple(i[2] for i in items), caption=f"Images written by the fit, as listed in {rel}.")
+                   (rel,) + tuple(i[2] for i in items), caption=f"Images written by the fit, as listed in {rel}.",
+                   width_in=CURVE_WIDTH_IN)

@@ -9,6 +9,7 @@ pooled, and a grid's own marginal is drawn as the curve it is.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 
@@ -100,6 +101,28 @@ def _ppc_note(attrs, src) -> list:
              f"p-value {fmt(attrs.get('ppc_p_value'), 3)}.", sources=(src,))]
 
 
+def _n_draws(result) -> int:
+    sizes = result.posterior["posterior"].sizes
+    return int(sizes.get("chain", 1) * sizes.get("draw", 0))
+
+
+def _decoder_names_note(model: str, attrs, src) -> list:
+    """M2: its a, h and τ are the decoder's, not the paper's neuron parameters (an outside
+    reader compared the window τ with the scene's τ, which lay outside its interval)."""
+    if model != "m2":
+        return []
+    true_tau = ""
+    scene = attrs.get("scene_toml")
+    if scene:
+        match = re.search(r"^tau_s\s*=\s*([0-9.eE+-]+)", str(scene), flags=re.M)
+        if match:
+            true_tau = f" (the scene's neuron: τ = {fmt(float(match.group(1)), 4)} s)"
+    return [Note("a and h are the line from the peak window sum to the step, z = a·P − h (mm), not the paper's gain "
+                 "(V s) and threshold (V); τ is the window that best tells the plates apart (each window weighted by "
+                 f"how well it predicts the left-out labels), not an estimate of the neuron's time constant{true_tau}.",
+                 sources=(src,))]
+
+
 def _reading_note(attrs, src) -> list:
     """M2: how the training scans read when each is left out, overall and per mode."""
     if "loo_reading" not in attrs:
@@ -137,9 +160,14 @@ def fit_section(inv, spec) -> Section:
             blocks.append(Note(f"Fitted to {label}", level="synthetic",
                                sources=(human_data(inv).trials_rel or human_data(inv).thresholds_rel,)))
     blocks += plots_of(inv, part, result, attrs, sampler=_is_sampler(result.backend))
-    blocks += _ppc_note(attrs, post_rel) + _reading_note(attrs, post_rel)
-    blocks.append(summary_table(result, labels_of(part.model, attrs, result.summary["name"]),
-                                part.path("summary.csv"), part.model))
+    blocks += _ppc_note(attrs, post_rel) + _reading_note(attrs, post_rel) + _decoder_names_note(part.model, attrs, post_rel)
+    table = summary_table(result, labels_of(part.model, attrs, result.summary["name"]), part.path("summary.csv"),
+                          part.model)
+    if inv.has(part.path("thresholds.csv")):        # the same quantities integrated on the grid (M4)
+        table = dataclasses.replace(table, caption=table.caption + (
+            f" From the {_n_draws(result)} draws: the thresholds table below integrates the posterior itself, so the "
+            "ends of an interval can differ from these by the draws' Monte Carlo error (a few % in a long tail)."))
+    blocks.append(table)
     if result.priors:
         rows = tuple((readable_prior(str(k)), readable_prior(str(v))) for k, v in result.priors.items())
         blocks.append(Table("Priors", ("parameter", "prior"), rows, (post_rel,)))

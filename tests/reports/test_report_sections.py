@@ -349,3 +349,34 @@ def test_a_benchmark_table_of_one_round_shows_its_median_alone():
     assert table_columns(one) == ["benchmark", "median_s", "ece"]
     many = one.assign(rounds=[1, 5])
     assert table_columns(many) == ["benchmark", "min_s", "mean_s", "rounds", "median_s", "q1_s", "q3_s", "ece"]
+
+
+def test_m2_says_its_parameters_are_the_decoders_and_m4_why_its_two_tables_differ(report):
+    """An outside reader took M2's a, h and τ for the paper's neuron parameters (the scene's
+    τ = 3 s lay outside M2's interval), and found M4's summary (from draws) and thresholds
+    table (integrated on the grid) disagreeing in the tails with nothing said."""
+    import html as html_lib
+
+    html = html_lib.unescape((report / "report.html").read_text(encoding="utf-8"))
+    m2 = _section_html(html, "sec-fit-m2")
+    assert "not an estimate of the neuron's time constant (the scene's neuron: τ = 3 s)" in m2
+    assert "z = a·P − h (mm), not the paper's gain" in m2
+    m4 = _section_html(html, "sec-fit-m4")
+    assert "the thresholds table below integrates the posterior itself" in m4 and "Monte Carlo error" in m4
+    assert "integrates the posterior itself" not in _section_html(html, "sec-fit-m1")
+
+
+def test_the_m4_curves_print_at_the_size_they_are_drawn(run_dir):
+    """Four a row, the per-subject curves' annotations printed at 3-4 pt (an outside reader):
+    the gallery shows them two a row, at the width the fit draws them."""
+    from PIL import Image
+
+    from feeler.reports.discover import discover
+    from feeler.reports.m4_extras import CURVE_WIDTH_IN, curves_gallery
+
+    inv = discover(run_dir)
+    part = next(p for p in inv.parts if p.kind == "fit" and p.model == "m4")
+    gallery = curves_gallery(inv, part)
+    assert gallery.width_in == CURVE_WIDTH_IN and 2 * CURVE_WIDTH_IN < 7.24      # two a row on A4, 13 mm margins
+    png = Image.open(run_dir / gallery.items[0][2])
+    assert abs(png.size[0] / png.info.get("dpi", (170, 170))[0] - CURVE_WIDTH_IN) < 0.05
