@@ -59,10 +59,17 @@ def _trade_figure(name, frame, x, y, rel, provenance):
         t[c] = np.asarray(t[c].map(lambda v: float(v) if str(v).strip() not in ("", "nan") else np.nan), float)
     labels = _option(frame)
     fig, ax = subplots(width_in=5.6, height_in=2.3)
-    for k, (lab, xs, ys) in enumerate(zip(labels, t[x], t[y])):
+    # options at the same point share one marker named by all of them: four decoder thresholds
+    # at (3.36 s, 1.00) were drawn on top of each other and showed as one or two (an outside reader)
+    groups: dict = {}
+    for lab, xs, ys in zip(labels, t[x], t[y]):
         if np.isfinite(xs) and np.isfinite(ys):
-            ax.plot(xs, max(ys, 1e-6) if y in ERROR_COLS else ys, "os^vD<>"[k % 7], color=f"C{k % 10}", ms=6,
-                    label=lab)
+            groups.setdefault((float(f"{xs:.3g}"), float(f"{ys:.3g}")), []).append((lab, xs, ys))
+    for k, members in enumerate(groups.values()):
+        _, xs, ys = members[0]
+        ax.plot(xs, max(ys, 1e-6) if y in ERROR_COLS else ys, "os^vD<>"[k % 7], color=f"C{k % 10}", ms=6,
+                label=" = ".join(m[0] for m in members))
+    shared = sum(len(m) > 1 for m in groups.values())
     log_axis(ax, "x")
     ys = t[y].to_numpy(float)
     if y in ERROR_COLS and np.all(ys[np.isfinite(ys)] > 0) and np.nanmax(ys) > 10 * np.nanmin(ys):
@@ -72,7 +79,8 @@ def _trade_figure(name, frame, x, y, rel, provenance):
     handles, names = ax.get_legend_handles_labels()
     fig.legend(handles, names, loc="outside right upper", fontsize=6, frameon=False,
                ncols=-(-len(names) // LEGEND_ROWS))
-    return make_figure(_TITLES.get(name, name), fig, (rel,), f"One point per option; {provenance}.")
+    same = " Options at the same point (to 3 significant figures) share a marker, named by all of them." if shared else ""
+    return make_figure(_TITLES.get(name, name), fig, (rel,), f"One point per option; {provenance}.{same}")
 
 
 #: a benchmark's spread columns, the same number as its median when every row ran one round
@@ -121,7 +129,8 @@ def _bench_blocks(inv, part) -> list:
 def _demo_blocks(inv, part) -> list:
     rel = part.path("speed.json")
     index = read_json(inv.run_dir / rel, ("measured", "tables"))
-    provenance = f"measured {index['measured']} (a small version; `make bench` measures the full one)"
+    times = f"; {index['times']}" if index.get("times") else ""
+    provenance = f"measured {index['measured']}{times}: a small version, `make bench` measures the full one"
     blocks = [Note(f"{provenance[0].upper()}{provenance[1:]}.", level="measured", sources=(rel,))]
     for name, what in dict(index["tables"]).items():
         if what:

@@ -150,6 +150,8 @@ def measure_trades(out: Path, data_dir: Path, echo=print) -> dict:
         from feeler.calib.neuron.live.trade import demo_table
         tables["decoder"] = demo_table(out / "m2", out / "held-out", speed / "decoder.csv")
         echo("  live decoder latency/accuracy: speed/decoder.csv")
-    index = {"measured": measured + " (wall seconds on this machine)", "tables": tables}
+    index = {"measured": measured, "tables": tables,
+             "times": "times in wall seconds on this machine, but the live decoder's latency, which is scan time "
+                      "since the step"}
     write_json(speed / "speed.json", index)
     return index

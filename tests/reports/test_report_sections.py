@@ -249,9 +249,14 @@ def test_human_points_labelled_synthetic(report, run_dir):
 
 
 def test_speed_section_says_where_its_numbers_come_from(report):
+    import html as html_lib
+
     html = (report / "report.html").read_text(encoding="utf-8")
     speed = _section_html(html, "sec-speed")
     assert "Measured during `feeler demo` at" in speed and "a small version" in speed
+    # the live decoder's latency is scan time, not wall time (an outside reader); one parenthesis
+    assert "but the live decoder's latency, which is scan time since the step" in html_lib.unescape(speed)
+    assert ") (" not in html_lib.unescape(speed)
     assert "Calibration backends" in speed and "Sensor fidelity" in speed
     assert "live decoder" in speed.lower() and "decoder.csv" in speed
     finger = _section_html(html, "sec-finger")
@@ -274,6 +279,24 @@ def test_a_trade_plot_of_many_options_names_every_one_at_its_median(options):
     assert trade_columns(frame) == ("median_s", "accuracy")
 
 
+def test_options_at_one_point_share_a_marker_named_by_all(monkeypatch):
+    """Four live-decoder thresholds at (3.36 s, 1.00) were drawn on top of each other, so
+    one or two of the five legend entries showed (an outside reader of the report)."""
+    import feeler.reports.sec_speed as speed
+
+    legends = []
+    real = speed.make_figure
+
+    def keep_legend(title, fig, sources, caption=""):
+        legends.extend(t.get_text() for leg in fig.legends for t in leg.get_texts())
+        return real(title, fig, sources, caption)
+
+    monkeypatch.setattr(speed, "make_figure", keep_legend)
+    frame = pd.DataFrame({"option": ["0.5", "0.7", "0.9", "0.99", "end"], "latency_s": [3.36, 3.36, 3.36, 3.36, 9.5],
+                          "accuracy": [1.0, 1.0, 1.0, 1.0, 1.0]})
+    fig = speed._trade_figure("decoder", frame, "latency_s", "accuracy", "benchmarks/decoder.csv", "measured")
+    assert fig.problems == () and "share a marker, named by all of them" in fig.caption
+    assert len(legends) == 2 and legends[0].startswith("0.5") and legends[0].count(" = ") == 3
 def test_failed_calibration_comes_first(part_run, tmp_path):
     run = part_run("m1", "m4", "psychophysics")
     bad = {"ok": False, "problems": ["pse[0,0]: R-hat 1.2 > 1.01"]}
