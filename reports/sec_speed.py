@@ -53,6 +53,20 @@ def _option(frame) -> list[str]:
     return [str(i) for i in range(len(frame))]
 
 
+def _shared_label(labels: list[str]) -> str:
+    """One legend entry for options at one point: their common first word said once
+    ("threshold 0.5, 0.7, 0.9"), two values a line."""
+    if len(labels) == 1:
+        return labels[0]
+    heads = {lab.split(" ", 1)[0] for lab in labels}
+    if len(heads) == 1 and all(" " in lab for lab in labels):
+        head, rest = heads.pop() + " ", [lab.split(" ", 1)[1] for lab in labels]
+    else:
+        head, rest = "", labels
+    lines = [", ".join(rest[i:i + 2]) for i in range(0, len(rest), 2)]
+    return head + ",\n".join(lines)
+
+
 def _trade_figure(name, frame, x, y, rel, provenance):
     t = frame.copy()
     for c in (x, y):
@@ -68,7 +82,7 @@ def _trade_figure(name, frame, x, y, rel, provenance):
     for k, members in enumerate(groups.values()):
         _, xs, ys = members[0]
         ax.plot(xs, max(ys, 1e-6) if y in ERROR_COLS else ys, "os^vD<>"[k % 7], color=f"C{k % 10}", ms=6,
-                label=" = ".join(m[0] for m in members))
+                label=_shared_label([m[0] for m in members]))
     shared = sum(len(m) > 1 for m in groups.values())
     log_axis(ax, "x")
     ys = t[y].to_numpy(float)

@@ -296,7 +296,9 @@ def test_options_at_one_point_share_a_marker_named_by_all(monkeypatch):
                           "accuracy": [1.0, 1.0, 1.0, 1.0, 1.0]})
     fig = speed._trade_figure("decoder", frame, "latency_s", "accuracy", "benchmarks/decoder.csv", "measured")
     assert fig.problems == () and "share a marker, named by all of them" in fig.caption
-    assert len(legends) == 2 and legends[0].startswith("0.5") and legends[0].count(" = ") == 3
+    assert legends == ["0.5, 0.7,\n0.9, 0.99", "end"]
+    from feeler.reports.sec_speed import _shared_label
+    assert _shared_label(["threshold 0.5", "threshold 0.7", "threshold 0.9"]) == "threshold 0.5, 0.7,\n0.9"
 def test_failed_calibration_comes_first(part_run, tmp_path):
     run = part_run("m1", "m4", "psychophysics")
     bad = {"ok": False, "problems": ["pse[0,0]: R-hat 1.2 > 1.01"]}
