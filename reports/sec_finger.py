@@ -57,13 +57,15 @@ def _from_histories(inv, fd) -> list:
     fits = [(x.slope_per_um, x.intercept, x.r2) for x in f.fits]
     blocks.append(make_figure("Fig. 5: peak pulse density against step height",
                               fp.fig5(f.heights_um, f.speeds_mm_s, f.peak_z, fits), src,
-                              "Peaks of Fig. 4 with their least-squares lines; open and filled markers keep "
-                              "coinciding speeds visible."))
+                              "Peaks of Fig. 4 with their least-squares lines, one per speed; where the speeds "
+                              "give the same peaks their lines coincide, and the open and filled markers show "
+                              "both."))
     pts, hsrc = human_points(inv)
     blocks.append(make_figure("Fig. 6: accepted against presented step height",
                               fp.fig6(f.taus_s, f.heights_um, f.speeds_mm_s, f.accepted_um, pts), src + hsrc,
                               "κ(τ) · peak z for each τ of the sweep (κ = 1 / mean regression slope over the "
-                              "speeds, as in the paper); stars: human PSEs with 95 % intervals."))
+                              "speeds, as in the paper); stars: human PSEs with their 95 % intervals (a bar hidden "
+                              "behind its star is narrower than it)."))
     rows = tuple((f"{t * 1e3:g}", fmt(c, 4), fmt(r, 4)) for t, c, r in zip(f.taus_s, f.conversion, f.speed_ratio))
     blocks.append(Table("Fig. 6 per τ: conversion factor and speed effect", ("τ (ms)", "κ (µm per unit z)",
                         f"slope {speeds[-1]:g} / {speeds[0]:g} mm/s"), rows, src))
