@@ -6,6 +6,7 @@ One uninterrupted reference run (module fixture) is compared with a run killed w
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -306,8 +307,10 @@ def test_ctrl_c_at_a_terminal_is_one_line_not_the_emulators_traceback(tmp_path):
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 130
-    # the tiny plan's 6000 mm/min moves get a note that a board at Grbl's defaults would refuse them
-    assert [ln for ln in err.strip().splitlines() if not ln.startswith(NOTE)] == [
+    # the tiny plan's 6000 mm/min moves get a note that a board at Grbl's defaults would refuse them; on a
+    # host busier than its cores a sample can be taken late, which is warned about (seen once, at 3x load)
+    late = re.compile(r"feeler: warning: scan \d+ sample \d+: taken [0-9.]+ s after its scheduled time")
+    assert [ln for ln in err.strip().splitlines() if not ln.startswith(NOTE) and not late.match(ln)] == [
         "feeler: interrupted (run the same command with --resume to continue)"]
 
 
