@@ -34,6 +34,45 @@ class GrblCommands:
         """0x85: stop a jog (decelerate, drop the jog moves queued)."""
         self.transport.write(JOG_CANCEL)
 
+    def hold_inherited_motion(self, *, ask_s: float = 0.3, hold_s: float = 10.0) -> Status | None:
+        """Before the reset that opens a conversation: a board still running the moves of a
+        process that was killed (``kill -9`` during a traverse: its planner runs on) is
+        feed-held, and this waits for the hold to complete (``Hold:0``). Grbl keeps its
+        position through a reset in a completed hold, while a reset in motion raises
+        ``ALARM:3`` (position lost): ``acquire --resume`` straight after a ``kill -9``
+        reset the still-moving real firmware and then refused it as locked (an outside
+        test on grbl-sim). Returns the last status, or None when no report came within
+        ``ask_s`` (a board that is booting, or not a Grbl: the reset then goes ahead as
+        before)."""
+        status = self._status_now(ask_s)
+        if status is None or not (status.state in ("Run", "Jog") or (status.state == "Hold" and status.substate == 1)):
+            return status
+        log.info("%s: the board is still moving (%s): feed hold before the reset", self.transport.name, status.state)
+        self.transport.write(b"!")
+        deadline = time.monotonic() + hold_s * self.slack
+        while time.monotonic() < deadline:
+            time.sleep(0.02)
+            now = self._status_now(ask_s) or status
+            status = now
+            if status.state == "Idle" or (status.state == "Hold" and status.substate == 0):
+                break
+        return status
+
+    def _status_now(self, timeout_s: float) -> Status | None:
+        """One ``?`` answered within ``timeout_s``, other lines (an earlier process's ``ok``,
+        a banner, noise) skipped; None when no report came."""
+        self.transport.write(b"?")
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            try:
+                line = self.transport.read_line(max(deadline - time.monotonic(), 0.001), "status report")
+                reply = parse_reply(line) if line else None
+            except (StageTimeout, ProtocolError):
+                continue
+            if isinstance(reply, Status):
+                return reply
+        return None
+
     def soft_reset(self, timeout_s: float | None = None) -> Banner:
         """Ctrl-X: stop, clear buffers, wait for the banner (pushed alarms are recorded).
 

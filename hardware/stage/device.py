@@ -85,6 +85,7 @@ class Stage(StageTracking):
         transport = Transport.open(port, baudrate=baudrate, exclusive=exclusive)
         try:
             protocol = GrblProtocol(transport, reply_timeout_s=reply_timeout_s, slack=slack)
+            protocol.hold_inherited_motion()        # an earlier process's moves still running: keep the position
             try:
                 banner = protocol.soft_reset()
             except StageTimeout as exc:

@@ -270,3 +270,19 @@ def test_a_move_the_simulator_ended_short_is_run_once_more(firmware):
         raise StageTimeout(f"motion of {firmware.path}: none for 12 s (last Idle at {firmware.idle_at()}, short of "
                            "its target (-12.0, 0.0, 0.0))", 12.0)
     assert _SHORT_RUNS == [(0.0, 0.0, 0.0), (0.0, 0.0, 0.0)]
+
+
+def test_a_board_left_moving_by_a_killed_process_opens_held_not_in_alarm(firmware):
+    """The real firmware, left running a traverse by a process killed with ``kill -9``: the
+    next process's opening reset in motion raised ALARM:3 and ``acquire --resume`` refused
+    the locked stage (an outside test). Opening now feed-holds it and resets once the hold
+    is complete: Grbl keeps its position, and no alarm is raised."""
+    settings(firmware, **FAST)
+    first = open_stage(firmware)
+    first.move_to(x_mm=-20.0, feed_mm_min=300.0)                        # 4 s of motion on the firmware's clock
+    next(s for s in first.track() if s.mpos_mm[0] < -0.5)
+    first.close()                                                         # killed: the planner runs on
+    with open_stage(firmware) as second:
+        status = second.status()
+        assert not second.locked and second.protocol.last_alarm is None and status.state == "Idle"
+        assert -20.0 < status.mpos_mm[0] < -0.5                           # kept where the hold stopped it

@@ -232,9 +232,10 @@ def test_jog_and_jog_cancel(emu):
 
 
 def test_vanished_port_is_disconnected():
-    with emulator_process(FAST, faults=(Fault("vanish", reply="status", nth=4),)) as emu, \
+    with emulator_process(FAST, faults=(Fault("vanish", reply="status", nth=5),)) as emu, \
             open_stage(emu.path) as stage:
-        stage.position_mm(), stage.position_mm()  # open read report 1; these are 2 and 3; the 4th vanishes
+        stage.position_mm(), stage.position_mm()  # open read reports 1-2 (before and after its reset); these are 3
+        # and 4; the 5th vanishes
         with pytest.raises(StageDisconnected, match=f"port {emu.path} disconnected"):
             stage.position_mm()
         emu.process.join(5.0)
@@ -338,3 +339,21 @@ def test_the_cli_offers_resume_only_for_a_run_it_began(tmp_path, capsys):
     assert len(err) == 1 and "disconnected" in err[0]
     assert err[0].endswith("the run so far is kept: run the same command with --resume to continue")
     assert (tmp_path / "run" / "journal.jsonl").is_file()
+
+
+def test_opening_a_board_still_moving_for_a_killed_process_holds_it_and_keeps_the_position():
+    """``kill -9`` during a traverse leaves the board running the queued moves; the next
+    process's opening reset in motion raised ALARM:3 (position lost) and ``acquire
+    --resume`` refused the locked stage (an outside test on grbl-sim). Opening now feed-holds
+    a moving board and resets once the hold is complete: no alarm, the position kept."""
+    with emulator_process(FAST) as emu:
+        first = open_stage(emu.path)
+        first.move_to(x_mm=-50.0, feed_mm_min=600.0)                  # 5 s of motion
+        next(s for s in first.track() if s.mpos_mm[0] < -1.0)
+        first.close()                                                  # killed: nothing stops the board
+        with open_stage(emu.path) as second:
+            status = second.status()
+            assert not second.locked and status.state == "Idle" and second.protocol.last_alarm is None
+            assert -50.0 < status.mpos_mm[0] < -1.0                    # where the hold stopped it
+        with open_stage(emu.path) as idle:                             # an idle board: opened as before
+            assert idle.status().mpos_mm == status.mpos_mm
