@@ -123,5 +123,7 @@ def run(args) -> int:
     print(f"{args.out}: {summary['scans_done']} of {summary['scans_planned']} scans ({state}), "
           f"{summary['samples_written']} samples, {summary['bad_frames']} bad frames, "
           f"{summary['bad_lines']} bad lines, {summary['late_samples']} late samples, "
-          f"{summary['partial_lines_dropped']} partial lines dropped")
+          f"{summary['partial_lines_dropped']} partial lines dropped"
+          + (f"; {summary['slow_scans']} scans where the stage moved slower than planned (see the log)"
+             if summary.get("slow_scans") else ""))
     return 0 if summary["complete"] else 1

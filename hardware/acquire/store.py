@@ -151,7 +151,7 @@ class RunStore:
         elif kind == "scan_done":
             self.done.add(ev["scan_id"])
             self.counts["samples_written"] += ev["n_samples"]
-        elif kind in ("bad_frame", "bad_line", "late_sample"):
+        elif kind in ("bad_frame", "bad_line", "late_sample", "slow_scan"):
             self.counts[kind + "s"] += 1
         elif kind == "run":
             self.counts["runs"] += 1
@@ -215,7 +215,7 @@ class RunStore:
         """Write ``summary.json`` atomically; returns what was written."""
         summary = {"scans_done": len(self.done), "samples_written": self.counts["samples_written"],
                    "bad_frames": self.counts["bad_frames"], "bad_lines": self.counts["bad_lines"],
-                   "late_samples": self.counts["late_samples"],
+                   "late_samples": self.counts["late_samples"], "slow_scans": self.counts["slow_scans"],
                    "partial_lines_dropped": self.counts["partial_lines_dropped"],
                    "aborted_attempts": sum(self.attempts.values()) - len(self.done),
                    "runs": self.counts["runs"], **extra}

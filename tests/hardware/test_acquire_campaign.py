@@ -94,6 +94,7 @@ def check_time_base(run: Path, summary: dict) -> None:
     late = rows.t_s - rows.t_sched_s > 0.25 * period
     np.testing.assert_array_equal(rows.late.to_numpy(), late.astype(int).to_numpy())
     assert summary["late_samples"] >= int(late.sum())          # killed attempts may add more
+    assert summary["slow_scans"] == 0                           # on the commanded traverse: none slower
 
 
 def load_plan_scan():
@@ -454,3 +455,24 @@ def test_why_a_campaign_stopped_is_said_in_words():
     assert stopped_text(KeyboardInterrupt("signal 15")) == "interrupted (signal 15)"
     assert stopped_text(RuntimeError()) == "stopped by an error (RuntimeError)"
     assert stopped_text(PortError("/dev/ttyUSB0", "disconnected")) == "port /dev/ttyUSB0: disconnected"
+
+
+def test_a_scan_whose_stage_lags_the_plan_is_reported():
+    """grbl-sim moved at 0.8-1.0 mm/s under a 2 mm/s plan: each scan covered 1.6-2.0 of its
+    4 mm, the step at 2 mm was never reached, and the run said "complete" with nothing said
+    (an outside test). A scan whose last sample finds the stage under 0.8 of the way the
+    plan's speed puts it (accelerating at the board's $120, at most the traverse) is
+    reported; one on the profile, or read late (the stage further along, or at the end), is not."""
+    from feeler.hardware.acquire.campaign import SLOW_SCAN_SHARE, slow_scan
+
+    def rows(speed, times):                      # a stage at constant ``speed`` from t = 0, stopping at 4 mm
+        return [{"t_s": t, "x_mm": min(speed * t, 4.0)} for t in times]
+
+    times = np.arange(21) * 0.1                                                   # 2 s of samples
+    along, expected = slow_scan(rows(0.97, times), 2.0, 10.0, 4.0)
+    assert along == pytest.approx(1.94) and expected == pytest.approx(2.0 * 2.0 - 0.5 * 2.0 * 0.2)   # 3.8 mm
+    assert along < SLOW_SCAN_SHARE * expected
+    assert slow_scan(rows(2.0, times), 2.0, 10.0, 4.0) is None                    # on the plan (a 0.2 s ramp)
+    assert slow_scan(rows(2.0, np.r_[times, 9.0]), 2.0, 10.0, 4.0) is None        # read late: at the end, 4 mm
+    assert slow_scan(rows(0.97, times)[:1], 2.0, 10.0, 4.0) is None               # one sample at t = 0
+    assert slow_scan([], 2.0, 10.0, 4.0) is None
