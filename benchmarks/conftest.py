@@ -84,7 +84,8 @@ def pytest_terminal_summary(terminalreporter):
     rows = _earlier_rows(path)            # a partial run (one module, -k) replaces only what it measured
     for name, ratio, goal, *extra in RATIOS:
         e = extra[0] if extra else {}
-        rows[name] = [name, f"{ratio:.6g}", goal, stamp, *(f"{e[k]:.6g}" if k in e else "" for k in ("p10", "p90", "best")),
+        rows[name] = [name, f"{ratio:.6g}", goal, stamp,
+                      *(f"{e[k]:.6g}" if k in e else "" for k in ("p10", "p90", "best")),
                       e.get("load", ""), e.get("rounds", "")]
     with path.open("w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)

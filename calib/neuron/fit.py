@@ -180,8 +180,9 @@ def mode_decoders(table, plates: Plates, priors: Priors, noise: str, elpd: np.nd
     classify reads a new scan, the plate unknown (:attr:`.model.Plates.read`): a flat
     plate's scan whose noise reads as a snap goes to the snaps' decoder. With every flat
     scan counted as a ride, the snaps' window and γ were fitted on riser snaps alone (on
-    an untuned random scene: training snaps read at accuracy 1.0, fresh ones at 0.90-0.93). The posterior itself (summary, verdict,
-    discriminate) keeps the joint weights. ``cond``: the leave-one-out plate
+    an untuned random scene: training snaps read at accuracy 1.0, fresh ones at
+    0.90-0.93). The posterior itself (summary, verdict, discriminate) keeps the joint
+    weights. ``cond``: the leave-one-out plate
     probabilities per node (:func:`.window.loo_class_cond`), if the caller has them."""
     from feeler.calib.neuron.grid import sample_grid
 

@@ -45,6 +45,7 @@ class GrblCommands:
         ``ask_s`` (a board that is booting, or not a Grbl: the reset then goes ahead as
         before)."""
         status = self._status_now(ask_s)
+        # protocol.moving() but homing, which a feed hold does not stop
         if status is None or not (status.state in ("Run", "Jog") or (status.state == "Hold" and status.substate == 1)):
             return status
         log.info("%s: the board is still moving (%s): feed hold before the reset", self.transport.name, status.state)
@@ -52,8 +53,7 @@ class GrblCommands:
         deadline = time.monotonic() + hold_s * self.slack
         while time.monotonic() < deadline:
             time.sleep(0.02)
-            now = self._status_now(ask_s) or status
-            status = now
+            status = self._status_now(ask_s) or status
             if status.state == "Idle" or (status.state == "Hold" and status.substate == 0):
                 break
         return status

@@ -89,7 +89,7 @@ def _noise_of(d2: np.ndarray) -> float:
 SPIKE_SDS = 15.0
 #: the same for a stream's prefixes (the live decoder's view before the scan ends), judged
 #: at every sample from the 20th on, so their largest lies further out: 60 750 prefixes of
-#: the shipped scenes reach 12.6, and the prefixes of 6050 fresh scans of 40 of the scenes
+#: the shipped scenes reach 12.6, and the prefixes of 9200 fresh scans of 40 of the scenes
 #: above 13.5. A spike of 15-20 sds is then flagged only when the scan ends, after any
 #: decision, which ``decode`` reports as not holding
 SPIKE_SDS_STREAM = 20.0
