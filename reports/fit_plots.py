@@ -20,12 +20,14 @@ import numpy as np
 
 from feeler.reports.model import Figure, Note, log_axis, make_figure, subplots
 
-__all__ = ["labels_of", "plots_of", "finger_route_fig6", "conditions_of", "split_finite", "NO_FINITE",
+__all__ = ["labels_of", "plots_of", "finger_route_fig6", "conditions_of", "split_finite", "NO_FINITE", "DENSITY",
            "fixed_and_copies", "even_chunk"]
 
 _UNITS = {"a": "a (mm per unit strain)", "tau_s": "τ (s)", "h": "h (mm)", "sigma_mm": "σ (mm)",
           "sigma_d_um": "σ_d (µm)", "lapse": "lapse", "cond_C": "cond(C)", "lapse_all": "lapse (pooled)"}
 _PER_FIG = 6
+#: the y label of a marginal panel (its ticks are left out: the scale is per unit of x)
+DENSITY = "density"
 #: what stands in for the figure of an entry whose draws are all NaN or infinite
 NO_FINITE = "no finite draws: the fit failed, see its verdict"
 
@@ -163,6 +165,7 @@ def _marginals(draws, names, labels, *, per_chain: bool, title: str, src) -> Fig
         ax.ticklabel_format(axis="x", style="plain", useOffset=False)
         ax.tick_params(labelsize=6)
         ax.set_yticks([])
+        ax.set_ylabel(DENSITY, fontsize=6)
     how = "one line per chain (chains that agree overlap)" if per_chain else "all draws pooled"
     return make_figure(title, fig, src, f"Marginal posterior densities, {how}; grey: 95 % interval.")
 
@@ -256,6 +259,7 @@ def _m4(result, draws, attrs, labels, src, synthetic: bool = False) -> list:
     axes[2].set(xlabel="lapse rate (pooled)", yticks=[])
     for ax in axes:
         ax.tick_params(labelsize=6)
+        ax.set_ylabel(DENSITY, fontsize=6)
     title, head = (SYNTHETIC_TITLE, SYNTHETIC_CAPTION) if synthetic else ("", "")
     out = [make_figure("Pooled PSE and difference threshold per condition" + title, fig, src,
                        head + "All subjects pooled (the section's estimands); draws pooled over chains.")]
@@ -298,12 +302,14 @@ def _finger_route(draws, attrs, src, synthetic: bool = False) -> list:
         _density(axes[0], _finite(draws["tau_s"]) * 1e3, 40, color="C0", label="draws")
     axes[0].axvline(300.0, color="C3", ls="--", lw=0.8, label="300 ms (paper)")
     axes[0].set(xlabel="τ (ms)", yticks=[])
+    axes[0].set_ylabel(DENSITY + " / its peak", fontsize=6)
     log_axis(axes[0], "x")
     axes[0].legend(fontsize=5)
     for ax, name in zip(axes[1:], ("sigma_d_um", "lapse")):
         if name in draws:
             _density(ax, draws[name], 40, color="C1")
         ax.set(xlabel=_UNITS[name], yticks=[])
+        ax.set_ylabel(DENSITY, fontsize=6)
     for ax in axes:
         ax.tick_params(labelsize=6)
     title, head = (SYNTHETIC_TITLE, SYNTHETIC_CAPTION) if synthetic else ("", "")

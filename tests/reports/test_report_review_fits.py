@@ -61,3 +61,31 @@ def test_the_footnote_states_the_rule_of_the_fits_backend(run_dir):
         assert RULE_INDEPENDENT in caption and "A fit passes with R-hat" not in caption, key
     caption = _table(_section(run_dir, "fit:m1"), "Posterior summary and diagnostics").caption
     assert "A fit passes with R-hat ≤ 1.01 and bulk ESS ≥ 400" in caption and "independent draws" in caption
+
+
+def _drawn_panels(monkeypatch, run_dir, key):
+    """(figure title, panel) of every visible panel the fit section of ``key`` draws."""
+    import feeler.reports.fit_plots as fit_plots
+
+    panels, real = [], fit_plots.make_figure
+
+    def keep(title, fig, sources, caption=""):
+        panels.extend((title, ax) for ax in fig.axes if ax.get_visible())
+        return real(title, fig, sources, caption)
+
+    monkeypatch.setattr(fit_plots, "make_figure", keep)
+    _section(run_dir, key)
+    return panels
+
+
+def test_every_marginal_panel_says_what_its_y_axis_is(monkeypatch, run_dir):
+    """The posterior marginals had neither y ticks nor a y label (review s49, item 17): a
+    panel without y ticks is labelled (a density, or the τ grid's density over its peak)."""
+    from feeler.reports.fit_plots import DENSITY
+
+    for key in ("fit:m1", "fit:m2", "fit:m4", "fit:finger-route"):
+        panels = _drawn_panels(monkeypatch, run_dir, key)
+        unlabelled = [(t, ax.get_title() or ax.get_xlabel()) for t, ax in panels
+                      if not ax.get_yticks().size and not ax.get_ylabel()]
+        assert panels and unlabelled == [], key
+        assert any(ax.get_ylabel() == DENSITY for _, ax in panels), key
