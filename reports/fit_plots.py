@@ -305,18 +305,57 @@ def _finger_route(draws, attrs, src, synthetic: bool = False) -> list:
     axes[0].set_ylabel(DENSITY + " / its peak", fontsize=6)
     log_axis(axes[0], "x")
     axes[0].legend(fontsize=5)
+    on_nodes = "lapse" in draws and _lapse_on_grid(axes[2], draws["lapse"], _route_grid(attrs))
     for ax, name in zip(axes[1:], ("sigma_d_um", "lapse")):
-        if name in draws:
+        if name in draws and not (name == "lapse" and on_nodes):
             _density(ax, draws[name], 40, color="C1")
         ax.set(xlabel=_UNITS[name], yticks=[])
         ax.set_ylabel(DENSITY, fontsize=6)
     for ax in axes:
         ax.tick_params(labelsize=6)
     title, head = (SYNTHETIC_TITLE, SYNTHETIC_CAPTION) if synthetic else ("", "")
+    lapse = (f"lapse: the grid's {on_nodes} nodes (triangles), each one's share of the draws spread over the prior "
+             "cell it stands for, in proportion to the prior (dotted)" if on_nodes else "lapse: draws pooled")
     return [make_figure("Posterior of τ, σ_d and the lapse" + title, fig, src,
-                        head + "τ: the grid's marginal density (normalised to its peak); σ_d and lapse: draws "
-                        "pooled. "
-                        "κ is a function of τ and is not drawn.")]
+                        head + "τ: the grid's marginal density (normalised to its peak); σ_d: draws pooled; "
+                        f"{lapse}. κ is a function of τ and is not drawn.")]
+
+
+def _route_grid(attrs):
+    """The finger route's grid from the posterior's ``grid`` attribute (None without one)."""
+    from feeler.calib.psychometric.finger_route import RouteGrid
+
+    try:
+        fields = json.loads(attrs.get("grid", ""))
+        return RouteGrid(**{k: tuple(v) if isinstance(v, list) else v for k, v in fields.items()})
+    except (TypeError, ValueError, AttributeError):      # absent, not JSON, not a RouteGrid's fields
+        return None
+
+
+def _lapse_on_grid(ax, x, grid) -> int:
+    """Draw the lapse's grid posterior as a density (:func:`lapse_density`) when every draw
+    sits on one of ``grid``'s nodes; returns the number of nodes, 0 (nothing drawn) otherwise.
+    A histogram of such draws is a comb of one spike per node (an outside reader asked why)."""
+    from scipy.stats import beta
+
+    from feeler.calib.psychometric.finger_route import lapse_density
+    from feeler.models.psychometric import LAPSE_MAX
+
+    x = _finite(x)
+    if grid is None or not x.size or not np.isclose(x[:, None], grid.lapses()[None], rtol=1e-9, atol=0.0).any(1).all():
+        return 0
+    edges = grid.lapse_edges()
+    top = float(LAPSE_MAX * beta.ppf(0.995, grid.lapse_a, grid.lapse_b))      # the prior's 99.5 % point
+    lam = np.unique(np.concatenate([np.linspace(0.0, top, 400), edges[edges <= top]]))
+    lam = np.sort(np.concatenate([lam, np.nextafter(edges[1:-1][edges[1:-1] <= top], 0.0)]))  # a step at each edge
+    ax.plot(lam, lapse_density(grid, x, lam), color="C1", lw=0.9, label="posterior")
+    ax.plot(lam, beta.pdf(lam / LAPSE_MAX, grid.lapse_a, grid.lapse_b) / LAPSE_MAX, ":", color="0.4", lw=0.8,
+            label="prior")
+    ax.plot(grid.lapses(), np.zeros(grid.n_lapse), "^", color="C1", ms=3.5, clip_on=False)   # not axis ticks
+    ax.legend(fontsize=5)
+    ax.set_xlim(0.0, top)
+    ax.set_ylim(bottom=0.0)
+    return grid.n_lapse
 
 
 def plots_of(inv, part, result, attrs, *, sampler: bool) -> list:

@@ -45,7 +45,7 @@ from feeler.models.observer import conversion_factor, log_choice_prob
 from feeler.models.psychometric import LAPSE_MAX
 
 __all__ = ["RouteGrid", "fit_finger_route", "subject_fit_problems", "accepted_heights", "predict_p_higher", "tau_report", "paper_verdict",
-           "PAPER_TAU_MAX_S"]
+           "PAPER_TAU_MAX_S", "lapse_density"]
 
 PAPER_TAU_MAX_S = 0.3  # paper §4.2: simulations "coincide well ... below τ = 300 msec"
 #: a subject's own σ_d this many times from the pooled one (either way) disagrees with the
@@ -85,6 +85,34 @@ class RouteGrid:
     def lapses(self) -> np.ndarray:
         q = (np.arange(self.n_lapse) + 0.5) / self.n_lapse
         return LAPSE_MAX * beta_dist.ppf(q, self.lapse_a, self.lapse_b)
+
+    def lapse_edges(self) -> np.ndarray:
+        """(ndarray[n_lapse + 1]) the prior's k / n_lapse quantiles: node k of
+        :meth:`lapses` stands for the prior mass 1 / n_lapse between edges k and k + 1."""
+        q = np.arange(self.n_lapse + 1) / self.n_lapse
+        return LAPSE_MAX * beta_dist.ppf(q, self.lapse_a, self.lapse_b)
+
+
+def lapse_density(grid: RouteGrid, lapse_draws, x) -> np.ndarray:
+    """Posterior density of the lapse at ``x`` from draws that sit on the grid's nodes.
+
+    The grid takes the likelihood as constant over the prior cell of each node, so the
+    posterior there is the prior density times the node's share of the draws, times
+    n_lapse (each cell holds prior mass 1 / n_lapse): a density that integrates to 1, drawn
+    where a histogram of the draws shows one spike per node.
+
+    Args:
+        lapse_draws (ndarray): draws, each one of ``grid.lapses()``; x (ndarray): lapses.
+    Returns:
+        ndarray like ``x``: density per unit lapse, 0 outside [0, LAPSE_MAX].
+    """
+    nodes, edges = grid.lapses(), grid.lapse_edges()
+    d = np.ravel(np.asarray(lapse_draws, float))
+    share = np.array([np.isclose(d, v, rtol=1e-9, atol=0.0).sum() for v in nodes]) / max(d.size, 1)
+    x = np.asarray(x, float)
+    cell = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, grid.n_lapse - 1)
+    prior = beta_dist.pdf(x / LAPSE_MAX, grid.lapse_a, grid.lapse_b) / LAPSE_MAX
+    return np.where((x >= 0) & (x <= LAPSE_MAX), prior * grid.n_lapse * share[cell], 0.0)
 
 
 def _stimuli(trials: pd.DataFrame) -> tuple[list, np.ndarray, np.ndarray]:

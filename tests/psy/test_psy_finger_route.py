@@ -4,7 +4,8 @@ import pandas as pd
 import pytest
 
 from feeler.calib.psychometric.finger_route import (RouteGrid, _edge_problems, accepted_heights,
-                                       fit_finger_route, paper_verdict, predict_p_higher, tau_report)
+                                       fit_finger_route, lapse_density, paper_verdict, predict_p_higher,
+                                       tau_report)
 from feeler.calib.fit import DiagnosticWarning
 from feeler.calib.psychometric.outputs.checks import speed_problems
 from feeler.errors import ArgumentError
@@ -27,6 +28,23 @@ def test_kappa_makes_the_mean_slope_one():
     np.testing.assert_allclose(slopes[:, :, 0].mean(axis=1), 1.0, rtol=1e-12)
     assert np.all(slopes[:, 1, 0] >= slopes[:, 0, 0] - 1e-12)  # felt higher at 40 mm/s
     assert slopes[2, 1, 0] == pytest.approx(slopes[2, 0, 0], rel=1e-3)  # τ ≫ slide: no speed effect
+
+
+def test_the_lapse_density_is_the_prior_reweighted_per_node_cell():
+    """Draws on the lapse nodes as a density: node k's share times n times the prior over
+    its cell (the prior's k/n to (k+1)/n quantiles), integrating to 1."""
+    from scipy.stats import beta
+
+    edges, nodes = GRID.lapse_edges(), GRID.lapses()
+    assert edges[0] == 0.0 and edges[-1] == 0.5 and np.all((edges[:-1] < nodes) & (nodes < edges[1:]))
+    draws = np.repeat(nodes, [1, 2, 3, 0, 4])                  # shares 0.1, 0.2, 0.3, 0, 0.4
+    x = np.linspace(0.0, 0.5, 200_001)
+    f = lapse_density(GRID, draws, x)
+    assert np.sum(f) * (x[1] - x[0]) == pytest.approx(1.0, abs=1e-4)
+    prior = beta.pdf(x / 0.5, GRID.lapse_a, GRID.lapse_b) / 0.5
+    cell = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, 4)
+    np.testing.assert_allclose(f, prior * 5 * np.array([0.1, 0.2, 0.3, 0.0, 0.4])[cell])
+    np.testing.assert_allclose(lapse_density(GRID, nodes, x), prior)          # one draw per node: the prior
 
 
 def test_predicted_probabilities(design):

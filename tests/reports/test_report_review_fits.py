@@ -89,3 +89,19 @@ def test_every_marginal_panel_says_what_its_y_axis_is(monkeypatch, run_dir):
                       if not ax.get_yticks().size and not ax.get_ylabel()]
         assert panels and unlabelled == [], key
         assert any(ax.get_ylabel() == DENSITY for _, ax in panels), key
+
+
+def test_the_finger_routes_lapse_is_a_density_not_a_comb(monkeypatch, run_dir):
+    """The lapse's draws sit on the grid's 8 quantile nodes, and their histogram was a comb
+    of 8 spikes (review s49, item 17): the panel draws the grid's density, positive from
+    the first node to the last, with the nodes marked."""
+    from feeler.calib.psychometric.finger_route import RouteGrid
+
+    (ax,) = [ax for _, ax in _drawn_panels(monkeypatch, run_dir, "fit:finger-route") if ax.get_xlabel() == "lapse"]
+    nodes = RouteGrid().lapses()
+    (line,) = [ln for ln in ax.lines if ln.get_label() == "posterior"]
+    x, y = line.get_xydata().T
+    inner = (x >= nodes[0]) & (x <= nodes[-1])
+    assert inner.sum() > 100 and np.all(y[inner] > 0) and not ax.patches           # no histogram bars
+    marks = [ln for ln in ax.lines if ln.get_marker() == "^"]
+    assert len(marks) == 1 and np.allclose(marks[0].get_xdata(), nodes)
