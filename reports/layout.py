@@ -5,6 +5,8 @@
 - two pieces of text overlap (tick labels, axis labels, titles, legend entries,
   annotations; measured as rendered, with matplotlib's text extents);
 - a piece of text is cut at the figure's edge;
+- a text placed in a panel (an annotation, a count beside a point) crosses the panel's
+  frame: partly inside, partly outside;
 - a legend covers plotted data (a vertex of a data line or marker, lines resampled so
   that a long straight segment counts too);
 - a visible panel holds nothing;
@@ -70,6 +72,22 @@ def _text_problems(fig, renderer) -> list[str]:
         for tb, b in texts[i + 1:]:
             if _overlap(a, b):
                 problems.append(f"texts {ta!r} and {tb!r} overlap")
+    return problems
+
+
+def _frame_problems(ax, renderer) -> list[str]:
+    """Texts of the panel ``ax`` that lie partly inside and partly outside its frame (a
+    text wholly outside it, such as a note beside the panel, is placed there on purpose)."""
+    frame = ax.get_window_extent(renderer)
+    problems = []
+    for t in ax.texts:
+        if not t.get_visible() or not t.get_text().strip():
+            continue
+        bb = t.get_window_extent(renderer)
+        within = (bb.x0 >= frame.x0 - _TOL_PX and bb.y0 >= frame.y0 - _TOL_PX and bb.x1 <= frame.x1 + _TOL_PX
+                  and bb.y1 <= frame.y1 + _TOL_PX)
+        if _overlap(bb, frame) and not within:
+            problems.append(f"panel {_name(ax)}: text {t.get_text().strip()!r} crosses its frame")
     return problems
 
 
@@ -141,6 +159,7 @@ def check_figure(fig) -> tuple[str, ...]:
             continue
         if ax.axison and _empty(ax):
             problems.append(f"panel {_name(ax)} is empty")
+        problems += _frame_problems(ax, renderer)
         problems += _legend_problems(ax, renderer)
         problems += _time_problems(ax)
     return tuple(dict.fromkeys(problems))

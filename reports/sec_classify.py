@@ -162,10 +162,14 @@ def _calibration(conf, hit, ece, src) -> Figure:
     fig, ax = subplots(width_in=3.6, height_in=3.0)
     ax.plot([0, 1], [0, 1], "k--", lw=0.8, label="perfect calibration")
     ax.plot(rel[:, 0], rel[:, 1], "o-", label=f"classifier (ECE {ece:.3f})")
-    for x, y, n in rel:                    # below the point, or above it near the axis (off the tick labels)
-        ax.annotate(f"{int(n)}", (x, y), fontsize=6, textcoords="offset points", xytext=(3, -8 if y > 0.1 else 4))
+    # the counts in a row along the floor, under their bins: beside the points they crossed the right frame (the
+    # hard demo's '38' at 0.98) or the lines, which near (1, 1) leave no room (an outside reader)
+    for x, _, n in rel:
+        right = x > 0.9
+        ax.annotate(f"{int(n)}", (x, 0.0), fontsize=6, color="C0", textcoords="offset points", va="bottom",
+                    ha="right" if right else "center", xytext=(3 if right else 0, 2))
     ax.set(xlim=(0, 1.02), ylim=(0, 1.02), xlabel="top-class probability",
            ylabel="fraction correct", title="Calibration curve")
     ax.legend(fontsize=7, loc="upper left")
     return make_figure("Calibration curve of the classifier", fig, src,
-                       "Scans binned by their top-class probability (numbers: scans per bin).")
+                       "Scans binned by top-class probability (bottom row: scans per bin).")

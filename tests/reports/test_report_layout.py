@@ -45,6 +45,27 @@ def test_text_cut_at_the_edge_is_found():
     assert any("cut at the figure's edge" in p and "l2 (converged)" in p for p in _checked(fig))
 
 
+def test_a_text_across_a_panels_frame_is_found():
+    fig, ax = subplots(width_in=3, height_in=2)
+    ax.plot([0, 1], [0, 1])
+    ax.set(xlim=(0, 1.02), title="counts")
+    ax.annotate("38", (0.98, 0.5), xytext=(3, -8), textcoords="offset points")     # to the right of the point
+    ax.annotate("inside", (0.5, 0.5))
+    ax.text(1.1, 0.5, "beside", transform=ax.transAxes)                            # wholly outside: on purpose
+    assert [p for p in _checked(fig) if "frame" in p] == ["panel 'counts': text '38' crosses its frame"]
+
+
+def test_the_calibration_curves_counts_stay_inside_its_frame():
+    """A count right of a point at confidence 0.98 crossed the right frame (review s49, item 17)."""
+    from feeler.reports.sec_classify import _calibration
+
+    conf = np.r_[np.full(38, 0.98), np.full(6, 0.75), np.full(2, 0.55), np.full(3, 0.05)]
+    hit = np.r_[np.ones(38), np.ones(4), np.zeros(2), np.ones(2), np.zeros(3)].astype(bool)
+    with report_style():
+        figure = _calibration(conf, hit, 0.05, ("classify/classification.csv",))
+    assert figure.problems == ()
+
+
 def test_an_empty_panel_is_found():
     fig, axes = subplots(2, width_in=2.5, height_in=2)
     axes[0].plot([0, 1], [0, 1])
