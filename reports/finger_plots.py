@@ -10,10 +10,18 @@ import numpy as np
 
 from feeler.reports.model import log_axis, subplots
 
-__all__ = ["fig3", "fig3_detail", "fig4", "fig5", "fig6", "ladder_trade", "mesh_name", "SPEED_STYLE"]
+__all__ = ["fig3", "fig3_detail", "fig4", "fig5", "fig6", "ladder_trade", "mesh_name", "SPEED_STYLE", "speed_line"]
 
 #: per speed index: (marker, line style, marker face) so that coinciding points stay visible
 SPEED_STYLE = (("o", "-", "none"), ("s", "--", "full"), ("^", "-.", "none"), ("D", ":", "full"))
+
+
+def speed_line(j: int, n: int) -> dict:
+    """Line width and opacity of speed ``j`` of ``n``: the first speeds wide and pale, the
+    last thin and opaque on top, so that a line lying on another shows as a dashed line
+    inside a band (with equal widths the later line hid the earlier: an outside reader)."""
+    wide = n - 1 - j
+    return {"lw": 1.0 + 2.2 * wide, "alpha": 1.0 if wide == 0 else 0.4, "zorder": 2 + j}
 
 
 def _per_speed(speeds, height_in=2.5):
@@ -77,7 +85,7 @@ def fig5(heights, speeds, peaks, fits=None):
         slope, icpt, r2 = fits[j] if fits is not None else (*np.polyfit(heights, peaks[:, j], 1), np.nan)
         ax.plot(heights, peaks[:, j], marker, color=f"C{j}", ms=7 - 2 * j, mfc="none" if face == "none" else f"C{j}",
                 ls="none", label=f"{v:g} mm/s")
-        ax.plot(heights, slope * np.asarray(heights) + icpt, ls, color=f"C{j}", lw=1,
+        ax.plot(heights, slope * np.asarray(heights) + icpt, ls, color=f"C{j}", **speed_line(j, len(speeds)),
                 label=f"line, {v:g} mm/s (R² = {r2:.4f})")
     ax.set(xlabel="step height (µm)", ylabel="peak pulse density (normalised)",
            title="Fig. 5 — peak z against step height")
@@ -92,22 +100,57 @@ def fig6(taus, heights, speeds, accepted, human=()):
         taus (ndarray[n_tau]) s; accepted (ndarray[n_tau, n_h, n_v]) µm;
         human: (presented µm, PSE µm, lo, hi, speed mm/s, label) per point.
     """
-    fig, ax = subplots(width_in=6.6, height_in=3.2)
+    if not len(human):
+        fig, ax = subplots(width_in=6.6, height_in=3.2)
+        _fig6_lines(ax, taus, heights, speeds, accepted)
+        fig.legend(*ax.get_legend_handles_labels(), loc="outside right upper", fontsize=6, frameon=False)
+        return fig
+    fig, (ax, zoom) = subplots(2, width_in=3.3, height_in=3.2, width_ratios=(2.6, 1.0))
+    for a in (ax, zoom):
+        _fig6_lines(a, taus, heights, speeds, accepted)
+        _human_stars(a, human, speeds, ms=9 if a is ax else 6)
+    x0, x1, y0, y1 = _around(human)
+    zoom.set(xlim=(x0, x1), ylim=(y0, y1), xlabel="presented (µm)", ylabel="", title="human PSEs, zoomed")
+    zoom.title.set_fontsize(7)
+    ax.add_patch(_box(x0, x1, y0, y1))
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncol=3, fontsize=6, frameon=False)
+    return fig
+
+
+def _fig6_lines(ax, taus, heights, speeds, accepted) -> None:
+    """Fig. 6's line per τ and speed (:func:`speed_line`) and the identity line on top."""
     for k, tau in enumerate(taus):
         for j, v in enumerate(speeds):
             marker, ls, _ = SPEED_STYLE[j % len(SPEED_STYLE)]
-            ax.plot(heights, accepted[k, :, j], ls, marker=marker, ms=3, lw=1, color=f"C{k % 10}",
-                    label=f"τ = {tau * 1e3:g} ms, {v:g} mm/s")
-    for x, pse, lo, hi, v, label in human:
-        j = int(np.argmin(np.abs(np.asarray(speeds) - v))) if len(speeds) else 0
-        ax.errorbar([x], [pse], yerr=[[pse - lo], [hi - pse]], fmt="*", ms=9, color="k", mfc="w" if j else "k",
-                    capsize=3, label=label)
+            ax.plot(heights, accepted[k, :, j], ls, marker=marker, ms=3, color=f"C{k % 10}",
+                    **speed_line(j, len(speeds)), label=f"τ = {tau * 1e3:g} ms, {v:g} mm/s")
     lim = [min(heights), max(heights)]
-    ax.plot(lim, lim, color="0.6", lw=0.6, label="accepted = presented")
+    ax.plot(lim, lim, ":", color="k", lw=0.8, zorder=2 + len(speeds), label="accepted = presented")
     ax.set(xlabel="presented step height (µm)", ylabel="accepted step height (µm)",
            title="Fig. 6 — accepted vs presented height")
-    fig.legend(*ax.get_legend_handles_labels(), loc="outside right upper", fontsize=6, frameon=False)
-    return fig
+
+
+def _human_stars(ax, human, speeds, ms: float) -> None:
+    for x, pse, lo, hi, v, label in human:
+        j = int(np.argmin(np.abs(np.asarray(speeds) - v))) if len(speeds) else 0
+        ax.errorbar([x], [pse], yerr=[[pse - lo], [hi - pse]], fmt="*", ms=ms, color="k", mfc="w" if j else "k",
+                    capsize=3, elinewidth=1.2, zorder=10, label=label)
+
+
+def _around(human, least_um: float = 0.5) -> tuple[float, float, float, float]:
+    """(x0, x1, y0, y1): the human PSEs and their intervals with a margin, at least
+    ``least_um`` either side (their intervals are narrower than a star on Fig. 6's scale)."""
+    x = np.array([h[0] for h in human], float)
+    y = np.array([v for h in human for v in h[1:4] if np.isfinite(v)], float)
+    xm = max(least_um, 0.15 * np.ptp(x))
+    ym = max(least_um, 0.25 * np.ptp(y))
+    return x.min() - xm, x.max() + xm, y.min() - ym, y.max() + ym
+
+
+def _box(x0, x1, y0, y1):
+    from matplotlib.patches import Rectangle
+
+    return Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="0.4", lw=0.7, zorder=11)
 
 
 def mesh_name(mesh: str, converged: bool | None) -> str:

@@ -17,7 +17,20 @@ from feeler.reports.humandata import human_data
 from feeler.reports.model import Note, Section, Table, fmt, make_figure, table_from_frame
 from feeler.reports.readers import read_json, read_table
 
-__all__ = ["finger_section", "human_points", "ladder_blocks"]
+__all__ = ["finger_section", "human_points", "ladder_blocks", "fig6_caption", "LINES_CAPTION"]
+
+
+#: how Figs 5 and 6 keep a speed's line visible under another's (:func:`finger_plots.speed_line`)
+LINES_CAPTION = ("a slower speed's line is drawn wider and paler under a faster one's, so where the speeds "
+                 "coincide both show")
+
+
+def fig6_caption(human: bool) -> str:
+    """Fig. 6's caption; with human points, the zoomed panel that shows their intervals."""
+    return ("κ(τ) · peak z for each τ of the sweep (κ = 1 / mean regression slope over the speeds, as in the "
+            f"paper); {LINES_CAPTION}; dotted: accepted = presented."
+            + (" Stars: human PSEs with their 95 % intervals, which are narrower than a star at the left's scale: "
+               "the right panel draws the grey box again, enlarged." if human else ""))
 
 
 def human_points(inv) -> tuple[list, tuple]:
@@ -57,15 +70,12 @@ def _from_histories(inv, fd) -> list:
     fits = [(x.slope_per_um, x.intercept, x.r2) for x in f.fits]
     blocks.append(make_figure("Fig. 5: peak pulse density against step height",
                               fp.fig5(f.heights_um, f.speeds_mm_s, f.peak_z, fits), src,
-                              "Peaks of Fig. 4 with their least-squares lines, one per speed; where the speeds "
-                              "give the same peaks their lines coincide, and the open and filled markers show "
-                              "both."))
+                              "Peaks of Fig. 4 (a marker per speed, open or filled) with their least-squares "
+                              "lines, one per speed; " + LINES_CAPTION + "."))
     pts, hsrc = human_points(inv)
     blocks.append(make_figure("Fig. 6: accepted against presented step height",
                               fp.fig6(f.taus_s, f.heights_um, f.speeds_mm_s, f.accepted_um, pts), src + hsrc,
-                              "κ(τ) · peak z for each τ of the sweep (κ = 1 / mean regression slope over the "
-                              "speeds, as in the paper); stars: human PSEs with their 95 % intervals (a bar hidden "
-                              "behind its star is narrower than it)."))
+                              fig6_caption(bool(pts))))
     rows = tuple((f"{t * 1e3:g}", fmt(c, 4), fmt(r, 4)) for t, c, r in zip(f.taus_s, f.conversion, f.speed_ratio))
     blocks.append(Table("Fig. 6 per τ: conversion factor and speed effect", ("τ (ms)", "κ (µm per unit z)",
                         f"slope {speeds[-1]:g} / {speeds[0]:g} mm/s"), rows, src))
@@ -81,7 +91,9 @@ def _from_figure_csvs(inv, part) -> list:
         t = read_table(inv.run_dir / rel, ("step_um", "speed_mm_s", "peak_z_norm"), ("step_um", "speed_mm_s", "peak_z_norm"))
         h, v = np.unique(t["step_um"]), np.unique(t["speed_mm_s"])
         peaks = t.pivot_table(index="step_um", columns="speed_mm_s", values="peak_z_norm").to_numpy()
-        blocks.append(make_figure("Fig. 5: peak pulse density against step height", fp.fig5(h, v, peaks), (rel,)))
+        blocks.append(make_figure("Fig. 5: peak pulse density against step height", fp.fig5(h, v, peaks), (rel,),
+                                  "Peaks (a marker per speed, open or filled) with their least-squares lines, one "
+                                  "per speed; " + LINES_CAPTION + "."))
     if "fig6_accepted.csv" in part.files:
         rel = part.path("fig6_accepted.csv")
         cols = ("tau_s", "step_um", "speed_mm_s", "accepted_um")
@@ -92,7 +104,7 @@ def _from_figure_csvs(inv, part) -> list:
             acc[np.searchsorted(taus, r.tau_s), np.searchsorted(h, r.step_um), np.searchsorted(v, r.speed_mm_s)] = r.accepted_um
         pts, hsrc = human_points(inv)
         blocks.append(make_figure("Fig. 6: accepted against presented step height", fp.fig6(taus, h, v, acc, pts),
-                                  (rel,) + hsrc))
+                                  (rel,) + hsrc, fig6_caption(bool(pts))))
     return blocks
 
 

@@ -95,9 +95,39 @@ def test_fig5_keeps_coinciding_speeds_visible_and_names_its_lines():
     points = [ln for ln in ax.lines if ln.get_linestyle() == "None"]
     assert len(points) == 2 and points[0].get_marker() != points[1].get_marker()
     assert points[0].get_markersize() > points[1].get_markersize()      # the one below stays visible
+    lines = [ln for ln in ax.lines if ln.get_linestyle() != "None"]
+    assert lines[0].get_linewidth() > 2 * lines[1].get_linewidth() and lines[0].get_zorder() < lines[1].get_zorder()
     labels = ax.get_legend_handles_labels()[1]
     assert labels == ["20 mm/s", "line, 20 mm/s (R² = 1.0000)", "40 mm/s", "line, 40 mm/s (R² = 1.0000)"]
     assert check_figure(fig) == ()
+
+
+def test_fig6_shows_the_human_intervals_and_lines_that_coincide():
+    """Fig. 6's 20 and 40 mm/s lines at τ = 300 ms lay one on the other, and the human
+    PSEs' 95 % intervals (±0.2 µm) were shorter than their stars (an outside reader saw
+    neither): the lower line is wider, and a panel shows each interval taller than its star."""
+    from feeler.reports.finger_plots import fig6
+    from feeler.reports.layout import check_figure
+
+    heights = np.array([5.0, 7.5, 10.0, 12.5, 15.0])
+    acc = np.stack([np.column_stack([0.8 * heights, 1.2 * heights]), np.column_stack([heights, heights])])
+    human = [(10.0, 10.0, 9.84, 10.2, 20.0, "human, standard at 20 mm/s"),
+             (10.0, 10.8, 10.5, 11.0, 40.0, "human, standard at 40 mm/s")]
+    fig = fig6(np.array([0.01, 0.3]), heights, np.array([20.0, 40.0]), acc, human)
+    fig.canvas.draw()
+    assert check_figure(fig) == ()
+    main = fig.axes[0]
+    same = [ln for ln in main.lines if ln.get_label().startswith("τ = 300 ms")]
+    assert len(same) == 2 and same[0].get_linewidth() > 2 * same[1].get_linewidth()
+    px_per_pt = fig.dpi / 72
+    for x, pse, lo, hi, _, _ in human:
+        shown = []
+        for ax in fig.axes:
+            (y0, y1), (x0, x1) = ax.get_ylim(), ax.get_xlim()
+            star = max(ln.get_markersize() for ln in ax.lines if ln.get_marker() == "*")
+            span = np.ptp(ax.transData.transform([(x, lo), (x, hi)])[:, 1])
+            shown.append(y0 < lo and hi < y1 and x0 < x < x1 and span > 2 * star * px_per_pt)
+        assert any(shown), (pse, shown)
 
 
 def test_ladder_plot_labels_fit_in_the_figure():
