@@ -9,7 +9,8 @@ import pytest
 
 from feeler.calib.psychometric.model.task import Task
 from feeler.calib.psychometric.outputs import checks
-from feeler.calib.psychometric.outputs.display import DASH, shown_columns, threshold_cells, threshold_note
+from feeler.calib.psychometric.outputs.display import (DASH, UNBOUNDED, shown_columns, threshold_cells,
+                                                       threshold_note)
 from feeler.cli import main
 from feeler.errors import ArgumentError
 
@@ -105,7 +106,8 @@ def test_threshold_cells_show_estimates_bounds_or_a_dash_never_nan():
     assert est == {"threshold_um": "1.569", "threshold_lb_um": "0.968", "threshold_ub_um": "2.145",
                    "slope_per_um": "0.431"}
     bound = threshold_cells(_row(np.nan, 2.625, np.inf, np.inf, 0.856))
-    assert bound["threshold_um"] == "> 2.625" and bound["threshold_ub_um"] == "inf" and bound["slope_per_um"] == DASH
+    assert bound["threshold_um"] == "> 2.625" and bound["slope_per_um"] == DASH
+    assert bound["threshold_ub_um"] == UNBOUNDED == "unbounded"               # printed 'inf' (review s49)
     assert "is a bound, > 2.625 µm: 85.6 % of the posterior never reaches P = 0.99" in \
         threshold_note(_row(np.nan, 2.625, np.inf, np.inf, 0.856))
     assert threshold_cells(_row(np.nan, 2.1, 3.0, 2.4, 0.01))["threshold_um"] == "2.400"      # the median
@@ -138,10 +140,18 @@ def test_cli_pc_beyond_the_lapse_ceiling_fails_without_nan(tmp_path, capsys):
 
 
 def test_cli_pc_most_draws_never_reach_is_a_bound(tmp_path, capsys):
-    code, out, _ = _fit(capsys, _write(tmp_path, "p_nafc_ok.csv", NAFC_OK), "--nafc", "2", "--pc", "0.99")
-    assert code == 0 and "NaN" not in out and "nan" not in out
+    """The bound's upper end is printed 'unbounded', not 'inf'; thresholds.csv keeps inf,
+    the number a program reads back (review s49)."""
+    import pandas as pd
+
+    code, out, _ = _fit(capsys, _write(tmp_path, "p_nafc_ok.csv", NAFC_OK), "--nafc", "2", "--pc", "0.99",
+                        "--out", str(tmp_path / "fit"))
+    assert code == 0 and "NaN" not in out and "nan" not in out and not re.search(r"\binf\b", out)
     rows = _table_rows(out)
-    assert len(rows) == 2 and all(r[7] == ">" and r[9] == r[8] and r[10] == "inf" and r[11] == DASH for r in rows)
+    assert len(rows) == 2 and all(r[7] == ">" and r[9] == r[8] and r[10] == UNBOUNDED and r[11] == DASH
+                                  for r in rows)
+    csv = pd.read_csv(tmp_path / "fit" / "thresholds.csv")
+    assert np.all(csv["threshold_ub_um"] == np.inf) and np.all(np.isfinite(csv["threshold_lb_um"]))
     assert re.search(r"note: S1 at 20/20 mm/s: the threshold at P = 0\.99 is a bound, > \d+\.\d{3} µm: "
                      r"\d+\.\d % of the posterior never reaches P = 0\.99", out)
 

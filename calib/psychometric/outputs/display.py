@@ -8,7 +8,8 @@ not reached). Printed, no cell shows NaN:
 - the threshold at ``pc`` (:func:`threshold_cells`): the posterior mean and 95 % interval
   when every draw reaches P = pc; the median when a few do not (< 2.5 %: the interval is
   still finite); a bound ``> lb`` when more do (the 97.5 % upper end is +inf: the lapse
-  keeps P below pc); ``—`` when not even the lower end is finite, or when the unreached
+  keeps P below pc), its upper end printed ``unbounded`` (the CSV keeps ``inf``, a number
+  a program reads back); ``—`` when not even the lower end is finite, or when the unreached
   mass lies below the floor (pc < ½ in the comparison design), which the verdict names
   (:func:`feeler.calib.psychometric.outputs.checks.threshold_problems`); the slope at a
   point some draws never reach is ``—``;
@@ -19,9 +20,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-__all__ = ["DASH", "threshold_cells", "threshold_note", "shown_columns", "display_table"]
+__all__ = ["DASH", "UNBOUNDED", "threshold_cells", "threshold_note", "shown_columns", "display_table"]
 
 DASH = "—"
+#: the printed upper end of a threshold's interval that is +inf (a reader took "inf" for a number)
+UNBOUNDED = "unbounded"
 _DT = ("dt_um", "dt_lb_um", "dt_ub_um")
 
 
@@ -43,7 +46,7 @@ def threshold_cells(row) -> dict[str, str]:
         est = _fmt(med)
     else:
         est = f"> {lb:.3f}"
-    return {"threshold_um": est, "threshold_lb_um": _fmt(lb), "threshold_ub_um": "inf" if ub == np.inf else _fmt(ub),
+    return {"threshold_um": est, "threshold_lb_um": _fmt(lb), "threshold_ub_um": UNBOUNDED if ub == np.inf else _fmt(ub),
             "slope_per_um": slope}
 
 
