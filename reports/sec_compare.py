@@ -1,5 +1,8 @@
 """Robot and human discrimination on one axis.
 
+Order: the two functions on one axis, the table of thresholds and PSEs, the robot's
+model-based P(correct) of its plate pairs, then the human data behind the fit.
+
 Both psychometric functions are drawn as the 2AFC proportion correct against the height
 difference on linear axes from 0, once in µm and once as a fraction of the reference (the
 Weber fraction), with their difference thresholds (75 % correct) marked:
@@ -271,12 +274,14 @@ def compare_section(inv, spec) -> Section:
                         "its threshold is marked.")
         blocks.append(make_figure("Robot and human psychometric functions on one axis", fig, tuple(dict.fromkeys(src)),
                                   caption))
-    if human.trials is not None:
-        blocks.append(_human_data_figure(human, fitted=shown.human))
     blocks.append(_table(disc, human, shown))
     if disc is not None and len(disc.pairs):
         pairs = "; ".join(f"{fmt(r[0])} vs {fmt(r[1])} mm: {interval(r[2], r[3], r[4], 4)}" for r in pairs_frame(disc))
         blocks.append(Note(f"Robot, model-based 2AFC P(correct) [95 %] of pairs of plates"
                            + ("" if shown.robot else f" ({FAILED_FIT})") + f": {pairs}. {MODEL_PAIRS}",
                            sources=(disc.part.path("discrimination.json"),)))
+    # the human data last: a figure is never split, so the section's last page holds a whole figure, where the
+    # text after it left the demo's last page of the section to the end of a paragraph (review s49, item 21)
+    if human.trials is not None:
+        blocks.append(_human_data_figure(human, fitted=shown.human))
     return Section(spec.key, spec.title, tuple(blocks))

@@ -140,3 +140,18 @@ def test_short_tables_are_kept_on_one_page_and_the_tau_summary_before_its_figure
     route = html[html.index('<section id="sec-fit-finger-route">'):]
     route = route[:route.index("</section>")]
     assert route.index("τ posterior median") < route.index("Accepted against presented step height at the fitted τ")
+
+
+def test_the_comparisons_last_page_holds_a_whole_figure_not_a_paragraphs_end(report):
+    """The demo's last page of this section held only the end of the robot's P(correct)
+    paragraph (review s49, item 21): the section ends with the human data figure, which
+    is never split, so text before it cannot leave a page to itself."""
+    import pypdfium2
+
+    from feeler.reports.build import MANIFEST
+
+    starts = json.loads((report / MANIFEST).read_text(encoding="utf-8"))["page_sections"]
+    first = next(i for i, s in enumerate(starts) if "sec-compare" in s)
+    last = next((i - 1 for i in range(first + 1, len(starts)) if starts[i]), len(starts) - 1)
+    text = pypdfium2.PdfDocument(str(report / "report.pdf"))[last].get_textpage().get_text_range()
+    assert "Human 2AFC data and the pooled psychometric functions." in text, text[:300]
