@@ -185,7 +185,7 @@ def fit_section(inv, spec) -> Section:
 
 def _tau_blocks(inv, part) -> list:
     """The finger route's τ report in words and Fig. 6 at the fitted τ with the human points."""
-    from feeler.reports.fit_plots import finger_route_fig6
+    from feeler.reports.psy_plots import finger_route_fig6
     from feeler.reports.readers import read_json
 
     rel = part.path("tau_report.json")

@@ -66,6 +66,7 @@ def test_the_footnote_states_the_rule_of_the_fits_backend(run_dir):
 def _drawn_panels(monkeypatch, run_dir, key):
     """(figure title, panel) of every visible panel the fit section of ``key`` draws."""
     import feeler.reports.fit_plots as fit_plots
+    import feeler.reports.psy_plots as psy_plots
 
     panels, real = [], fit_plots.make_figure
 
@@ -73,7 +74,8 @@ def _drawn_panels(monkeypatch, run_dir, key):
         panels.extend((title, ax) for ax in fig.axes if ax.get_visible())
         return real(title, fig, sources, caption)
 
-    monkeypatch.setattr(fit_plots, "make_figure", keep)
+    for module in (fit_plots, psy_plots):
+        monkeypatch.setattr(module, "make_figure", keep)
     _section(run_dir, key)
     return panels
 
