@@ -94,7 +94,10 @@ class Transport:
     def read_line(self, timeout_s: float, what: str = "reply") -> bytes:
         """Return the next line without its ``\\r\\n``, waiting at most ``timeout_s``.
 
-        A line begun before the deadline gets :data:`LINE_GRACE_S` more to end.
+        A line begun before the deadline gets :data:`LINE_GRACE_S` more to end. At the
+        deadline the bytes already waiting are taken before it counts as passed: a process
+        descheduled across its deadline on a loaded host finds there the reply that came in
+        time, which is no timeout.
 
         Raises:
             StageTimeout: nothing complete before the deadline (``partial`` holds the
@@ -102,7 +105,7 @@ class Transport:
             StageDisconnected: the port vanished.
         """
         deadline = time.monotonic() + timeout_s
-        graced = False
+        graced = looked = False
         while True:
             end = self._buf.find(b"\n")
             if end >= 0:
@@ -110,6 +113,10 @@ class Transport:
                 del self._buf[: end + 1]
                 log.debug("%s -> %r", self.name, line)
                 return line
+            if time.monotonic() >= deadline and not looked:
+                looked = True                       # once: what came while this process did not run
+                self._take_waiting()
+                continue
             if time.monotonic() >= deadline and self._buf and not graced:
                 # a line already begun ("o" of an "ok" at the deadline) ends within a few byte
                 # times: discarding its start would turn the rest into a damaged line and lose
@@ -136,6 +143,11 @@ class Transport:
         if dropped:
             log.debug("%s -> discarded %r", self.name, bytes(dropped))
         return bytes(dropped)
+
+    def _take_waiting(self) -> None:
+        """Move the bytes the port already holds into the buffer, without waiting."""
+        if self._waiting():
+            self._buf += self._read_some()
 
     def _waiting(self) -> int:
         try:

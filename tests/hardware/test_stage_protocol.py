@@ -201,3 +201,31 @@ def test_a_reply_begun_at_its_deadline_is_read_whole_and_a_cut_one_still_times_o
     port = _TimedPort([(0.3, b"ok\r\n")])                             # nothing begun: no grace
     with pytest.raises(StageTimeout):
         Transport(port, "timed").read_line(0.1, "reply")
+
+
+class _DescheduledPort(_TimedPort):
+    """A :class:`_TimedPort` whose reader loses the CPU for ``away_s`` in its first read,
+    which then returns nothing (a poll that timed out just before the reply came in)."""
+
+    def __init__(self, chunks, away_s):
+        super().__init__(chunks)
+        self.away_s = away_s
+
+    def read(self, n: int) -> bytes:
+        if self.away_s:
+            self.clock.sleep(self.away_s)
+            self.away_s = 0.0
+            return b""
+        return super().read(n)
+
+
+def test_a_reply_that_came_while_the_reader_was_descheduled_is_no_timeout():
+    """On a loaded host the driver's process can be off the CPU across its deadline: the
+    reply, there since 0.02 s of a 0.1 s wait, was reported lost when it resumed at 0.15 s
+    (it checked the deadline before looking at what had come). A reply still missing when
+    it looks remains a timeout."""
+    port = _DescheduledPort([(0.02, IDLE)], away_s=0.15)
+    assert Transport(port, "loaded").read_line(0.1, "status report") == IDLE.rstrip()
+    port = _DescheduledPort([(0.3, IDLE)], away_s=0.15)
+    with pytest.raises(StageTimeout, match="^no status report from loaded within 0.1 s$"):
+        Transport(port, "loaded").read_line(0.1, "status report")
