@@ -75,7 +75,8 @@ class GrblProtocol(GrblCommands):
     Args:
         transport: the byte layer.
         reply_timeout_s (float): deadline for a reply with nothing queued ahead, seconds.
-        status_retries (int): extra ``?`` queries after a lost or damaged status report.
+        status_retries (int): extra ``?`` queries after a lost or damaged status report,
+            each waiting twice as long as the one before (2: 7 reply timeouts in all).
         slack (float): how many times slower than its own clock the controller may run.
         rx_buffer_bytes (int): the controller's receive buffer (``$I`` reports it).
 
@@ -229,19 +230,31 @@ class GrblProtocol(GrblCommands):
 
         Replies to lines in flight that arrive meanwhile are accounted for (and returned by
         the wait for them). A query that got nothing back is asked again; a damaged line only
-        when no line is in flight (else it may have been an ``ok``).
+        when no line is in flight (else it may have been an ``ok``). Each retry waits twice
+        as long as the query before: a report lost on the line is asked for again after one
+        reply timeout, as before, while a host or link that has slowed down (a loaded PC, a
+        network serial bridge) gets 1 + 2 + 4 = 7 reply timeouts before the controller counts
+        as silent, not 3 at one pace.
         """
+        wait_s = self.reply_timeout_s
         for attempt in range(self.status_retries + 1):
             self.transport.write(b"?")
             try:
-                while not isinstance(reply := self._read_reply("status report"), Status):
+                while not isinstance(reply := self._read_reply("status report", wait_s), Status):
                     self._stray.append(reply)
             except (StageTimeout, ProtocolError) as exc:
                 damage = damage_of(exc)
-                if damage is None or (self.in_flight and damage != "lost") or attempt == self.status_retries:
+                if damage is None or (self.in_flight and damage != "lost"):
                     raise
+                if attempt == self.status_retries:
+                    if damage != "lost" or not attempt:
+                        raise
+                    waited_s = self.reply_timeout_s * (2 ** (attempt + 1) - 1)
+                    raise StageTimeout(f"status report from {self.transport.name} in answer to {attempt + 1} "
+                                       "queries", waited_s) from None
                 log.debug("%s: retrying status after %s", self.transport.name, exc)
                 self.count_recovered("status", exc)
+                wait_s *= 2
                 continue
             if attempt and not self.in_flight:
                 self.transport.discard_input(0.05)  # a late report of an earlier query

@@ -229,3 +229,49 @@ def test_a_reply_that_came_while_the_reader_was_descheduled_is_no_timeout():
     port = _DescheduledPort([(0.3, IDLE)], away_s=0.15)
     with pytest.raises(StageTimeout, match="^no status report from loaded within 0.1 s$"):
         Transport(port, "loaded").read_line(0.1, "status report")
+
+
+class _LateStatusPort:
+    """A controller whose one status report comes ``at_s`` after the port is made, however
+    many ``?`` were sent (None: never)."""
+
+    def __init__(self, report: bytes, at_s: float | None):
+        import time
+        self.clock, self.start, self.report, self.at_s = time, time.monotonic(), report, at_s
+        self.written, self.write_timeout = bytearray(), 1.0
+
+    def write(self, data: bytes) -> int:
+        self.written += data
+        return len(data)
+
+    def flush(self) -> None:
+        pass
+
+    @property
+    def in_waiting(self) -> int:
+        due = self.at_s is not None and self.clock.monotonic() - self.start >= self.at_s
+        return len(self.report) if due else 0
+
+    def read(self, n: int) -> bytes:
+        if not self.in_waiting:
+            self.clock.sleep(0.001)
+            return b""
+        self.at_s = None
+        return self.report
+
+
+def test_each_status_query_waits_twice_as_long_as_the_one_before():
+    """A slow answer is not a lost one: a report coming 0.5 s after the first ``?`` with a
+    0.1 s reply timeout failed after three queries at one pace (0.3 s); now they wait 0.1,
+    0.2 and 0.4 s. A controller that never answers is a timeout after those 0.7 s, saying so."""
+    import time
+
+    port = _LateStatusPort(IDLE, at_s=0.5)
+    p = GrblProtocol(Transport(port, "slow"), reply_timeout_s=0.1)
+    assert p.status() == IDLE_STATUS
+    assert port.written == b"???" and p.recovered == {"status_lost": 2}
+    silent = GrblProtocol(Transport(_LateStatusPort(IDLE, at_s=None), "silent"), reply_timeout_s=0.1)
+    start = time.monotonic()
+    with pytest.raises(StageTimeout, match=r"^no status report from silent in answer to 3 queries within 0.7 s$"):
+        silent.status()
+    assert time.monotonic() - start >= 0.7
