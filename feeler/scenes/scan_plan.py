@@ -14,12 +14,19 @@ limits when the campaign connects (:func:`feeler.hardware.acquire.plan.check_mov
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from feeler.errors import SceneError
 from feeler.scene import param
 
-__all__ = ["Scene", "Head", "Plates", "ScanMotion", "Repeats", "Neuron", "Optics", "Virtual"]
+__all__ = ["Scene", "Head", "Plates", "ScanMotion", "Repeats", "Neuron", "Optics", "Virtual",
+           "MAX_SPEED_MM_S", "samples_per_scan", "per_minute_hint"]
+
+#: mm/s, the fastest traverse a plan may ask for (checked in :meth:`Scene.check`, with a hint)
+MAX_SPEED_MM_S = 1000.0
+#: a plan may take at most this many samples a scan
+MAX_SAMPLES = 1e5
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -42,7 +49,9 @@ class Plates:
 
 @dataclass(frozen=True, kw_only=True)
 class ScanMotion:
-    speed_mm_s: float = param(lo=0.0, lo_open=True, hi=1000.0, doc="mm/s, traverse speed")
+    # its upper bound is checked with the others in Scene.check, where the plan's stroke and
+    # period say whether the value was meant in mm/min
+    speed_mm_s: float = param(lo=0.0, lo_open=True, doc="mm/s, traverse speed")
     traverse_mm: float = param(lo=0.0, lo_open=True, hi=1000.0, doc="mm, stroke of one scan")
     sample_period_s: float = param(lo=0.01, hi=60.0, doc="s, interval between samples")
     press_mm: float = param(lo=0.0, lo_open=True, hi=5.0, doc="mm, press depth into the plate")
@@ -95,15 +104,45 @@ class Scene:
         return len(self.plates.heights_mm) * self.repeats.scans_per_plate
 
     def check(self, path) -> None:
-        """One origin per plate, at least two samples per scan, at most 1e5. (Soft limits
-        need the stage's settings: :func:`feeler.hardware.acquire.plan.check_moves`.)"""
+        """One origin per plate, a speed of at most :data:`MAX_SPEED_MM_S`, at least two
+        samples per scan, at most 1e5. A speed refused that would pass as mm/min says so.
+        (Soft limits need the stage's settings: :func:`feeler.hardware.acquire.plan.check_moves`.)"""
         p, s = self.plates, self.scan
         if len(p.origin_x_mm) != len(p.heights_mm):
             raise SceneError(path, "plates.origin_x_mm",
                              f"{len(p.origin_x_mm)} origins for {len(p.heights_mm)} plates: one per plate")
-        if s.traverse_mm < s.speed_mm_s * s.sample_period_s:
-            raise SceneError(path, "scan.traverse_mm",
-                             f"{s.traverse_mm}: shorter than one sample step "
-                             f"(speed_mm_s*sample_period_s = {s.speed_mm_s * s.sample_period_s:g} mm)")
-        if s.traverse_mm / (s.speed_mm_s * s.sample_period_s) > 1e5:
-            raise SceneError(path, "scan.sample_period_s", f"{s.sample_period_s}: more than 1e5 samples per scan")
+        problem = _scan_problem(s.speed_mm_s, s.traverse_mm, s.sample_period_s)
+        if problem is not None:
+            key, text = problem
+            raise SceneError(path, key, text + per_minute_hint(s))
+
+
+def samples_per_scan(speed_mm_s: float, traverse_mm: float, sample_period_s: float) -> int:
+    """Samples of one scan: ``floor(traverse / (speed · period)) + 1`` (as the campaign takes them)."""
+    return int(math.floor(traverse_mm / (speed_mm_s * sample_period_s) + 1e-9)) + 1
+
+
+def _scan_problem(speed_mm_s: float, traverse_mm: float, sample_period_s: float) -> tuple[str, str] | None:
+    """(key, what is wrong) for a traverse the plan's rules refuse, else None."""
+    step_mm = speed_mm_s * sample_period_s
+    if speed_mm_s > MAX_SPEED_MM_S:
+        return "scan.speed_mm_s", f"{speed_mm_s!r} out of range: must be <= {MAX_SPEED_MM_S} (mm/s, traverse speed)"
+    if traverse_mm < step_mm:
+        return "scan.traverse_mm", (f"{traverse_mm}: shorter than one sample step (speed_mm_s*sample_period_s = "
+                                    f"{step_mm:g} mm at scan.speed_mm_s = {speed_mm_s:g} mm/s)")
+    if traverse_mm / step_mm > MAX_SAMPLES:
+        return "scan.sample_period_s", f"{sample_period_s}: more than 1e5 samples per scan"
+    return None
+
+
+def per_minute_hint(scan: ScanMotion, ceiling_mm_min: float = math.inf) -> str:
+    """``"; if 120 is mm/min, that is scan.speed_mm_s = 2 (mm/s): 16 samples a scan"`` when the
+    plan's speed divided by 60 passes every rule of a scan (and, as mm/min, is within
+    ``ceiling_mm_min``, a board's feed ceiling for the traverse), else ``""``. A feed written
+    in Grbl's mm/min where mm/s is meant makes a stroke too short for one sample, or a speed
+    out of range, and the error named neither the units nor the likely value."""
+    meant = scan.speed_mm_s / 60.0
+    if _scan_problem(meant, scan.traverse_mm, scan.sample_period_s) is not None or scan.speed_mm_s > ceiling_mm_min:
+        return ""
+    n = samples_per_scan(meant, scan.traverse_mm, scan.sample_period_s)
+    return f"; if {scan.speed_mm_s:g} is mm/min, that is scan.speed_mm_s = {meant:.4g} (mm/s): {n} samples a scan"

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from feeler.errors import SceneError
+from feeler.scenes.scan_plan import per_minute_hint, samples_per_scan
 
 __all__ = ["ScanSpec", "scans_of", "sample_times_s", "moves_of", "check_moves"]
 
@@ -50,8 +51,7 @@ def sample_times_s(plan) -> np.ndarray:
     """Scheduled sample times of one scan from the start of the traverse (s):
     ``k · sample_period_s`` for ``k = 0 … floor(traverse / (speed · period))``."""
     s = plan.scan
-    n = int(math.floor(s.traverse_mm / (s.speed_mm_s * s.sample_period_s) + 1e-9)) + 1
-    return np.arange(n) * s.sample_period_s
+    return np.arange(samples_per_scan(s.speed_mm_s, s.traverse_mm, s.sample_period_s)) * s.sample_period_s
 
 
 def moves_of(plan, scan: ScanSpec) -> list[tuple[str, tuple[float, float, float], float, str]]:
@@ -81,7 +81,18 @@ def _feed_problem(plan, key: str, feed: float, ceiling: float, start, target, li
     value = f"{plan.scan.speed_mm_s:g} mm/s ({feed:g} mm/min)" if fkey == "scan.speed_mm_s" else f"{feed:g} mm/min"
     return fkey, (f"{value} is above the ceiling of {ceiling:g} mm/min of {port} for this move "
                   f"(${110 + axis}, the {'xyz'[axis]} axis' maximum rate, is {limits.max_rate_mm_min[axis]:g} "
-                  f"mm/min): lower {fkey} or raise ${110 + axis}")
+                  f"mm/min): lower {fkey} or raise ${110 + axis}"
+                  + (_per_minute_hint(plan.scan, ceiling) if fkey == "scan.speed_mm_s" else ""))
+
+
+def _per_minute_hint(scan, ceiling_mm_min: float) -> str:
+    """The mm/min hint of a traverse too fast for the board, when the plan as written takes
+    two samples a scan, the fewest a plan may have: a speed in mm/min that the stroke check
+    let through (a 0.25 mm/s scan written 15) gives that; a plan of more samples is taken as
+    meant in mm/s, too fast for the board."""
+    if samples_per_scan(scan.speed_mm_s, scan.traverse_mm, scan.sample_period_s) > 2:
+        return ""
+    return per_minute_hint(scan, ceiling_mm_min)
 
 
 def check_moves(plan, plan_path: str | Path, limits, port: str, start_mm=None) -> None:

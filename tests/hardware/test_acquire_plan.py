@@ -167,3 +167,47 @@ def test_acquire_arguments_are_checked_before_any_device(tmp_path, capsys, argv,
     err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:")]
     assert code == 2 and len(err) == 1 and words in err[0], err
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("replace, key, problem", [
+    ({"speed_mm_s = 10.0": "speed_mm_s = 120.0"}, "scan.traverse_mm",
+     "3.0: shorter than one sample step (speed_mm_s*sample_period_s = 12 mm at scan.speed_mm_s = 120 mm/s); "
+     "if 120 is mm/min, that is scan.speed_mm_s = 2 (mm/s): 16 samples a scan"),
+    ({"speed_mm_s = 10.0": "speed_mm_s = 1200.0"}, "scan.speed_mm_s",
+     "1200.0 out of range: must be <= 1000.0 (mm/s, traverse speed); "
+     "if 1200 is mm/min, that is scan.speed_mm_s = 20 (mm/s): 2 samples a scan"),
+    # no hint where a sixtieth is refused too
+    ({"speed_mm_s = 10.0": "speed_mm_s = 60000.0"}, "scan.speed_mm_s",
+     "60000.0 out of range: must be <= 1000.0 (mm/s, traverse speed)"),
+    ({"traverse_mm = 3.0": "traverse_mm = 0.01"}, "scan.traverse_mm",
+     "0.01: shorter than one sample step (speed_mm_s*sample_period_s = 1 mm at scan.speed_mm_s = 10 mm/s)"),
+])
+def test_a_speed_in_mm_per_minute_is_named_where_a_sixtieth_would_load(tmp_path, replace, key, problem):
+    """A plan's speed written in mm/min (Grbl's feed unit) where mm/s is meant was refused
+    for a stroke shorter than one sample step, or a speed out of range, and the error named
+    neither the units nor the likely value; it does when the speed divided by 60 loads."""
+    path = variant(tmp_path, **replace)
+    with pytest.raises(SceneError) as err:
+        load_plan(path)
+    assert str(err.value) == f"{path}: {key}: {problem}"
+    if "if 120 is mm/min" in problem:                                 # the hint's plan loads as it says
+        assert len(sample_times_s(load_plan(variant(tmp_path, "meant.toml", **{"speed_mm_s = 10.0": "speed_mm_s = 2.0"})))) == 16
+
+
+DEFAULT_FEEDS = {"move_feed_mm_min = 6000.0": "move_feed_mm_min = 500.0", "press_feed_mm_min = 3000.0": "press_feed_mm_min = 500.0"}
+
+
+@pytest.mark.parametrize("replace, hint", [
+    # 0.25 mm/s written 15: two samples a scan load, and the board's 500 mm/min refuse 900 mm/min
+    ({"speed_mm_s = 10.0": "speed_mm_s = 15.0", "sample_period_s = 0.1": "sample_period_s = 0.2"},
+     "; if 15 is mm/min, that is scan.speed_mm_s = 0.25 (mm/s): 61 samples a scan"),
+    ({}, ""),                                  # four samples a scan: meant in mm/s, too fast for the board
+    ({"speed_mm_s = 10.0": "speed_mm_s = 600.0", "traverse_mm = 3.0": "traverse_mm = 100.0",   # two samples,
+      "origin_x_mm = [-20.0, -16.0]": "origin_x_mm = [-150.0, -140.0]"}, ""),  # but 600 mm/min is too fast too
+])
+def test_a_traverse_too_fast_for_the_board_names_mm_per_minute_only_where_plausible(tmp_path, replace, hint):
+    path = variant(tmp_path, **replace, **DEFAULT_FEEDS)
+    with pytest.raises(SceneError) as err:
+        check_moves(load_plan(path), path, StageLimits(), "/dev/ttyUSB0")
+    assert err.value.key == "scan.speed_mm_s" and "is above the ceiling of 500 mm/min" in err.value.problem
+    assert err.value.problem.endswith("lower scan.speed_mm_s or raise $110" + hint)
