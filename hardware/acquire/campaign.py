@@ -229,9 +229,13 @@ def _sample(setup: Setup, stage, camera, extract, store: RunStore, scan: ScanSpe
 
 def _status(stage, store: RunStore, scan_id: int, k: int, seen: Counter | None = None):
     """The stage's status; a lost or damaged report is journalled as a bad line and retried
-    (as are those the driver recovered from since ``seen``, see :func:`_journal_recovered`)."""
+    after a resync, :data:`MAX_TRIES` tries in all (as are those the driver recovered from
+    since ``seen``, see :func:`_journal_recovered`). A resync that fails is a try too: it
+    ran in the except clause, so one timing out ended the run at the second bad line."""
     for tries in range(1, MAX_TRIES + 1):
         try:
+            if tries > 1:
+                stage.protocol.resync()
             status = stage.status()
             _journal_recovered(stage, store, Counter() if seen is None else seen, scan_id, k)
             return status
@@ -240,7 +244,6 @@ def _status(stage, store: RunStore, scan_id: int, k: int, seen: Counter | None =
                 raise
             log.warning("%s: scan %d sample %d: bad status line: %s", stage.port, scan_id, k, exc)
             store.event("bad_line", scan_id=scan_id, sample=k, reason=str(exc))
-            stage.protocol.resync()
     raise AssertionError("unreachable")
 
 

@@ -168,6 +168,41 @@ def test_a_bad_status_line_is_journalled_counted_and_retried(tmp_path):
     assert store.write_summary({})["bad_lines"] == 2 + MAX_TRIES - 1
 
 
+def test_a_resync_that_times_out_is_one_more_try_not_the_end_of_the_run(tmp_path):
+    """The resync after a bad status line ran in the except clause, so a resync that timed
+    out (a controller silent for its status query's 7 reply timeouts) ended the campaign at
+    the second bad line although the loop allows MAX_TRIES (an outside reader of the code)."""
+    from feeler.hardware.acquire.campaign import MAX_TRIES, _status
+    from feeler.hardware.stage import StageTimeout
+
+    class SlowToResync:
+        port = "/dev/pts/1"
+
+        def __init__(self, resync_fails):
+            self.resync_fails, self.calls = resync_fails, []
+            self.protocol = self
+
+        def resync(self):
+            self.calls.append("resync")
+            if self.resync_fails:
+                self.resync_fails -= 1
+                raise StageTimeout("status report from /dev/pts/1", 14.0)
+
+        def status(self):
+            self.calls.append("status")
+            if self.calls.count("status") == 1:
+                raise StageTimeout("status report from /dev/pts/1", 14.0)
+            return "status"
+
+    store = RunStore.create(tmp_path / "run", PLAN)
+    stage = SlowToResync(1)
+    assert _status(stage, store, 3, 1) == "status"
+    assert stage.calls == ["status", "resync", "resync", "status"]
+    assert store.write_summary({})["bad_lines"] == 2
+    with pytest.raises(StageTimeout):
+        _status(SlowToResync(MAX_TRIES), store, 3, 2)           # silent to the end: the run stops
+
+
 def test_calibration_directory_must_be_a_passing_m1_fit(tmp_path):
     from feeler.hardware.acquire import c_from_calibration
     from feeler.models.optics import OpticsParams
