@@ -31,7 +31,7 @@ from pathlib import Path
 
 import pytest
 
-__all__ = ["ROOT", "SOURCES", "firmware_exe", "Firmware", "read_until", "BANNER_END", "UNLOCK"]
+__all__ = ["ROOT", "SOURCES", "firmware_exe", "firmware_cpu", "Firmware", "read_until", "BANNER_END", "UNLOCK"]
 
 ROOT = Path(__file__).resolve().parents[2]
 SOURCES = Path(os.environ.get("FEELER_GRBL_SIM", ROOT.parent / "shared" / "grbl-sim"))
@@ -70,11 +70,20 @@ def firmware_exe(src: Path = SOURCES) -> Path:
     return _BUILT[src]
 
 
+def firmware_cpu(cpus, worker: str | None) -> int:
+    """The one CPU a grbl-sim runs on (see :class:`Firmware`): counted down from the highest
+    of ``cpus`` by the pytest-xdist worker's number (``worker``: ``"gw1"``, or None outside
+    xdist), so the two workers' simulators do not share one CPU."""
+    cpus = sorted(cpus)
+    n = int(worker[2:]) if worker and worker.startswith("gw") and worker[2:].isdigit() else 0
+    return cpus[-1 - n % len(cpus)]
+
+
 def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
     with contextlib.suppress(OSError, AttributeError):
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
-    with contextlib.suppress(OSError, AttributeError):
-        os.sched_setaffinity(0, {max(os.sched_getaffinity(0))})       # one CPU: see Firmware
+    with contextlib.suppress(OSError, AttributeError):                 # one CPU: see Firmware
+        os.sched_setaffinity(0, {firmware_cpu(os.sched_getaffinity(0), os.environ.get("PYTEST_XDIST_WORKER"))})
 
 
 def read_until(fd: int, done, timeout_s: float) -> bytes:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from grbl_firmware import read_until
+from grbl_firmware import firmware_cpu, read_until
 
 from feeler.cli import main
 from feeler.errors import ArgumentError
@@ -39,6 +39,16 @@ def open_stage(fw, **kw) -> Stage:
     """A driver on the firmware; replies may take 5 s (grbl-sim, on one CPU of a loaded host,
     runs several times slower than a board: a reply's time is not what these tests check)."""
     return Stage.open(fw.path, reply_timeout_s=kw.pop("reply_timeout_s", 5.0), poll_s=0.01, **kw)
+
+
+def test_each_workers_simulator_runs_on_a_cpu_of_its_own(firmware):
+    """grbl-sim runs on one CPU (conftest's Firmware says why); the two pytest-xdist workers'
+    simulators ran on the same one, the highest, and slowed each other down. Each worker
+    now counts down from the highest by its number."""
+    assert firmware_cpu({0, 1}, "gw0") == 1 and firmware_cpu({0, 1}, "gw1") == 0
+    assert firmware_cpu({0, 1}, None) == 1 and firmware_cpu({0, 1}, "gw2") == 1 and firmware_cpu({5}, "gw1") == 5
+    expected = firmware_cpu(os.sched_getaffinity(0), os.environ.get("PYTEST_XDIST_WORKER"))
+    assert os.sched_getaffinity(firmware.pid) == {expected}
 
 
 def test_open_moves_jog_and_errors(firmware):
