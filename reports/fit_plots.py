@@ -223,7 +223,8 @@ def _m1(inv, result, draws, sampler, src) -> list:
     out = [make_figure("The matrix C", fig, src + ((truth_rel,) if truth_rel else ()),
                        "Posterior mean and 95 % interval of every entry" +
                        ("; ×: the simulated sensor's true C." if truth is not None else "."))]
-    labels = {n: n for n in names} | {f"sigma_n[{j}]": f"σ_{'xyz'[j]} (N)" for j in range(3)} | {"cond_C": "cond(C)"}
+    labels = {n: _m1_label(n) for n in names} | {f"sigma_n[{j}]": f"σ_{'xyz'[j]} (N)" for j in range(3)} | \
+        {"cond_C": "cond(C)"}
     out.append(_marginals(draws, names[:6], labels, per_chain=sampler, title="Marginals of C, rows x and y", src=src))
     rest = names[6:] + [n for n in ("sigma_n[0]", "sigma_n[1]", "sigma_n[2]", "cond_C") if n in draws]
     out.append(_marginals(draws, rest, labels, per_chain=sampler, title="Marginals of C row z, σ and cond(C)",

@@ -107,3 +107,12 @@ def test_the_finger_routes_lapse_is_a_density_not_a_comb(monkeypatch, run_dir):
     assert inner.sum() > 100 and np.all(y[inner] > 0) and not ax.patches           # no histogram bars
     marks = [ln for ln in ax.lines if ln.get_marker() == "^"]
     assert len(marks) == 1 and np.allclose(marks[0].get_xdata(), nodes)
+
+
+def test_the_marginals_of_c_name_their_entry_and_unit(monkeypatch, run_dir):
+    """The marginals of C were titled "C[0,0]" alone, with no axis label: a reader could not
+    tell the unit (the forest plot above them says mm/N). Each now names its entry's axes
+    and unit, as the forest plot does."""
+    titles = [ax.get_title() for _, ax in _drawn_panels(monkeypatch, run_dir, "fit:m1") if ax.get_title()]
+    c_titles = [t for t in titles if t.startswith("C[")]
+    assert len(c_titles) == 9 and all(t.endswith("(mm/N)") and "←" in t for t in c_titles), titles
