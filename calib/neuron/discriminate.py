@@ -21,8 +21,8 @@ interval, and ``touch_seed`` gives an independent set of touches, whose estimate
 interval covers as it covers the large-sample value. Measured on a four-plates fit over
 120 touch seeds of 200 touches a height (0.1 against 0.103 mm): the sd of the 120
 estimates was 0.995 times the mean reported ``mcse`` for P(correct) and 0.997 for the
-threshold, and 95.8 % of the intervals held the mean of all 120 (an outside audit's 40
-seeds had put the ratio at 1.12-1.15, within their own sampling error of about 0.13).
+threshold, and 95.8 % of the intervals held the mean of all 120 (40 seeds, run after an
+outside audit, had put the ratio at 1.12-1.15, within their sampling error of about 0.13).
 One resample of each touch set serves a whole curve.
 
 Derived: the difference threshold Δδ₇₅ (the increment over ``reference_mm`` at 75 %
