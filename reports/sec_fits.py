@@ -155,10 +155,10 @@ def fit_section(inv, spec) -> Section:
     if part.model in HUMAN_MODELS:
         from feeler.reports.humandata import human_data
 
-        label = human_data(inv).label
-        if label:
-            blocks.append(Note(f"Fitted to {label}", level="synthetic",
-                               sources=(human_data(inv).trials_rel or human_data(inv).thresholds_rel,)))
+        human = human_data(inv)
+        if human.label:
+            blocks.append(Note(f"Fitted to {human.label}", level="synthetic",
+                               sources=(human.trials_rel or human.thresholds_rel,)))
     blocks += plots_of(inv, part, result, attrs, sampler=_is_sampler(result.backend))
     blocks += _ppc_note(attrs, post_rel) + _reading_note(attrs, post_rel) + _decoder_names_note(part.model, attrs, post_rel)
     table = summary_table(result, labels_of(part.model, attrs, result.summary["name"]), part.path("summary.csv"),
