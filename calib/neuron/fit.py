@@ -266,7 +266,8 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
                                          rng=rng, progress=progress)
         problems += note
     fit_problems, info = posterior_problems(table, plates, noise, log_w, post, growth_max=pri.growth_max,
-                                            scan_names=names)
+                                            scan_names=names,
+                                            mode_tau={k: v["draws"]["tau_s"] for k, v in by_mode.items()})
     problems += fit_problems
     info["window_edge"] = window_edge_notes(post["tau_s"], pri)
     cells = Cells(plates, plates.snap)
