@@ -52,7 +52,7 @@ def register(parser) -> None:
                         help="nominal C₀ row by row, mm/N (overrides the dataset's scene.toml)")
     parser.add_argument("--rel-sd", type=float, default=None, help="prior sd per entry / largest entry")
     parser.add_argument("--predict", type=float, nargs=3, action="append", default=[],
-                        metavar=("FX", "FY", "FZ"), help="print the 90 %% predictive interval of U for this force, N "
+                        metavar=("FX", "FY", "FZ"), help="print the predictive median and 90 %% interval of U for this force, N "
                                                          "(|F| at most 10x the largest calibrated force)")
     add_fit_arguments(parser, draws=None, tune=None)
     parser.set_defaults(run=run)
@@ -99,8 +99,8 @@ def run(args) -> int:
     for f in args.predict:
         p = predict_u(result, f, rng=rng, prob=0.9)
         cells = ", ".join(f"u{a} {m:.4f} [{lo:.4f}, {hi:.4f}]" for a, m, lo, hi in
-                          zip("xyz", p["mean_mm"][0], p["lb_mm"][0], p["ub_mm"][0]))
-        print(f"predicted U for F = {list(f)} N (90 %): {cells} mm")
+                          zip("xyz", p["median_mm"][0], p["lb_mm"][0], p["ub_mm"][0]))
+        print(f"predicted U for F = {list(f)} N (median [90 % interval]): {cells} mm")
         size = float(np.linalg.norm(f))
         if size > f_max:
             print(f"note: |F| = {size:.3g} N lies beyond the calibrated forces (the largest |F| {f_max:.3g} N): "

@@ -2,7 +2,10 @@
 from __future__ import annotations
 
 import json
+import re
+import shutil
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -26,12 +29,40 @@ def test_calibrate_sensor_prints_table_and_writes_fit(dataset, tmp_path, capsys)
     out = capsys.readouterr().out
     assert rc == 0
     assert "C[1,1]" in out and "cond_C" in out and "verdict: ok" in out
-    assert "predicted U for F = [0.0, 1.0, 0.0] N (90 %)" in out
+    assert "predicted U for F = [0.0, 1.0, 0.0] N (median [90 % interval])" in out
     assert json.loads((tmp_path / "verdict.json").read_text()) == {"ok": True, "problems": []}
     summary = pd.read_csv(tmp_path / "summary.csv").set_index("name")
     truth = load_scene(SHIPPED).sensor.c_mm_per_n
     assert summary.loc["C[1,1]", "eti95_lb"] <= truth[1][1] <= summary.loc["C[1,1]", "eti95_ub"]
     assert main(["calibrate", "sensor", str(dataset), "--out", str(tmp_path)]) == 2   # no --force
+
+
+def test_predict_prints_the_median_inside_its_interval_on_a_near_singular_design(dataset, tmp_path, capsys):
+    """Displacements whose z barely differs from x: a few draws of C = K^-1 are huge, and the
+    predictive mean lies outside its own interval (an audit: uz 0.8524 [-0.7633, 0.2348]; here
+    ux 3.72 [-0.23, 0.78]); the median is printed, inside it."""
+    from feeler.calib.fit import load
+    from feeler.calib.matrix import predict_u
+
+    rng = np.random.default_rng(0)
+    cal = pd.read_csv(dataset / "calibration.csv")
+    u = cal[["ux_mm", "uy_mm", "uz_mm"]].to_numpy().copy()
+    u[:, 2] = u[:, 0] + rng.normal(0, 1e-4, len(u))
+    k = np.linalg.inv(np.array([[0.300, 0.012, 0.020], [0.015, 0.150, 0.010], [0.018, 0.008, 0.280]]))
+    cal[["ux_mm", "uy_mm", "uz_mm"]] = u
+    cal[["fx_n", "fy_n", "fz_n"]] = u @ k.T + rng.normal(0, 0.02, u.shape)
+    (tmp_path / "data").mkdir()
+    cal.to_csv(tmp_path / "data" / "calibration.csv", index=False)
+    shutil.copy(dataset / "scene.toml", tmp_path / "data" / "scene.toml")
+    main(["calibrate", "sensor", str(tmp_path / "data"), "--out", str(tmp_path / "fit"), "--predict", "0.5", "1",
+          "-0.5", "--no-progress"])
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("predicted U"))
+    cells = re.findall(r"u([xyz]) (\S+) \[(\S+), (\S+)\]", line)
+    assert len(cells) == 3, line
+    for axis, m, lo, hi in cells:
+        assert float(lo) <= float(m) <= float(hi), line
+    p = predict_u(load(tmp_path / "fit"), [0.5, 1.0, -0.5], rng=np.random.default_rng(0))
+    assert np.any((p["mean_mm"] < p["lb_mm"]) | (p["mean_mm"] > p["ub_mm"]))       # the case this is about
 
 
 def test_failed_verdict_gives_exit_1(dataset, capsys):
