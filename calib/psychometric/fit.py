@@ -157,8 +157,8 @@ def _per_cell(lapse: np.ndarray, ndim: int) -> np.ndarray:
 def _rows_and_checks(cells: Cells, r, fitted, task: Task, pc: float, label: str, estimand: str,
                      lapse_per: str, rng: np.random.Generator) -> tuple[list[dict], list[str]]:
     lo, hi = stimulus_ranges(cells)
-    problems = checks.unit_problems(np.concatenate([cells.x_um, cells.standard_um])) + checks.speed_problems(
-        [c[1:] for c in cells.conditions])
+    problems = checks.straddle_problems(task, cells) + checks.unit_problems(
+        np.concatenate([cells.x_um, cells.standard_um])) + checks.speed_problems([c[1:] for c in cells.conditions])
     rows = []
     keys = sorted(fitted.stats, key=lambda k: (k[0] < 0, k[0], k[1]))
     row_rngs = dict(zip(keys, rng.spawn(len(keys))))

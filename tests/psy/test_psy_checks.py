@@ -236,6 +236,33 @@ def test_one_answer_throughout_names_where_the_function_lies(k, nafc, words):
     assert not any("more trials are needed" in p for p in result.verdict.problems)
 
 
+def test_nafc_at_chance_everywhere_does_not_rise_rather_than_needs_more_trials():
+    """2AFC at exactly 1/2 on 14 levels above the standard, 40 trials each (560): a flat line
+    at the guess rate fits. A 'step' above every level is that same line, and it was counted
+    as a step, so the fit said 'a step and a flat line fit as well; more trials are needed'."""
+    levels = np.linspace(10.4, 15.6, 14)
+    trials = _counts([20] * levels.size, n=40, levels=levels).rename(columns={"n_comparison_higher": "n_correct"})
+    (line,) = _spread(_fit(trials, nafc=2))
+    assert "do not rise across the tested levels" in line and "more trials" not in line, line
+
+
+def _nafc_around_the_standard(k):
+    return _counts(k, n=60).rename(columns={"n_comparison_higher": "n_correct"})
+
+
+def test_nafc_comparisons_on_both_sides_of_the_standard_falling_towards_it_are_named():
+    """2AFC counts 7.6-12.4 µm around a 10 µm standard, right more often the further from it
+    (U-shaped): the verdict names the design first, not 'test a wider range'. Proportions that
+    rise across the standard (a monotone curve, however the levels were chosen) do not fire it."""
+    u_shaped = _fit(_nafc_around_the_standard([57, 50, 41, 30, 42, 51, 58]), nafc=2)
+    first = u_shaped.verdict.problems[0]
+    assert first.startswith("[10 um, 20/20 mm/s]: 2AFC proportion correct with comparisons on both sides of the "
+                            "standard 10 µm (7.6–12.4 µm), falling as those below it near it"), first
+    assert "give comparison_um as the distance from the standard" in first
+    rising = _fit(_nafc_around_the_standard([31, 33, 38, 45, 52, 56, 58]), nafc=2)
+    assert not any("both sides of the standard" in p for p in rising.verdict.problems), rising.verdict.problems
+
+
 def test_seven_trials_pin_neither_side():
     """One trial per level, one of them against the rise: neither a step nor a flat line
     can be rejected."""

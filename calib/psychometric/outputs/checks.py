@@ -36,7 +36,8 @@ from feeler.models.psychometric import LAPSE_MAX
 __all__ = ["deviance", "gof", "worst_cell", "unit_problems", "conflict_problems", "drag_problems", "level_problems",
            "bracket_problems", "gof_problems", "interior_problems", "threshold_problems", "MIN_LEVELS",
            "MIN_INTERIOR", "spread_problems", "one_answer_problem", "GOF_ALPHA", "CONFLICT_Z",
-           "CONFLICT_TAIL", "PLAUSIBLE_UM", "BOUNDARY_LR", "FALLING_LR", "speed_problems", "PLAUSIBLE_SPEED_MM_S"]
+           "CONFLICT_TAIL", "PLAUSIBLE_UM", "BOUNDARY_LR", "FALLING_LR", "speed_problems", "PLAUSIBLE_SPEED_MM_S",
+           "straddle_problems"]
 
 GOF_ALPHA = 0.05
 CONFLICT_Z = 4.0
@@ -138,6 +139,38 @@ def speed_problems(speeds_mm_s) -> list[str]:
     (missing speeds, NaN, are left out)."""
     return _off_scale(speeds_mm_s, PLAUSIBLE_SPEED_MM_S, label="speeds", what="scan speeds", unit="mm/s",
                       norm="a fingertip's", below=(("m/s", 1000.0),), above=_FAST_SPEED_UNITS)
+
+
+def straddle_problems(task, cells) -> list[str]:
+    """One problem per condition of nAFC data whose comparisons lie on both sides of its
+    standard and whose proportion correct falls, across the comparisons below it, as they
+    near it. The nAFC curve rises with the comparison level; when an answer is right more
+    often the further the comparison lies from the standard on either side, proportion
+    correct falls and rises again, and no rising curve fits (an audit's 2AFC counts at
+    7.6-12.4 µm around a 10 µm standard were told to 'test a wider range'). The fall: the
+    slope of proportion correct on the level (weighted by trials, pooled over subjects)
+    below the standard, more than 2 standard errors below 0."""
+    if not task.is_nafc:
+        return []
+    out = []
+    for c, (standard, _, _) in enumerate(cells.conditions):
+        sel = cells.condition == c
+        x, n, k = cells.x_um[sel], cells.n[sel].astype(float), cells.k[sel].astype(float)
+        low = x < standard
+        if standard <= 0 or not np.any(x > standard) or np.unique(x[low]).size < 2 or n[low].sum() <= 0:
+            continue
+        xl, nl, pl = x[low], n[low], k[low].sum() / n[low].sum()
+        centre = np.sum(nl * xl) / nl.sum()
+        sxx = np.sum(nl * (xl - centre) ** 2)
+        slope = np.sum((xl - centre) * k[low]) / sxx
+        if sxx > 0 and 0 < pl < 1 and slope / np.sqrt(pl * (1 - pl) / sxx) < -2.0:
+            out.append(f"[{cells.condition_label(c)}]: {task.label} proportion correct with comparisons on both "
+                       f"sides of the standard {standard:g} µm ({x.min():.4g}–{x.max():.4g} µm), falling as those "
+                       f"below it near it: answers are right more often the further a comparison lies from the "
+                       f"standard on either side, which no rising curve fits; give comparison_um as the distance "
+                       f"from the standard, or fit the counts of 'comparison judged higher' (n_comparison_higher) "
+                       f"without --nafc")
+    return out
 
 
 def unit_problems(levels_um: np.ndarray) -> list[str]:
@@ -356,7 +389,10 @@ def spread_problems(label: str, task, x: np.ndarray, n: np.ndarray, k: np.ndarra
         return []
     lam = np.linspace(0.0, min(max(float(fitted_lapse), 0.0), 0.98 * LAPSE_MAX), 11)
     base, scale, _ = task.base_scale_rest(lam)                                    # (L,)
-    cuts = np.concatenate([[levels[0] - 1.0], (levels[:-1] + levels[1:]) / 2, [levels[-1] + 1.0]])
+    # steps between adjacent tested levels only: a 'step' below or above every level is a flat
+    # line at the guess rate or the ceiling, the flat model's (2AFC at chance everywhere read
+    # as a step and got 'more trials are needed', an audit's 720 trials at 50 %)
+    cuts = (levels[:-1] + levels[1:]) / 2
     above = (x[None, :] > cuts[:, None]).astype(float)                            # (M, m)
     if standard_um is not None and not task.is_nafc and np.any(x == standard_um):
         above = np.concatenate([above, ((x > standard_um) + 0.5 * (x == standard_um))[None, :]])
