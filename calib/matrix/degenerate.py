@@ -1,4 +1,4 @@
-"""Data M1 can fit but that pin nothing: noise-free outputs and copied rows.
+"""Data M1 can fit but that pin nothing: noise-free outputs, copied rows, dead or joined outputs.
 
 Both are checked before any sampling (:func:`feeler.calib.matrix.fit.fit_matrix`):
 
@@ -11,7 +11,12 @@ Both are checked before any sampling (:func:`feeler.calib.matrix.fit.fit_matrix`
 - copied rows (:func:`copy_problems`): at least half of the rows repeat an earlier row's
   displacements and forces exactly, whatever their point ids: a file appended to itself
   with its ids renumbered. No two real readings of a noisy gauge agree in all three
-  forces; a quantised gauge can repeat the odd row, never half of them.
+  forces; a quantised gauge can repeat the odd row, never half of them;
+- dead or joined forces (:func:`output_problems`, the inverse models): a force column that
+  never changes, or two that move together (|correlation| > :data:`JOINED`): a channel not read, or one
+  copied or wired into another. The least-squares matrix is then singular and its inverse
+  huge, which the unit check read as a unit slip (an audit: fz a copy of fx read as
+  "compliance 2.72e+04 times nominal: displacements probably in um").
 """
 from __future__ import annotations
 
@@ -20,7 +25,7 @@ import numpy as np
 from feeler.calib.diagnostics import repeated_rows
 from feeler.calib.matrix.data import F_COLUMNS, U_COLUMNS
 
-__all__ = ["NOISE_FREE", "relative_residual", "noise_free_problems", "copy_problems"]
+__all__ = ["NOISE_FREE", "JOINED", "relative_residual", "noise_free_problems", "copy_problems", "output_problems"]
 
 # Least-squares residual RMS over the output RMS below which an axis is noise-free. Exact
 # forces leave 1e-16 as floats, 0.6-1.6e-9 as `feeler simulate` writes them and 0.7-1.0e-6
@@ -28,6 +33,11 @@ __all__ = ["NOISE_FREE", "relative_residual", "noise_free_problems", "copy_probl
 # at most 0.2 mm alone leaves ~5e-3, and the shipped campaign's 0.02 N noise 0.02-0.14. 1e-5
 # lies a decade above the coarsest rounding and two and more below any real campaign.
 NOISE_FREE = 1e-5
+# |correlation| between two output columns above which they are one signal. The shipped
+# campaign's force columns correlate at most 0.17 over 20 seeds (its design moves one axis at a time); a
+# design along one diagonal that moves two axes together in a fixed ratio is a design
+# problem (design_problems names it on the inputs) before it is this one.
+JOINED = 0.9999
 
 
 def relative_residual(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -82,3 +92,24 @@ def copy_problems(u: np.ndarray, f: np.ndarray, *, matrix: str) -> list[str]:
     k = int(copies[0])
     return [f"{matrix}: {copies.size} of {n} rows repeat an earlier row's displacements and forces exactly (e.g. "
             f"data row {k + 1} = data row {int(earlier[k]) + 1}): {tail}"]
+
+
+def output_problems(f: np.ndarray) -> list[str]:
+    """Lines for the measured force columns of ``f (ndarray[n, 3])`` (the inverse models'
+    outputs; in the forward model they are its inputs, which :func:`.checks.design_problems`
+    judges) that never change, or that move together."""
+    f = np.asarray(f, float)
+    if f.shape[0] < 3:
+        return []
+    spread = np.std(f, axis=0)
+    dead = spread <= 1e-12 * max(float(np.max(np.abs(f))), np.finfo(float).tiny)
+    out = [f"{F_COLUMNS[i]}: the same value ({f[0, i]:.6g}) in all {f.shape[0]} rows: a force channel that was not "
+           f"read? The matrix cannot be found along it" for i in np.flatnonzero(dead)]
+    live = np.flatnonzero(~dead)
+    for a, b in ((live[i], live[j]) for i in range(live.size) for j in range(i + 1, live.size)):
+        r = float(np.corrcoef(f[:, a], f[:, b])[0, 1])
+        if abs(r) > JOINED:
+            out.append(f"{F_COLUMNS[a]}, {F_COLUMNS[b]}: the two forces move together (correlation {r:.6f}) though "
+                       f"the design moves its axes apart: one channel copied or wired into the other? The matrix "
+                       f"cannot tell their axes apart")
+    return out

@@ -33,7 +33,7 @@ from feeler.calib.matrix.backends import sample_emcee, sample_nuts
 from feeler.calib.matrix.checks import (conflict_problems, design_problems, noise_unit_problems, ppc_problems,
                                         repeat_problems, sign_problems, span_unit_problems, unit_problems)
 from feeler.calib.matrix.data import CalibrationData, weak_directions
-from feeler.calib.matrix.degenerate import copy_problems, noise_free_problems
+from feeler.calib.matrix.degenerate import copy_problems, noise_free_problems, output_problems
 from feeler.calib.matrix.exact import exact_posterior
 from feeler.calib.matrix.prior import MatrixPrior
 from feeler.errors import ArgumentError, FeelerError
@@ -104,7 +104,7 @@ def fit_matrix(data: CalibrationData, prior: MatrixPrior, *, model: str = "inver
     copied = repeat_problems(data.point_id, data.u_mm, data.f_n, matrix=rp.matrix)
     if not copied and not noise_free:     # noise-free replicated points repeat their rows by nature
         copied = copy_problems(data.u_mm, data.f_n, matrix=rp.matrix)
-    problems = design + copied
+    problems = design + copied + (output_problems(data.f_n) if not design and model != "forward" else [])
     design_ok = not problems
     problems += noise_free
     if design_ok:

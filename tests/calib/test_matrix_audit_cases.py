@@ -217,3 +217,41 @@ def test_cli_checks_predict_and_nu_before_any_work(tmp_path):
     out = feeler("calibrate", "sensor", csv, *C0_ARGS, "--predict", f"{2 * f_max}", "0", "0", "--no-progress")
     assert out.returncode == 0, out.stderr
     assert "note: |F| = " in out.stdout and "extrapolates the linear matrix to 2 times it" in out.stdout
+
+
+# --- session 51 audit: a dead or a copied force channel -------------------------------------
+
+def test_a_force_channel_copied_into_another_is_named_not_a_unit_slip():
+    """fz a copy of fx (plus 1e-4 N): the least-squares K is singular, C = K^-1 huge, and the
+    verdict said 'compliance 2.72e+04 times the nominal: displacements probably in um'."""
+    d = _campaign()
+    f = d.f_n.copy()
+    f[:, 2] = f[:, 0] + np.random.default_rng(3).normal(0, 1e-4, d.n)
+    res = _fit(CalibrationData(d.u_mm, f, d.point_id))
+    assert not res.verdict.ok
+    assert res.verdict.problems[0].startswith("fx_n, fz_n: the two forces move together (correlation 1.000000)")
+    assert not any("probably in um" in p for p in res.verdict.problems), res.verdict.problems
+
+
+def test_a_force_channel_that_never_changes_is_named():
+    """fx at 0.1 N in every row: 'about 110x softer ... or a unit' before; now the channel."""
+    d = _campaign()
+    f = d.f_n.copy()
+    f[:, 0] = 0.1
+    res = _fit(CalibrationData(d.u_mm, f, d.point_id))
+    assert res.verdict.problems[0] == (f"fx_n: the same value (0.1) in all {d.n} rows: a force channel that was not "
+                                       "read? The matrix cannot be found along it")
+    assert not any("softer" in p or "unit" in p for p in res.verdict.problems), res.verdict.problems
+
+
+def test_the_campaigns_force_columns_are_far_from_joined():
+    """The threshold's margin: the shipped campaign's force columns over 20 seeds."""
+    from feeler.calib.matrix.degenerate import JOINED, output_problems
+
+    worst = 0.0
+    for seed in range(20):
+        f = _campaign(seed).f_n
+        r = np.corrcoef(f.T)
+        worst = max(worst, float(np.max(np.abs(r[np.triu_indices(3, 1)]))))
+        assert output_problems(f) == []
+    assert worst < 0.5 < JOINED
