@@ -287,6 +287,9 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
         attrs["ppc_p_value"] = info["p_min"]          # smallest p of the per-plate checks (fails below 0.01/C)
     if scene_toml is not None:
         attrs.update(scene_toml=scene_toml, scene_path=str(scene_path or ""))
+    speeds = None if data.speed_mm_s is None else np.asarray(data.speed_mm_s, float)
+    if speeds is not None and speeds.size and np.all(np.isfinite(speeds)) and np.all(speeds > 0):
+        attrs["scan_speed_mm_s"] = float(np.median(speeds))      # a bare CSV's speed labels: no scene to read it from
     if by_mode:
         attrs["mode_decoders"] = json.dumps({k: {"sharpness": v["sharpness"], "scans": v["scans"],
                                                  "tau_s": float(np.median(v["draws"]["tau_s"])), "loo": v["loo"]}

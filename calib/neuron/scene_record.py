@@ -76,11 +76,22 @@ def scene_note(result, override) -> str | None:
     was trained on (stage speed, probe, read-out noise, sensor …: every parameter but the
     heights, the repeats, the seed and the scene's name), else None. ``classify`` flags a
     scan outside the training envelope (speed beyond ×1.25, read-out noise beyond ×1.5);
-    ``discriminate`` simulates whole experiments, so it names what changed."""
+    ``discriminate`` simulates whole experiments, so it names what changed. A fit of a bare
+    scan CSV recorded no scene: its training scans' speed labels against the scene's speed."""
     from feeler.scene import load_scene
 
-    if override is None or not result.posterior["posterior"].attrs.get("scene_toml"):
+    if override is None:
         return None
+    attrs = result.posterior["posterior"].attrs
+    if not attrs.get("scene_toml"):                 # a bare scan CSV's fit: its scans' speed labels only
+        from feeler.calib.neuron.live.envelope import training_speed_mm_s
+
+        trained_speed, given = training_speed_mm_s(attrs), load_scene(Path(override)).motion.speed_mm_s
+        if trained_speed is None or abs(given / trained_speed - 1) < 1e-3:
+            return None
+        return (f"note: --scene {override} moves the stage at {given:g} mm/s, the fit's training scans at "
+                f"{trained_speed:g} mm/s (their speed labels): its touches are not the kind the decoder learned, so "
+                f"P(correct), the threshold and the PSE describe it reading touches it was not trained on")
     path, keep = fit_scene_path(result)          # the recorded scene (its own file while it holds the text)
     try:
         trained = _fields(load_scene(path))

@@ -249,6 +249,26 @@ def test_a_forward_scene_of_other_touches_is_named(fit, tmp_path):
     assert same.read_text() != text and scene_note(fit, same) is None and scene_note(fit, None) is None
 
 
+def test_a_bare_csv_fit_names_a_scene_at_another_speed(tmp_path):
+    """A fit of scans without a scene (a bare CSV) recorded nothing to compare --scene with,
+    and an audit's 0.25 mm/s scene simulated a 0.5 mm/s fit's touches without a word. It
+    keeps its scans' speed labels; a scene at their speed gives no note."""
+    from feeler.calib.neuron.scene_record import scene_note
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        bare = fit_neuron(scene_scans(per_plate=6)[2], seed=4, draws=100)
+    attrs = bare.posterior["posterior"].attrs
+    assert "scene_toml" not in attrs and attrs["scan_speed_mm_s"] == 0.5
+    slow = tmp_path / "slow.toml"
+    slow.write_text(FOUR_PLATES.read_text().replace("speed_mm_s = 0.5", "speed_mm_s = 0.25"))
+    assert scene_note(bare, slow) == (
+        f"note: --scene {slow} moves the stage at 0.25 mm/s, the fit's training scans at 0.5 mm/s (their speed "
+        "labels): its touches are not the kind the decoder learned, so P(correct), the threshold and the PSE "
+        "describe it reading touches it was not trained on")
+    assert scene_note(bare, FOUR_PLATES) is None and scene_note(bare, None) is None
+
+
 def test_mc_se_column_says_never_only_when_no_draw_overlaps():
     """discriminate printed "touches never overlap" for a pair whose P(correct) was 0.9999983:
     a few draws' touches overlapped, though the interval's 2.5 % point was 1."""

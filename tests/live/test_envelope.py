@@ -59,6 +59,8 @@ def test_scene_speed_and_bad_factors():
     assert training_speed_mm_s({"scene_toml": "[motion]\nspeed_mm_s = 0.5\n"}) == 0.5
     assert training_speed_mm_s({"scene_toml": "[scan]\nspeed_mm_s = 10\n"}) == 10.0
     assert training_speed_mm_s({"scene_toml": "not toml ["}) is None and training_speed_mm_s({}) is None
+    assert training_speed_mm_s({"scan_speed_mm_s": 0.25}) == 0.25          # a bare CSV's fit: its scans' labels
+    assert training_speed_mm_s({"scene_toml": "[motion]\nspeed_mm_s = 0.5\n", "scan_speed_mm_s": 0.25}) == 0.5
     with pytest.raises(ArgumentError):
         Envelope(0.5, 20.0, 0.5, ENV.p_lo, ENV.p_hi, slack=1.0)
 

@@ -10,8 +10,8 @@ training envelope and flagged with the reason:
   fit's τ grid, which starts at one sample interval);
 - duration: the shortest training scan's (twice the last node of the τ grid);
 - stage speed: the scene the fit recorded (``scene_toml``: a robot-scan scene's
-  ``motion.speed_mm_s`` or a scan plan's ``scan.speed_mm_s``); not checked for a fit
-  without a scene. The scan's speed is measured from ``x_mm`` and ``t_s`` when given, else
+  ``motion.speed_mm_s`` or a scan plan's ``scan.speed_mm_s``), else its training scans'
+  speed labels (a fit of a bare scan CSV); not checked for a fit with neither. The scan's speed is measured from ``x_mm`` and ``t_s`` when given, else
   its ``speed_mm_s`` label;
 - response scale: the scan's peak window sum P at each draw's window against the
   training scans' range at that window (the fit's peak table), as the median ratio
@@ -192,19 +192,20 @@ def stage_units(ratio: float) -> str:
 
 
 def training_speed_mm_s(attrs) -> float | None:
-    """The stage speed (mm/s) of the scene recorded in a fit's attributes, or None."""
+    """The stage speed (mm/s) of the scene recorded in a fit's attributes, else the median
+    speed label of its training scans (``scan_speed_mm_s``: a fit of a bare scan CSV), or None."""
     text = attrs.get("scene_toml")
-    if not text:
-        return None
-    try:
-        scene = tomllib.loads(str(text))
-    except tomllib.TOMLDecodeError:
-        return None
-    for table in ("motion", "scan"):
-        speed = scene.get(table, {}).get("speed_mm_s")
-        if isinstance(speed, (int, float)) and speed > 0:
-            return float(speed)
-    return None
+    if text:
+        try:
+            scene = tomllib.loads(str(text))
+        except tomllib.TOMLDecodeError:
+            scene = {}
+        for table in ("motion", "scan"):
+            speed = scene.get(table, {}).get("speed_mm_s")
+            if isinstance(speed, (int, float)) and speed > 0:
+                return float(speed)
+    speed = attrs.get("scan_speed_mm_s")
+    return float(speed) if isinstance(speed, (int, float)) and speed > 0 else None
 
 
 def _times(r: float) -> str:
