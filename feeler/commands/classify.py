@@ -72,7 +72,7 @@ def run(args) -> int:
                             env.falling(r.uy_mm, c.plates_mm, c.height_mm[k])] if f]
              for k, r in enumerate(records)]
     unit_mistake(path, [f"scan file {r.file}" if r.file else f"scan_id {r.scan_id if r.name is None else repr(r.name)}"
-                        for r in records], flags)
+                        for r in records], flags, result.verdict.problems)
     labels = {"step_mm": [np.nan if r.step_mm is None else r.step_mm for r in records]}
     table = pd.DataFrame({"scan_id": [r.scan_id if r.name is None else r.name for r in records],
                           **({"file": [r.file for r in records]} if any(r.file for r in records) else {}),

@@ -313,3 +313,23 @@ def test_a_batch_a_fifth_off_every_plate_is_noted(small_fit, fit_dir, tmp_path, 
                          "another scale (a gain, a unit or a set-up unlike the training's) or of steps the fit was "
                          "not trained on, so the other scans' probabilities and decisions may not hold either"]
                         if noted else []), (name, off)
+
+
+def test_a_unit_flag_against_a_fit_whose_own_verdict_names_its_units_blames_the_fit():
+    """A fit trained on U_y in um, used with --accept-failed on scans in mm: the scans read
+    1e-3 times its training scans', and classify said 'U_y probably in m' of the right file."""
+    from feeler.calib.neuron.live.table import unit_mistake
+    from feeler.errors import DataFileError
+
+    flags = [[], ["response 0.00161× the smallest training scan's: U_y probably in m (expected mm)"]]
+    own = "a: the scans' rise in U_y is 975 times the labelled steps (expected about 1, both in mm): U_y probably in um"
+    with pytest.raises(DataFileError) as plain:
+        unit_mistake("new.csv", ["scan_id 0", "scan_id 1"], flags)
+    assert "U_y probably in m (expected mm); the scan CSV takes t_s in s" in str(plain.value)
+    with pytest.raises(DataFileError) as blamed:
+        unit_mistake("new.csv", ["scan_id 0", "scan_id 1"], flags, ["tau_s: something else", own])
+    text = str(blamed.value)
+    assert "scan_id 1: response 0.00161× the smallest training scan's: these scans and the fit's training scans" in text
+    assert f"the fit's own verdict names its training scans' units ({own}); refit with them in mm" in text
+    assert "probably in m (" not in text
+    unit_mistake("new.csv", ["scan_id 0"], [["speed 2x the fit's"]], [own])       # no unit flag: nothing raised

@@ -53,14 +53,21 @@ def plate_column(step_mm: float) -> str:
     return f"p_{step_mm:g}mm"
 
 
-def unit_mistake(path, scans, flags) -> None:
+def unit_mistake(path, scans, flags, fit_problems=()) -> None:
     """Raise a one-line DataFileError for the first scan whose flags name a unit mistake
     (``scans``: how each scan is named, ``scan_id 7`` or ``scan file touch8.csv``;
-    ``flags``: one list of reasons per scan)."""
+    ``flags``: one list of reasons per scan). ``fit_problems``: the fit's verdict; when it
+    names a unit mistake of its own training scans (a failed fit used with
+    ``--accept-failed``), the line says the fit may be the one off, not the new scans."""
+    own = next((q for q in fit_problems if "probably in" in q), None)
     for name, reasons in zip(scans, flags):
         for r in reasons:
             if "probably in" in r:
                 who = "" if r.startswith("these ") else f"{name}: "        # a batch's reason names no scan
+                if own is not None:
+                    raise DataFileError(path, f"{who}{r.split(':')[0]}: these scans and the fit's training scans "
+                                              f"are on different scales, and the fit's own verdict names its "
+                                              f"training scans' units ({own}); refit with them in mm")
                 raise DataFileError(path, f"{who}{r}; the scan CSV takes t_s in s and uy_mm, x_mm in mm "
                                           "(README, 'Scan CSV format')")
 
