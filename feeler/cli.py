@@ -108,6 +108,8 @@ def _check_before_work(args) -> None:
         value = getattr(args, name, None)
         if isinstance(value, int) and not isinstance(value, bool) and value < least:
             raise ArgumentError(f"--{name.replace('_', '-')}", value, f"an integer >= {least}")
+    from feeler.commands._checks import check_sizes
+    check_sizes(args)
     out = getattr(args, "out", None)
     if isinstance(out, str) and out:
         from feeler.commands._checks import check_out_dir

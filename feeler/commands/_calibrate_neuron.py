@@ -49,7 +49,7 @@ def register(parser) -> None:
                              "those sds grow with the step. Grid backend only")
     parser.add_argument("--emcee-steps", type=int, default=None,
                         help="emcee: cap on steps per walker (default: run until 50 autocorrelation times, "
-                             "at most 200000 steps)")
+                             "at most 200000 steps; 100-200000)")
     add_fit_arguments(parser, draws=1000)
     parser.set_defaults(run=run)
 

@@ -114,6 +114,9 @@ def run(args) -> int:
 # prediction but a slip: mN typed for N is ×1000, and 1e30 printed 30-digit displacements
 PREDICT_RANGE = 10.0
 
+#: emcee's walkers (fit_matrix's default), stored as its chains
+EMCEE_WALKERS = 32
+
 
 def _check_options(args) -> None:
     """The options' values and combinations, before the data are read (one line each)."""
@@ -131,6 +134,12 @@ def _check_options(args) -> None:
     if args.backend == "emcee" and args.eiv:
         raise ArgumentError("--backend", args.backend, "emcee cannot sample --eiv's latent stage errors; use "
                                                        "--backend nuts")
+    if args.backend == "emcee" and args.draws is not None:     # 32 walkers are its chains, not --chains
+        from feeler.commands._checks import MAX_TOTAL_DRAWS
+        if args.draws * EMCEE_WALKERS > MAX_TOTAL_DRAWS:
+            raise ArgumentError("--draws", args.draws, f"at most {MAX_TOTAL_DRAWS // EMCEE_WALKERS} with --backend "
+                                f"emcee ({EMCEE_WALKERS} walkers × draws at most {MAX_TOTAL_DRAWS}: the posterior "
+                                f"draws must fit in memory)")
     for f in args.predict:
         if not all(math.isfinite(v) for v in f):
             raise ArgumentError("--predict", list(f), "three finite forces FX FY FZ, N")

@@ -41,7 +41,7 @@ def register(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of element 0; element i uses SEED + i")
     parser.add_argument("--scheduler", default=None, metavar="ADDR",
                         help="tcp://HOST:PORT of a dask scheduler, or 'serial' (default: a LocalCluster)")
-    parser.add_argument("--workers", type=int, default=2, help="LocalCluster worker processes (default 2)")
+    parser.add_argument("--workers", type=int, default=2, help="LocalCluster worker processes (default 2; at most this machine's CPUs)")
     parser.add_argument("--progress", action="store_true", default=None, help="always show progress bars")
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="never show progress bars")
     parser.set_defaults(run=run)

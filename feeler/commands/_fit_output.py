@@ -79,11 +79,14 @@ def add_fit_arguments(parser, *, draws: int | None = 1000, tune: int | None = 10
                         help="write posterior.nc, summary.csv and verdict.json into DIR")
     parser.add_argument("--force", action="store_true", help="overwrite an earlier fit in DIR")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random generator (default 0)")
-    parser.add_argument("--chains", type=int, default=4, help="chains (default 4)")
+    from feeler.commands._checks import MAX_CHAINS, MAX_TOTAL_DRAWS, MAX_TUNE
+
+    parser.add_argument("--chains", type=int, default=4, help=f"chains (default 4, at most {MAX_CHAINS})")
     parser.add_argument("--draws", type=int, default=draws,
-                        help=f"kept draws per chain (default {draws or 'per backend'})")
+                        help=f"kept draws per chain (default {draws or 'per backend'}; chains × draws at most "
+                             f"{MAX_TOTAL_DRAWS})")
     parser.add_argument("--tune", type=int, default=tune,
-                        help=f"warm-up steps per chain (default {tune or 'per backend'})")
+                        help=f"warm-up steps per chain (default {tune or 'per backend'}, at most {MAX_TUNE})")
     parser.add_argument("--progress", action="store_true", default=None, help="always show progress bars")
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="never show progress bars")
     parser.set_defaults(out_files=FIT_FILES)       # checked before the fit (feeler.cli)

@@ -51,7 +51,8 @@ def register(parser) -> None:
     parser.add_argument("--touch-seed", type=int, default=None,
                         help="root seed of the simulated touches (default: the scene's seed)")
     parser.add_argument("--n-scans", type=int, default=1000,
-                        help="touches simulated per height (default 1000; the Monte Carlo error shrinks as 1/sqrt)")
+                        help="touches simulated per height (default 1000, 2-20000, and --n-draws × --n-scans at most "
+                             "20000000; the Monte Carlo error shrinks as 1/sqrt)")
     parser.set_defaults(run=run)
 
 
@@ -110,6 +111,11 @@ def threshold_text(th, scale: float = 1e3, unit: str = "um") -> str:
     return f"{est * scale:.2f} [{d.lo95 * scale:.2f}, > {top:.2f}] {unit}{missing}"
 
 
+#: posterior draws × touches per height: 100 times the default 200 × 1000 (the bootstrap's
+#: indices alone take 16 bytes each, 320 MB here)
+MAX_TOUCH_DRAWS = 20_000_000
+
+
 def check_arguments(args) -> None:
     """One-line errors for heights, speeds and counts the forward model cannot simulate
     (outside a robot-scan scene's heights and speed), before the posterior is loaded or a
@@ -117,13 +123,14 @@ def check_arguments(args) -> None:
     import math
 
     from feeler.errors import ArgumentError
+    from feeler.commands._checks import MAX_N_SCANS
     from feeler.scene import param_bounds
     from feeler.scenes.robot_scan import MotionTable, Surface
 
     low, high = param_bounds(Surface, "heights_mm")
     top_speed = param_bounds(MotionTable, "speed_mm_s")[1]
-    if args.n_scans < 2:
-        raise ArgumentError("--n-scans", args.n_scans, ">= 2")
+    if not 2 <= args.n_scans <= MAX_N_SCANS:
+        raise ArgumentError("--n-scans", args.n_scans, f"an integer from 2 to {MAX_N_SCANS}")
     for lo, hi in args.pair or ():
         if not all(math.isfinite(v) and low <= v <= high for v in (lo, hi)) or lo > hi:
             raise ArgumentError("--pair", f"{lo:g} {hi:g}", f"two step heights within {low:g}..{high:g} mm, the lower "
@@ -143,11 +150,16 @@ def run(args) -> int:
     from feeler.calib.neuron.scene_record import scene_note
     from feeler.calib.progress import progress, stage
     from feeler.commands._fit_output import format_estimate
+    from feeler.errors import ArgumentError
     from feeler.rundir import prepare_out_dir, write_json
     from feeler.scene import load_scene
 
     check_arguments(args)
-    result = load_checked(args)
+    result = load_checked(args)                   # --n-draws: at most the fit's draws
+    if args.n_draws * args.n_scans > MAX_TOUCH_DRAWS:           # decoded touches and their bootstrap indices
+        raise ArgumentError("--n-scans", args.n_scans, f"at most {MAX_TOUCH_DRAWS // args.n_draws} with "
+                            f"{args.n_draws} posterior draws (--n-draws × --n-scans at most {MAX_TOUCH_DRAWS}: "
+                            f"every draw decodes every touch, and they must fit in memory)")
     disc = Discriminator(result, scene_path=args.scene, n_scans=args.n_scans, n_draws=args.n_draws, seed=args.seed,
                          touch_seed=args.touch_seed)
     scene = load_scene(disc.scene_path)

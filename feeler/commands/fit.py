@@ -114,7 +114,7 @@ def register(parser) -> None:
     route.add_argument("--level", choices=("l0", "l1", "l2"), default="l0", help="skin fidelity (default l0)")
     route.add_argument("--check-level", choices=("l0", "l1", "l2"), default=None,
                        help="recompute the choice probabilities at the posterior mean with this level")
-    route.add_argument("--n-tau", type=int, default=121, help="τ grid nodes, 1 ms–10 s (default 121)")
+    route.add_argument("--n-tau", type=int, default=121, help="τ grid nodes, 1 ms–10 s (default 121, 2-1000)")
     _add_route_output(route)
     route.set_defaults(run=run_finger_route)
 
@@ -165,9 +165,9 @@ def _add_route_output(parser) -> None:
     parser.add_argument("--force", action="store_true", help="overwrite an earlier fit in DIR")
     parser.add_argument("--seed", type=int, default=0, help="seed of the draws from the grid (default 0)")
     parser.add_argument("--chains", type=int, default=4,
-                        help="groups of independent draws from the grid posterior (default 4; at least 2)")
+                        help="groups of independent draws from the grid posterior (default 4; 2-64)")
     parser.add_argument("--draws", type=int, default=1000,
-                        help="independent draws per group (default 1000; chains × draws at least 400)")
+                        help="independent draws per group (default 1000; chains × draws 400-200000)")
     parser.add_argument("--progress", action="store_true", default=None, help="always show progress")
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="never show progress")
     parser.set_defaults(out_files=FIT_FILES + ("tau_report.json",))
@@ -320,7 +320,7 @@ def run_finger_route(args) -> int:
     from feeler.calib.psychometric.independent import check_draw_counts
 
     if args.n_tau < 2:
-        raise ArgumentError("--n-tau", args.n_tau, "needs at least 2 grid nodes")
+        raise ArgumentError("--n-tau", args.n_tau, "needs at least 2 grid nodes")   # at most MAX_N_TAU: feeler.cli
     check_draw_counts(args.chains, args.draws, flag="--")
     trials = read_trials(args.data, matrix_use="one condition at one speed pair, and the finger route needs trials at "
                                                "more than one; write the trial table's columns (README)")

@@ -41,7 +41,7 @@ def register(parser) -> None:
     sbc = sub.add_parser("sbc", help="simulation-based calibration of one model",
                          description=_SBC_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     sbc.add_argument("--model", choices=sorted(SBC_MODELS), required=True, help="which model")
-    sbc.add_argument("--n", type=int, default=200, help="simulated datasets (default 200)")
+    sbc.add_argument("--n", type=int, default=200, help="simulated datasets (default 200, at most 10000)")
     sbc.add_argument("--draws", type=int, default=99, help="posterior draws per dataset for the ranks, 9-999 (default 99)")
     sbc.add_argument("--scheduler", default=None, metavar="ADDR",
                      help="tcp://HOST:PORT of a dask scheduler, or 'serial' (default: a LocalCluster)")
