@@ -79,6 +79,9 @@ def run(args) -> int:
     from feeler.calib.progress import stage
     from feeler.errors import ArgumentError, DataFileError
 
+    if args.backend != "emcee":             # emcee's walkers and steps are its own (--emcee-steps)
+        from feeler.calib.psychometric.independent import check_draw_counts
+        check_draw_counts(args.chains, args.draws, flag="--")     # the verdict's R-hat and ESS, before any work
     if args.emcee_steps is not None and args.emcee_steps < 100:
         raise ArgumentError("--emcee-steps", args.emcee_steps, ">= 100")
     if args.backend != "grid" and args.noise.startswith("two-mode"):       # before the scans are read

@@ -134,6 +134,12 @@ def _check_options(args) -> None:
     if args.backend == "emcee" and args.eiv:
         raise ArgumentError("--backend", args.backend, "emcee cannot sample --eiv's latent stage errors; use "
                                                        "--backend nuts")
+    from feeler.calib.psychometric.independent import check_draw_counts
+
+    if args.backend != "emcee":          # the verdict's R-hat and ESS need these counts, before any work
+        check_draw_counts(args.chains, 1000 if args.draws is None else args.draws, flag="--")
+    elif args.draws is not None:         # emcee for exactly --tune + --draws steps: its 32 walkers are the chains
+        check_draw_counts(EMCEE_WALKERS, args.draws, flag="--")
     if args.backend == "emcee" and args.draws is not None:     # 32 walkers are its chains, not --chains
         from feeler.commands._checks import MAX_TOTAL_DRAWS
         if args.draws * EMCEE_WALKERS > MAX_TOTAL_DRAWS:
