@@ -49,8 +49,8 @@ def register(parser) -> None:
                              "those sds grow with the step. Grid backend only")
     parser.add_argument("--emcee-steps", type=int, default=None,
                         help="emcee: cap on steps per walker (default: run until 50 autocorrelation times, "
-                             "at most 200000 steps; 100-200000)")
-    add_fit_arguments(parser, draws=1000)
+                             "at most 200000 steps; 100-200000; needs --backend emcee)")
+    add_fit_arguments(parser, draws=1000, tune=None)       # --tune: nuts only (default 1000)
     parser.set_defaults(run=run)
 
 
@@ -82,6 +82,11 @@ def run(args) -> int:
     if args.backend != "emcee":             # emcee's walkers and steps are its own (--emcee-steps)
         from feeler.calib.psychometric.independent import check_draw_counts
         check_draw_counts(args.chains, args.draws, flag="--")     # the verdict's R-hat and ESS, before any work
+    if args.emcee_steps is not None and args.backend != "emcee":    # an option the fit would not use: refused
+        raise ArgumentError("--emcee-steps", args.emcee_steps, "needs --backend emcee")
+    if args.tune is not None and args.backend != "nuts":
+        raise ArgumentError("--tune", args.tune, f"needs --backend nuts (the {args.backend} backend has no "
+                                                 f"warm-up: {'exact draws' if args.backend == 'grid' else '--emcee-steps'})")
     if args.emcee_steps is not None and args.emcee_steps < 100:
         raise ArgumentError("--emcee-steps", args.emcee_steps, ">= 100")
     if args.backend != "grid" and args.noise.startswith("two-mode"):       # before the scans are read
@@ -99,7 +104,7 @@ def run(args) -> int:
         warnings.simplefilter("ignore", DiagnosticWarning)
         try:
             result = fit_neuron(data, backend=args.backend, noise=args.noise, seed=args.seed, chains=args.chains,
-                                draws=args.draws, tune=args.tune, emcee_steps=args.emcee_steps,
+                                draws=args.draws, tune=1000 if args.tune is None else args.tune, emcee_steps=args.emcee_steps,
                                 progress=args.progress, scene_toml=scene_toml,
                                 scene_path=str(scene_path.resolve()) if scene_toml else None)
         except ArgumentError as err:

@@ -41,11 +41,12 @@ def register(parser) -> None:
                         help="exact conjugate (Gaussian noise; default), PyMC NUTS, or emcee")
     parser.add_argument("--noise", choices=("gaussian", "student"), default="gaussian",
                         help="force noise distribution (default gaussian; student: Student-t, --nu dof)")
-    parser.add_argument("--nu", type=float, default=4.0, help="Student-t degrees of freedom (default 4)")
+    parser.add_argument("--nu", type=float, default=None,
+                        help="Student-t degrees of freedom (default 4; needs --noise student)")
     parser.add_argument("--eiv", action="store_true",
                         help="errors-in-variables: latent stage error on U (needs --backend nuts)")
     parser.add_argument("--stage-sd-mm", type=float, default=None,
-                        help="stage error sd for --eiv, mm (default: the scene's noise.stage_sd_mm or 0.001)")
+                        help="stage error sd for --eiv, mm (default: the scene's noise.stage_sd_mm or 0.001; needs --eiv)")
     parser.add_argument("--model", choices=("inverse", "forward"), default="inverse",
                         help="inverse: F = K U + η (default); forward: naive U = C F + ε")
     parser.add_argument("--c0", type=float, nargs=9, default=None, metavar="C",
@@ -114,6 +115,9 @@ def run(args) -> int:
 # prediction but a slip: mN typed for N is ×1000, and 1e30 printed 30-digit displacements
 PREDICT_RANGE = 10.0
 
+#: --noise student's degrees of freedom unless --nu
+DEFAULT_NU = 4.0
+
 #: emcee's walkers (fit_matrix's default), stored as its chains
 EMCEE_WALKERS = 32
 
@@ -124,6 +128,16 @@ def _check_options(args) -> None:
 
     from feeler.errors import ArgumentError
 
+    if args.nu is not None and args.noise != "student":       # an option the fit would not use: refused
+        raise ArgumentError("--nu", args.nu, "needs --noise student (Gaussian noise has no degrees of freedom)")
+    if args.stage_sd_mm is not None and not args.eiv:
+        raise ArgumentError("--stage-sd-mm", args.stage_sd_mm, "needs --eiv (only the errors-in-variables model "
+                                                               "has stage errors)")
+    if args.tune is not None and args.backend == "exact":
+        raise ArgumentError("--tune", args.tune, "needs --backend nuts or emcee (exact draws are independent: "
+                                                 "no warm-up)")
+    if args.nu is None:
+        args.nu = DEFAULT_NU
     if not (math.isfinite(args.nu) and args.nu > 0):
         raise ArgumentError("--nu", args.nu, "Student-t degrees of freedom: a finite number > 0")
     if args.stage_sd_mm is not None and not (math.isfinite(args.stage_sd_mm) and args.stage_sd_mm > 0):

@@ -49,12 +49,16 @@ def register(parser) -> None:
                              "at most 1 - 0.001*(plates-1)/plates, the fit's floor)")
     parser.add_argument("--drop", type=float, default=0.5,
                         help="the peak has passed once the response fell by this fraction (default 0.5)")
-    parser.add_argument("--poll-s", type=float, default=0.2, help="--follow: seconds between looks (default 0.2)")
-    parser.add_argument("--wait-s", type=float, default=30.0,
+    parser.add_argument("--poll-s", type=float, default=None, help="--follow: seconds between looks (default 0.2)")
+    parser.add_argument("--wait-s", type=float, default=None,
                         help="--follow: how long to wait for RUN and its samples.csv to appear (default 30 s)")
     parser.add_argument("--live", action=argparse.BooleanOptionalAction, default=None,
                         help="one live line per scan (default: when stderr is a terminal)")
     parser.set_defaults(run=run)
+
+
+#: --follow's options and their defaults (s)
+FOLLOW_ONLY = {"poll_s": 0.2, "wait_s": 30.0}
 
 
 def run(args) -> int:
@@ -64,7 +68,14 @@ def run(args) -> int:
     from feeler.rundir import prepare_out_dir
 
     path = Path(args.run_dir)
-    if args.poll_s <= 0:
+    for name, default in FOLLOW_ONLY.items():       # an option the decoding would not use: refused
+        value = getattr(args, name)
+        if value is not None and not args.follow:
+            raise ArgumentError(f"--{name.replace('_', '-')}", value, "needs --follow (a finished run is read "
+                                                                      "at once)")
+        if value is None:
+            setattr(args, name, default)
+    if not args.poll_s > 0:
         raise ArgumentError("--poll-s", args.poll_s, "> 0 s")
     if not 0 < args.threshold <= 1:                 # with the option's name, before anything is read
         raise ArgumentError("--threshold", args.threshold, "a probability in (0, 1]")

@@ -68,7 +68,7 @@ def _add_psychophysics(sub) -> None:
                           "Gaussian approximation (approximate; warns where its bounds disagree with the "
                           "exact grid); nuts: PyMC, hierarchical unless --separate")
     psy.add_argument("--separate", action="store_true",
-                     help="nuts without pooling: independent priors per subject")
+                     help="nuts without pooling: independent priors per subject (needs --backend nuts)")
     psy.add_argument("--all", dest="all_estimand", choices=("pooled", "population"), default=None,
                      help="what the 'all' rows estimate: the pooled trials fitted as one observer, or the "
                           "population mean of the hierarchical model (default: population for hierarchical "
@@ -88,8 +88,8 @@ def _add_psychophysics(sub) -> None:
                      help="sd of log σ in the σ prior (default 1)")
     psy.add_argument("--prior-lapse", default="2,18", metavar="A,B",
                      help="lapse = 0.5·Beta(A, B) (default 2,18: mean 0.05)")
-    psy.add_argument("--target-accept", type=float, default=0.99,
-                     help="NUTS target acceptance rate (default 0.99)")
+    psy.add_argument("--target-accept", type=float, default=None,
+                     help="NUTS target acceptance rate (default 0.99; needs --backend nuts)")
     psy.add_argument("--no-plots", action="store_true", help="with --out, skip the curves/*.png")
     matrix = psy.add_argument_group("a psignifit data matrix (height µm, n correct or higher, n trials per row)",
                                     "the design such a file does not hold, the same for every row")
@@ -100,7 +100,7 @@ def _add_psychophysics(sub) -> None:
     matrix.add_argument("--comparison-speed-mm-s", type=float, default=None, metavar="V",
                         help="scan speed of the comparison, mm/s (default --speed-mm-s)")
     matrix.add_argument("--subject", default=None, metavar="NAME", help="the subject (default: the file name)")
-    add_fit_arguments(psy)
+    add_fit_arguments(psy, tune=None)            # --tune: nuts only (default 1000)
     psy.set_defaults(run=run_psychophysics)
 
 
@@ -237,6 +237,24 @@ _SHOW = ("subject", "standard_um", "standard_speed_mm_s", "comparison_speed_mm_s
          "slope_per_um", "lapse", "deviance", "gof_p")
 
 
+#: NUTS's options and their defaults: the exact grid and Laplace have no sampler to set
+NUTS_ONLY = {"separate": False, "target_accept": 0.99, "tune": 1000}
+
+
+def _check_nuts_only(args) -> None:
+    """Refuse a NUTS option with another backend (it would be ignored), then fill in the defaults."""
+    from feeler.errors import ArgumentError
+
+    for name, default in NUTS_ONLY.items():
+        value = getattr(args, name)
+        if value not in (None, False) and args.backend != "nuts":
+            raise ArgumentError(f"--{name.replace('_', '-')}", value if value is not True else None,
+                                f"needs --backend nuts (the {args.backend} backend has no sampler"
+                                + (" and no hierarchy to leave out)" if name == "separate" else ")"))
+        if value is None:
+            setattr(args, name, default)
+
+
 def run_psychophysics(args) -> int:
     from feeler.calib.progress import stage
     from feeler.calib.psychometric.fit import check_arguments
@@ -244,6 +262,7 @@ def run_psychophysics(args) -> int:
 
     from feeler.calib.psychometric.independent import check_draw_counts
 
+    _check_nuts_only(args)
     task = Task(args.nafc)                     # every option checked before any work
     if args.pc is not None:
         task.check_pc(args.pc, "--pc")

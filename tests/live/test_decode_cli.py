@@ -167,7 +167,7 @@ def test_follow_without_a_run_fails_in_one_line(fit_dir, tmp_path, capsys):
         list(follow_rows(tmp_path, poll_s=0.01, wait_s=0.02, sleep=lambda s: None))
     assert main(["decode", str(fit_dir), str(tmp_path / "nowhere"), "--follow", "--wait-s", "0"]) == 2
     assert main(["decode", str(fit_dir), str(tmp_path / "nowhere")]) == 2
-    assert main(["decode", str(fit_dir), str(tmp_path), "--poll-s", "0"]) == 2
+    assert main(["decode", str(fit_dir), str(tmp_path), "--follow", "--poll-s", "0"]) == 2
     err = capsys.readouterr().err
     said = [ln for ln in err.splitlines() if ln.startswith("feeler: ")]       # beside the first status lines
     assert len(said) == 3 and all(ln.startswith("feeler: error: ") for ln in said) and "Traceback" not in err
