@@ -176,3 +176,54 @@ def test_a_failed_fit_skips_what_needs_it_and_the_rest_still_runs(tmp_path, smal
     assert code == 1
     assert "classify                    -       -   skipped: it needs calibrate neuron, which failed" in captured.out
     assert captured.err.startswith("feeler: failed: 1 demo stage failed: 'calibrate neuron'")
+
+
+def test_ctrl_c_stops_the_demo_after_the_running_stage_and_builds_no_report(tmp_path, small, capsys, monkeypatch):
+    """Ctrl-C killed only the running stage's command (it exits 130 in-process): the demo
+    logged it as FAILED, ran the other stages and rebuilt the report, which then showed an
+    earlier run's files as this run's. Now it stops there, builds no report and says in one
+    line which stages finished (kept) and what is an earlier run's; exit 130."""
+    import argparse
+
+    import feeler.demo
+    import feeler.simulate
+    from feeler.commands import demo as demo_command
+    from feeler.demo.campaign import _calibrate_sensor      # runs `feeler simulate` in-process
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    ran = []
+    stages = [("table", lambda ctx: ran.append("table")), ("calibrate sensor", _calibrate_sensor),
+              ("discriminate", lambda ctx: ran.append("discriminate")), ("report", lambda ctx: ran.append("report"))]
+    out = tmp_path / "demo"
+    out.mkdir()
+    (out / "report.html").write_text("an earlier demo's report")
+    monkeypatch.setattr(feeler.simulate, "run_simulation", interrupted)
+    monkeypatch.setattr(feeler.demo, "run_demo", lambda *a, **k: run_demo(out, scene_path=small, force=True,
+                                                                           echo=lambda s: None, stages=stages))
+    code = demo_command.run(argparse.Namespace(out=str(out), force=True, scene=None, progress=False))
+    captured = capsys.readouterr()
+    assert code == 130 and ran == ["table"]
+    assert captured.out == "" and len(captured.err.strip().splitlines()) == 1 and "Traceback" not in captured.err
+    line = captured.err.strip()
+    assert line.startswith("feeler: demo interrupted during stage 'calibrate sensor': ")
+    assert f"outputs are kept in {out} (table)" in line and "no report was built" in line
+    assert f"{out / 'report.html'} and the outputs of the stages that did not run are an earlier run's" in line
+    assert f"feeler demo --out {out} --force" in line
+    assert (out / "report.html").read_text() == "an earlier demo's report"
+    assert "interrupted" in (out / "logs" / "simulate-sensor-calibration.txt").read_text()
+
+
+def test_ctrl_c_in_a_robot_stage_names_it_and_no_finished_stage(tmp_path, small):
+    from feeler.demo.campaign import DemoInterrupted
+
+    def interrupted(ctx):
+        raise KeyboardInterrupt
+
+    with pytest.raises(DemoInterrupted) as info:
+        run_demo(tmp_path / "demo", scene_path=small, echo=lambda s: None,
+                 stages=[("simulate", interrupted), ("report", lambda ctx: None)])
+    assert isinstance(info.value, KeyboardInterrupt) and info.value.code == 130
+    assert info.value.stage == "simulate" and info.value.done == []
+    assert "no stage had finished" in info.value.message() and "earlier run" not in info.value.message()

@@ -22,6 +22,8 @@ and CPU time and verdict. A stage that fails (a fit whose verdict fails, with --
 scene the fits cannot pin down) is named with its log; the stages that need its results
 are skipped, the others still run and the report shows them all with the failed verdict;
 the demo then exits with that stage's status (1 for a failed verdict).
+Ctrl-C stops the demo once the running stage has stopped: one line names the stages that
+finished (their outputs are kept) and says that no report was built; exit 130.
 """
 from __future__ import annotations
 
@@ -49,7 +51,7 @@ def run(args) -> int:
     import sys
 
     from feeler.demo import FIGURES, STAGES, run_demo
-    from feeler.demo.campaign import NEEDS, DemoIncomplete
+    from feeler.demo.campaign import NEEDS, DemoIncomplete, DemoInterrupted
 
     incomplete = None
     try:
@@ -57,6 +59,9 @@ def run(args) -> int:
                        stage_echo=lambda line: print(line, file=sys.stderr, flush=True))   # results stay on stdout
     except DemoIncomplete as exc:                  # the closing table still; the exit status says it failed
         incomplete, ctx = exc, exc.ctx
+    except DemoInterrupted as exc:                 # no closing table: one line says what is kept
+        print(f"feeler: {exc.message()}", file=sys.stderr, flush=True)
+        return exc.code
     out = ctx["out"]
     print("\nsummary" + "-" * 62)
     print(f"{'stage':20s} {'seconds':>8s} {'cpu s':>7s}   result")

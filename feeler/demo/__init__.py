@@ -25,7 +25,7 @@ import numpy as np
 import feeler
 from feeler.calib.progress import duration
 from feeler.datasets import proportion_correct, read_scans, strain
-from feeler.demo.campaign import NEEDS, DemoIncomplete, StageFailed
+from feeler.demo.campaign import NEEDS, DemoIncomplete, DemoInterrupted, StageFailed
 from feeler.rundir import prepare_out_dir, write_json
 from feeler.scene import load_scene
 
@@ -177,6 +177,8 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
     Raises:
         DemoIncomplete: after the last stage, when some failed (the stages needing them
             skipped, :data:`~feeler.demo.campaign.NEEDS`); its ``ctx`` is the context.
+        DemoInterrupted: Ctrl-C during a stage; no later stage runs (the report would mix
+            this run's results with an earlier run's), the finished ones' outputs stay.
         OverwriteError: ``out`` holds demo results and ``force`` is false.
         RunLocked: another demo is writing ``out`` (its PID in the message).
     """
@@ -197,23 +199,27 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
         todo = STAGES if stages is None else stages
         say = stage_echo or echo
         start = time.perf_counter()
-        failed, skipped = {}, []
-        for i, (name, stage) in enumerate(todo, 1):
-            if NEEDS.get(name) in failed:
-                skipped.append(name)
-                say(f"[{i}/{len(todo)}] {name}: skipped, it needs {NEEDS[name]}, which failed")
-                continue
-            if progress is not False:
-                so_far = f" ({duration(time.perf_counter() - start)} so far)" if i > 1 else ""
-                say(f"[{i}/{len(todo)}] {name} ...{so_far}")
-            t0, c0 = time.perf_counter(), time.process_time()
-            try:
-                stage(ctx)
-            except StageFailed as exc:                 # the others still run: the report shows them all
-                failed[name] = exc
-                say(f"{name}: FAILED ({exc}); going on with the stages that do not need it")
-            ctx["seconds"][name] = time.perf_counter() - t0
-            ctx["cpu_seconds"][name] = time.process_time() - c0
+        failed, skipped, running = {}, [], None
+        try:
+            for i, (name, stage) in enumerate(todo, 1):
+                if NEEDS.get(name) in failed:
+                    skipped.append(name)
+                    say(f"[{i}/{len(todo)}] {name}: skipped, it needs {NEEDS[name]}, which failed")
+                    continue
+                if progress is not False:
+                    so_far = f" ({duration(time.perf_counter() - start)} so far)" if i > 1 else ""
+                    say(f"[{i}/{len(todo)}] {name} ...{so_far}")
+                t0, c0, running = time.perf_counter(), time.process_time(), name
+                try:
+                    stage(ctx)
+                except StageFailed as exc:             # the others still run: the report shows them all
+                    failed[name] = exc
+                    say(f"{name}: FAILED ({exc}); going on with the stages that do not need it")
+                ctx["seconds"][name] = time.perf_counter() - t0
+                ctx["cpu_seconds"][name] = time.process_time() - c0
+                running = None
+        except KeyboardInterrupt:                      # stop at once: the stages after it would mix runs
+            raise DemoInterrupted(running, [n for n in ctx["seconds"] if n not in failed], out) from None
         if failed:
             raise DemoIncomplete(failed, skipped, ctx)
         return ctx

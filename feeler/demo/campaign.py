@@ -32,7 +32,7 @@ from pathlib import Path
 
 from feeler.errors import FeelerError
 
-__all__ = ["CAMPAIGN_STAGES", "NEEDS", "StageFailed", "DemoIncomplete", "held_out_scene"]
+__all__ = ["CAMPAIGN_STAGES", "NEEDS", "StageFailed", "DemoIncomplete", "DemoInterrupted", "held_out_scene"]
 
 DATA = Path(__file__).resolve().parents[2] / "datasets-synthetic"
 HELD_OUT_SEED_OFFSET = 100_000_000
@@ -62,8 +62,41 @@ class DemoIncomplete(FeelerError):
         self.code = first.code
 
 
+class DemoInterrupted(KeyboardInterrupt):
+    """Ctrl-C (SIGINT) stopped the demo during stage ``stage`` (None: between stages); the stages in ``done``
+    had finished and their outputs stay in ``out``. No later stage ran, the report
+    included, so no report mixes this run's results with an earlier run's. A
+    KeyboardInterrupt, so that code catching that still sees an interrupt.
+
+    Attributes: ``stage`` (the running stage's name), ``done`` (names, in order),
+    ``out`` (the output directory), ``code`` (130, as for SIGINT)."""
+
+    code = 130
+
+    def __init__(self, stage: str | None, done: list, out: Path):
+        self.stage, self.done, self.out = stage, list(done), Path(out)
+        super().__init__(self.message())
+
+    def message(self) -> str:
+        """One line: what ran, what is kept, what is stale, how to run it again."""
+        kept = (f"the finished stages' outputs are kept in {self.out} ({', '.join(self.done)})" if self.done
+                else "no stage had finished")
+        report = self.out / "report.html"
+        stale = (f"; {report} and the outputs of the stages that did not run are an earlier run's"
+                 if report.is_file() else "")
+        when = f"during stage {self.stage!r}" if self.stage else "between stages"
+        return (f"demo interrupted {when}: {kept}; no report was built{stale}; "
+                f"run `feeler demo --out {self.out} --force` to run every stage again")
+
+
 def _run(ctx: dict, stage: str, argv: list[str], keep) -> None:
-    """Run ``feeler argv`` in-process, log everything, echo the lines ``keep`` selects."""
+    """Run ``feeler argv`` in-process, log everything, echo the lines ``keep`` selects.
+
+    Raises:
+        StageFailed: the command exited non-zero.
+        KeyboardInterrupt: it was interrupted (exit 130: the in-process command caught the
+            Ctrl-C itself, so it is raised again here to stop the demo; the log is written).
+    """
     from feeler.cli import main
 
     logs = ctx["out"] / "logs"
@@ -73,6 +106,8 @@ def _run(ctx: dict, stage: str, argv: list[str], keep) -> None:
         code = main(argv)
     text = buf.getvalue()
     (logs / f"{stage}.txt").write_text(f"$ feeler {' '.join(argv)}\n{text}", encoding="utf-8")
+    if code == 130:                       # Ctrl-C: `main` caught it and said "interrupted" in the log
+        raise KeyboardInterrupt(stage)
     if code != 0:
         ctx["print"](text.rstrip())
         raise StageFailed(stage, code, logs / f"{stage}.txt")
