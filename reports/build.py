@@ -6,7 +6,9 @@
 calibrations first —, the appendix, and renders the jinja2 template with autoescaping on
 (text from the run's files appears as text). Figures are numbered in order; the manifest
 names each with its section, the files it came from and any layout problem found when
-it was drawn. Reports are derived files and are rewritten on every call. A directory
+it was drawn. Reports are derived files and are rewritten on every call, all three
+together: they are written under temporary names and renamed at the end, so an error or
+a Ctrl-C on the way (in the PDF, say) leaves the previous report as it was. A directory
 holding nothing the report can show is refused (one line naming what it holds and what
 the report reads), before anything is written.
 """
@@ -20,6 +22,7 @@ from pathlib import Path
 from typing import Callable
 
 from feeler.reports.discover import Inventory, discover
+from feeler.reports.staged import staged
 
 __all__ = ["Report", "build_report", "render_html", "write_pdf", "BUILDERS", "section_id", "nothing_to_show",
            "OWN_FILES"]
@@ -156,16 +159,16 @@ def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf:
     out.mkdir(parents=True, exist_ok=True)
     progress("html")
     html = render_html(inv, sections, manifest)
-    html_path = out / "report.html"
-    html_path.write_text(html, encoding="utf-8")
-    pdf_path, pages = None, ()
-    if pdf:
-        pdf_path = out / "report.pdf"
-        pages = write_pdf(html, pdf_path, progress=progress)
-    man_path = out / MANIFEST
-    man_path.write_text(json.dumps({"run_dir": str(inv.run_dir), "figures": manifest, "pages": len(pages),
-                                    "page_sections": [list(p) for p in pages]}, indent=2, ensure_ascii=False) + "\n",
-                        encoding="utf-8")
+    pages = ()
+    with staged(out) as files:               # all three in place at the end, or none (Ctrl-C in the PDF)
+        files.path("report.html").write_text(html, encoding="utf-8")
+        if pdf:
+            pages = write_pdf(html, files.path("report.pdf"), progress=progress)
+        files.path(MANIFEST).write_text(json.dumps({"run_dir": str(inv.run_dir), "figures": manifest,
+                                                    "pages": len(pages), "page_sections": [list(p) for p in pages]},
+                                                   indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+        files.install()
+    html_path, pdf_path, man_path = out / "report.html", out / "report.pdf" if pdf else None, out / MANIFEST
     return Report(html=html_path, pdf=pdf_path, manifest=man_path, n_pages=len(pages), page_sections=tuple(pages),
                   inventory=inv, failed=tuple(s.title for s in sections if s.failed), figures=tuple(manifest))
 

@@ -16,7 +16,9 @@ nothing the report can show. Otherwise the exit status is 0 once the report is w
 whatever the verdicts it holds: a failed fit is a result to show (first, and named on
 stdout as "FAILED calibration shown first: ..."), not a failure of the report. Files of
 other commands the report does not read (decode's decisions.csv, validate sbc's ranks.csv
-and sbc.csv) are named on stderr: "not reported: ...".
+and sbc.csv) are named on stderr: "not reported: ...". The three files are put in place
+together at the end: Ctrl-C (exit 130) leaves an earlier report as it was, and one line
+says so.
 
 Examples:
     feeler report runs/demo
@@ -64,6 +66,15 @@ def check_out_dir(path) -> None:
         raise ArgumentError("--out", str(path), f"a writable directory ({probe} is not writable)")
 
 
+def _nothing_written(out) -> str:
+    """What an interrupted report leaves in ``out``: nothing new, and the earlier report, if any."""
+    from feeler.reports.build import OWN_FILES
+
+    earlier = [name for name in OWN_FILES if (out / name).is_file()]
+    kept = (f"the earlier {', '.join(earlier)} there are unchanged" if earlier else "there was no report there before")
+    return f"no report written to {out} (its files are put in place only once all are done); {kept}"
+
+
 def run(args) -> int:
     import sys
     from pathlib import Path
@@ -81,9 +92,13 @@ def run(args) -> int:
 
     step, close = stages("report", args.progress)
     try:
-        report = build_report(args.run_dir, args.out, pdf=not args.no_pdf, progress=step)
-    finally:
-        close()
+        try:
+            report = build_report(args.run_dir, args.out, pdf=not args.no_pdf, progress=step)
+        finally:
+            close()
+    except KeyboardInterrupt:                        # the files are put in place only at the end
+        print(f"feeler: interrupted: {_nothing_written(Path(args.out or args.run_dir))}", file=sys.stderr)
+        return 130
     inv = report.inventory
     if inv.unread:                                   # named, never passed over in silence
         print("not reported: " + ", ".join(f"{rel} ({what})" for rel, what in inv.unread), file=sys.stderr)
