@@ -19,7 +19,7 @@ import pandas as pd
 
 from feeler.calib.diagnostics import (SUMMARY_COLUMNS, DiagnosticWarning, Thresholds, Verdict,
                                       diagnose, summarize)
-from feeler.calib.posterior import flat_draws, posterior_from_draws
+from feeler.calib.posterior import entry_names, flat_draws, posterior_from_draws
 from feeler.errors import CalibrationFailed, DataFileError
 from feeler.rundir import prepare_out_dir, write_json
 
@@ -116,7 +116,7 @@ def load(directory: str | Path) -> FitResult:
         priors = json.loads(attrs.get("priors", "{}"))
     except json.JSONDecodeError:
         raise DataFileError(d / "posterior.nc", "attribute 'priors' is not valid JSON") from None
-    summary = _read_summary(d / "summary.csv")
+    summary = _read_summary(d / "summary.csv", entry_names(tree))
     verdict = _read_verdict(d / "verdict.json")
     return FitResult(posterior=tree, summary=summary, verdict=verdict, priors=priors,
                      backend=str(attrs.get("backend", "")), seconds=float(attrs.get("seconds", 0.0)))
@@ -154,8 +154,40 @@ def read_csv_columns(path: str | Path, columns) -> pd.DataFrame:
     return table
 
 
-def _read_summary(path: Path) -> pd.DataFrame:
-    return read_csv_columns(path, SUMMARY_COLUMNS)
+_LISTED = 4                                   # entries named in the error, at most
+
+
+def _read_summary(path: Path, entries: list[str]) -> pd.DataFrame:
+    """summary.csv with a row for each of the posterior's ``entries``, every row complete.
+
+    A file cut short (an interrupted copy, a full disk) kept its header and read as a
+    table of one or two parameters: the report then failed on a KeyError traceback (M1)
+    or showed a table of two rows as the fit's (M2).
+
+    Raises:
+        DataFileError: a column or an entry's row is missing, or a row has fewer fields
+            than the header.
+    """
+    import csv
+
+    from feeler.datasets import csv_dialect, header_line, read_text
+
+    table = read_csv_columns(path, SUMMARY_COLUMNS)
+    text = read_text(path)
+    sep, _ = csv_dialect(header_line(text))
+    rows = [r for r in csv.reader(text.splitlines(), delimiter=sep) if r and not r[0].lstrip().startswith("#")]
+    width = len(rows[0])
+    short = next((i for i, r in enumerate(rows[1:], 1) if len(r) < width), None)
+    if short is not None:
+        raise DataFileError(path, f"data row {short} has {len(rows[short])} of the header's {width} fields; "
+                                  "expected complete rows, as the fit writes them (a file cut short?)")
+    have = set(table["name"].astype(str))
+    missing = [e for e in entries if e not in have]
+    if missing:
+        named = ", ".join(missing[:_LISTED]) + (f" and {len(missing) - _LISTED} more" if len(missing) > _LISTED else "")
+        raise DataFileError(path, f"no row for {named} ({len(missing)} of the posterior's {len(entries)} entries); "
+                                  "expected one row per posterior entry, as the fit writes it (a file cut short?)")
+    return table
 
 
 def _read_verdict(path: Path) -> Verdict:

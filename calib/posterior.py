@@ -12,7 +12,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["posterior_from_draws", "flat_draws", "entry_name"]
+__all__ = ["posterior_from_draws", "flat_draws", "entry_name", "entry_names"]
 
 
 def entry_name(var: str, index: tuple[int, ...]) -> str:
@@ -62,6 +62,18 @@ def posterior_from_draws(draws: Mapping[str, np.ndarray], *,
     if getattr(sample_stats, "attrs", None):      # the NUTS runner's timings (calib.nuts)
         tree["sample_stats"].attrs.update(sample_stats.attrs)
     return tree
+
+
+def entry_names(posterior) -> list[str]:
+    """The names of the posterior group's scalar entries, in :func:`flat_draws` order,
+    without reading the draws (a summary.csv has one row for each)."""
+    group = posterior["posterior"] if "posterior" in getattr(posterior, "children", {}) else posterior
+    names: list[str] = []
+    for var in group.data_vars:
+        da = group[var]
+        shape = tuple(da.sizes[d] for d in da.dims if d not in ("chain", "draw"))
+        names.extend(entry_name(str(var), index) for index in np.ndindex(*shape))
+    return names
 
 
 def flat_draws(posterior) -> dict[str, np.ndarray]:

@@ -140,6 +140,7 @@ def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf:
     inv = discover(run_dir)
     if not inv.parts:
         raise nothing_to_show(inv)
+    _read_fits(inv, progress)
     sections, drawn, where = [], [0], [""]
 
     def figure(title: str) -> None:
@@ -171,6 +172,19 @@ def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf:
     html_path, pdf_path, man_path = out / "report.html", out / "report.pdf" if pdf else None, out / MANIFEST
     return Report(html=html_path, pdf=pdf_path, manifest=man_path, n_pages=len(pages), page_sections=tuple(pages),
                   inventory=inv, failed=tuple(s.title for s in sections if s.failed), figures=tuple(manifest))
+
+
+def _read_fits(inv: Inventory, progress: Callable[[str], None]) -> None:
+    """Read every fit of the run (posterior, summary, verdict) before any figure: a corrupt
+    one stopped the report only when its section came, after seconds of figures. Kept in
+    the inventory's cache, so the sections do not read them again."""
+    from feeler.reports.readers import load_fit
+
+    fits = inv.of("fit")
+    if fits:
+        progress(f"reading {len(fits)} fit{'s' if len(fits) != 1 else ''}")
+    for part in fits:
+        load_fit(inv.run_dir / part.rel, inv)
 
 
 def render_html(inv: Inventory, sections, manifest) -> str:

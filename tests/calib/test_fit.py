@@ -214,6 +214,24 @@ def test_corrupt_files_are_one_line_errors_naming_the_file(saved, name, content,
     assert "\n" not in str(e.value)
 
 
+@pytest.mark.parametrize("cut, match", [
+    (300, r"summary.csv: no row for C\[0,1\], C\[0,2\], C\[1,0\], C\[1,1\] and 5 more "
+          r"\(9 of the posterior's 10 entries\); expected one row per posterior entry"),
+    (-40, r"summary.csv: data row 10 has \d+ of the header's 12 fields; expected complete rows"),
+])
+def test_a_summary_cut_short_is_named_not_read_as_a_smaller_fit(tmp_path, cut, match):
+    """A summary.csv cut short kept its header and read as a fit of one or two entries:
+    the report then failed on a KeyError traceback (M1) or showed a two-row table as the
+    fit's (M2). Every posterior entry needs its row, and every row all its fields."""
+    rng = np.random.default_rng(9)
+    _fit(_iid(rng)).save(tmp_path)
+    text = (tmp_path / "summary.csv").read_bytes()
+    (tmp_path / "summary.csv").write_bytes(text[:cut])
+    with pytest.raises(DataFileError, match=match) as e:
+        load(tmp_path)
+    assert "\n" not in str(e.value)
+
+
 def test_missing_file(saved):
     (saved / "summary.csv").unlink()
     with pytest.raises(DataFileError, match="summary.csv: missing"):

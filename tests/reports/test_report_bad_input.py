@@ -83,3 +83,35 @@ def test_finger_histories_need_their_scene(part_run, tmp_path):
     (run / "finger" / "scene.toml").unlink()
     with pytest.raises(DataFileError, match=r"finger/scene\.toml: missing; the finger's strain histories need"):
         build_report(run, tmp_path / "out", pdf=False)
+
+
+def test_a_fit_cut_short_is_named_before_any_figure_is_drawn(tmp_path):
+    """A truncated m1/summary.csv gave a KeyError traceback, a truncated m2 one a two-row
+    table; and a corrupt fit was found only when its section came, after seconds of the
+    other sections' figures. Every fit is now read first."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from feeler.calib.fit import make_result, posterior_from_draws
+
+    scene = tmp_path / "small.toml"
+    shipped = Path(__file__).resolve().parents[2] / "datasets-synthetic" / "four-plates.toml"
+    scene.write_text(shipped.read_text(encoding="utf-8").replace("scans_per_plate = 24", "scans_per_plate = 3"),
+                     encoding="utf-8")
+    run = tmp_path / "run"
+    assert main(["simulate", str(scene), "--out", str(run / "four-plates"), "--no-progress"]) == 0
+    rng = np.random.default_rng(3)
+    fit = make_result(posterior_from_draws({"C": rng.normal(0.2, 0.01, size=(4, 500, 3, 3))},
+                                           dims={"C": ["disp_axis", "force_axis"]}),
+                      backend="exact", priors={}, seconds=0.1)
+    fit.save(run / "m1")
+    summary = run / "m1" / "summary.csv"
+    summary.write_bytes(summary.read_bytes()[:300])
+    stages = []
+    with pytest.raises(DataFileError) as info:
+        build_report(run, tmp_path / "out", pdf=False, progress=stages.append)
+    message = str(info.value)
+    assert "\n" not in message and "m1/summary.csv: no row for C[0,1]" in message
+    assert not [s for s in stages if "figure" in s], stages
+    assert not (tmp_path / "out" / "report.html").exists()

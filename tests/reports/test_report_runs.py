@@ -155,7 +155,7 @@ def test_progress_is_a_line_per_stage_and_figure_off_a_terminal(run_dir, tmp_pat
     assert err[0] == f"feeler report: reading {fit} ..."
     figures = [f["title"] for f in json.loads((fit / "report-manifest.json").read_text(encoding="utf-8"))["figures"]]
     assert len(figures) >= 2                                              # the lines below are a real check
-    assert err[1:] == ["report: reading the run ...",
+    assert err[1:] == ["report: reading the run ...", "report: reading 1 fit ...",
                        "report: section 1/1: M2: neuron (a, τ, h) and decoder noise (./) ...",
                        *[f"report: section 1/1, figure {k}: {t} ..." for k, t in enumerate(figures, 1)],
                        "report: first page ...", "report: html ..."]
