@@ -209,16 +209,18 @@ def write_pdf(html: str, path: str | Path,
               progress: Callable[[str], None] = lambda stage: None) -> tuple[tuple[str, ...], ...]:
     """Lay out ``html`` with WeasyPrint and write ``path``; returns, per page, the ids of
     the sections that start on it. ``progress(stage)`` before each of WeasyPrint's steps
-    (:func:`feeler.reports.pdf_steps.weasyprint_steps`: parsing, each page, writing)."""
+    (:func:`feeler.reports.pdf_steps.weasyprint_steps`: parsing, each page, writing).
+    WeasyPrint's notice about its font subsetter is not shown (:mod:`~feeler.reports.pdf_notices`)."""
     progress("pdf: loading WeasyPrint")
     import weasyprint
     from weasyprint.urls import FatalURLFetchingError, URLFetcher
 
+    from feeler.reports.pdf_notices import font_subsetting_notices_dropped
     from feeler.reports.pdf_steps import weasyprint_steps
 
     # only inline data: URIs, and any other reference stops the rendering: no network
     fetcher = URLFetcher(allowed_protocols=("data",), fail_on_errors=True)
-    with weasyprint_steps(progress):
+    with weasyprint_steps(progress), font_subsetting_notices_dropped():
         try:
             document = weasyprint.HTML(string=html, url_fetcher=fetcher).render()
         except FatalURLFetchingError as exc:   # a BaseException in WeasyPrint 70
