@@ -110,6 +110,14 @@ def _check_before_work(args) -> None:
             raise ArgumentError(f"--{name.replace('_', '-')}", value, f"an integer >= {least}")
     from feeler.commands._checks import check_sizes
     check_sizes(args)
+    from feeler.scene import SEED_MAX
+
+    for name in ("seed", "touch_seed"):      # a seed is recorded in TOML, whose integers are 64-bit
+        value = getattr(args, name, None)
+        if isinstance(value, int) and not isinstance(value, bool) and value > SEED_MAX:
+            raise ArgumentError(f"--{name.replace('_', '-')}", value,
+                                f"an integer from 0 to 2**63-1 = {SEED_MAX} (TOML's integer range; "
+                                "scene.toml records the seed)")
     out = getattr(args, "out", None)
     if isinstance(out, str) and out:
         from feeler.commands._checks import check_out_dir

@@ -29,9 +29,13 @@ from typing import Any
 
 from feeler.errors import SceneError
 
-__all__ = ["param", "param_bounds", "load_scene", "parse_table", "scene_kinds", "scene_as_dict", "SceneError"]
+__all__ = ["param", "param_bounds", "load_scene", "parse_table", "scene_kinds", "scene_as_dict", "SceneError",
+           "SEED_MAX"]
 
 _MISSING = dataclasses.MISSING
+
+#: the largest seed: a TOML integer is a signed 64-bit one, and scene.toml records the seed
+SEED_MAX = 2**63 - 1
 
 
 def param(default: Any = _MISSING, *, lo: float | None = None, hi: float | None = None,

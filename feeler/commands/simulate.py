@@ -30,7 +30,7 @@ def register(parser) -> None:
     parser.add_argument("--out", required=True, metavar="DIR", help="run directory to write")
     parser.add_argument("--force", action="store_true", help="overwrite existing data in DIR")
     parser.add_argument("--seed", type=int, metavar="N",
-                        help="root seed of the random draws instead of the scene's own [scene] seed; "
+                        help="root seed of the random draws (0 to 2**63-1) instead of the scene's own [scene] seed; "
                              "DIR/scene.toml records it, so the run is reproduced from that file "
                              "(finger-steps scenes draw nothing at random and refuse it)")
     parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,

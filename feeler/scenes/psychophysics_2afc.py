@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from feeler.errors import SceneError
-from feeler.scene import param
+from feeler.scene import SEED_MAX, param
 
 __all__ = ["Scene", "Head", "Design", "Condition", "Subjects"]
 
@@ -27,7 +27,7 @@ __all__ = ["Scene", "Head", "Design", "Condition", "Subjects"]
 class Head:
     kind: str = param(choices=("psychophysics-2afc",), doc="scene kind")
     description: str = param("", doc="free text; must say the data are synthetic")
-    seed: int = param(0, lo=0, doc="seed of the numpy Generator")
+    seed: int = param(0, lo=0, hi=SEED_MAX, doc="seed of the numpy Generator")
 
 
 @dataclass(frozen=True)

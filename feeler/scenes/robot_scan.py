@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from feeler.errors import SceneError
-from feeler.scene import param
+from feeler.scene import SEED_MAX, param
 from feeler.scenes._optics import Optics, check_optics
 
 __all__ = ["Scene", "Head", "Surface", "MotionTable", "Probe", "Sensor", "Noise", "Neuron", "Repeats", "Optics"]
@@ -27,7 +27,7 @@ class Head:
     kind: str = param(choices=("robot-scan",), doc="scene kind")
     name: str = param(doc="short name of the dataset")
     description: str = param("", doc="free text")
-    seed: int = param(lo=0, doc="root seed of every random draw")
+    seed: int = param(lo=0, hi=SEED_MAX, doc="root seed of every random draw")
     outputs: tuple[str, ...] = param(("scans",), choices=("scans", "features"), min_len=1,
                                      doc="files to produce: scans (scans.csv), features (features.csv)")
 

@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass, field
 
 from feeler.errors import SceneError
-from feeler.scene import param
+from feeler.scene import SEED_MAX, param
 
 __all__ = ["Scene", "Head", "Plates", "ScanMotion", "Repeats", "Neuron", "Optics", "Virtual",
            "MAX_SPEED_MM_S", "samples_per_scan", "per_minute_hint"]
@@ -34,7 +34,7 @@ class Head:
     kind: str = param(choices=("scan-plan",), doc="scene kind")
     name: str = param(doc="short name of the campaign")
     description: str = param("", doc="free text")
-    seed: int = param(0, lo=0, doc="seed of the virtual camera's shot noise (--emulate)")
+    seed: int = param(0, lo=0, hi=SEED_MAX, doc="seed of the virtual camera's shot noise (--emulate)")
 
 
 @dataclass(frozen=True, kw_only=True)

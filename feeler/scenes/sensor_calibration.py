@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from feeler.errors import SceneError
-from feeler.scene import param
+from feeler.scene import SEED_MAX, param
 from feeler.scenes._optics import Optics, check_optics
 
 __all__ = ["Scene", "Head", "Sensor", "Design", "Noise", "Prior", "Optics", "commanded_displacements"]
@@ -33,7 +33,7 @@ _MATRIX_DOC = "3x3 compliance matrix, rows = displacement axis x, y, z, columns 
 class Head:
     kind: str = param(choices=("sensor-calibration",), doc="scene kind")
     description: str = param("", doc="free text")
-    seed: int = param(0, lo=0, doc="seed of the numpy Generator")
+    seed: int = param(0, lo=0, hi=SEED_MAX, doc="seed of the numpy Generator")
 
 
 @dataclass(frozen=True)
