@@ -8,9 +8,10 @@ start offset and drift), and DIR/scans.csv (long format: scan_id, plate, step_mm
 speed_mm_s, t_s, x_mm, ux_mm, uy_mm, uz_mm), plus DIR/features.csv when the scene lists
 "features" in its outputs. The result depends only on the scene file (its seed; --seed N
 replaces it, and DIR/scene.toml then records N). Existing data are never overwritten
-without --force. Progress on stderr: a line per stage (and a bar over scans, frames or
-skin runs on a terminal; off a terminal a line per skin run with the time left);
---no-progress: none, only the "wrote" line on stdout.
+without --force; with it DIR holds this run only (see --force). Progress on stderr: a
+line per stage (and a bar over scans, frames or skin runs on a terminal; off a terminal
+a line per skin run with the time left); --no-progress: none, only the "wrote" line on
+stdout.
 
 Example:
     feeler simulate datasets-synthetic/four-plates.toml --out runs/four-plates
@@ -28,7 +29,11 @@ HELP = "simulate a scene (e.g. datasets-synthetic/four-plates.toml) into a run d
 def register(parser) -> None:
     parser.add_argument("scene", metavar="SCENE", help="scene TOML file")
     parser.add_argument("--out", required=True, metavar="DIR", help="run directory to write")
-    parser.add_argument("--force", action="store_true", help="overwrite existing data in DIR")
+    parser.add_argument("--force", action="store_true",
+                        help="overwrite existing data in DIR, so that it holds this run only: the files of an "
+                             "earlier simulation there that this one does not write (its calibration.csv, say) "
+                             "and an earlier report are removed; other files of names feeler reads (a fit, an "
+                             "acquisition) are refused before any work, never deleted; other names are left alone")
     parser.add_argument("--seed", type=int, metavar="N",
                         help="root seed of the random draws (0 to 2**63-1) instead of the scene's own [scene] seed; "
                              "DIR/scene.toml records it, so the run is reproduced from that file "

@@ -13,12 +13,14 @@ import dataclasses
 import importlib
 import re
 import shutil
+import sys
 from pathlib import Path
 
 from feeler.errors import ArgumentError, SceneError
 from feeler.rundir import prepare_out_dir
 from feeler.scene import load_scene
 from feeler.simulate.robot import CSV_COLUMNS, features_of, plate_profile, simulate_robot_scan, simulate_scans
+from feeler.simulate.stale import remove, stale_outputs
 
 __all__ = ["SIMULATORS", "run_simulation", "with_seed", "CSV_COLUMNS", "features_of", "plate_profile", "simulate_scans",
            "simulate_robot_scan"]
@@ -40,7 +42,10 @@ def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = Fal
     Raises:
         SceneError: the scene does not validate (checked before ``out`` is created), or its
             rendered frames are rejected; a failed run removes ``out`` when it created it.
-        OverwriteError: data exist and not ``force``.
+        OverwriteError: data exist and not ``force``; or, with ``force``, ``out`` holds
+            files of feeler's names this run does not write and no earlier simulation
+            there wrote (:mod:`feeler.simulate.stale`; those an earlier simulation wrote,
+            and an earlier report, are removed once this run is written).
         ArgumentError: the scene asks for a sensor fidelity not available here.
     """
     scene = load_scene(scene_path)
@@ -58,6 +63,7 @@ def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = Fal
                                                    f"simulate takes {', '.join(sorted(SIMULATORS))}")
     module, func = SIMULATORS[kind].split(":")
     fresh = not Path(out).exists()
+    stale = stale_outputs(out, scene) if force else []     # refused here, before any work
     try:
         getattr(importlib.import_module(module), func)(scene, scene_path, out, force, progress=progress)
     except Exception:
@@ -67,6 +73,11 @@ def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = Fal
     if seed is not None:
         copy = Path(out) / "scene.toml"
         copy.write_text(with_seed(Path(scene_path).read_text(encoding="utf-8"), seed), encoding="utf-8")
+    if stale:                    # the earlier run's files this one did not overwrite: one run per directory
+        remove(stale)
+        if progress is not False:
+            print(f"--force: removed the earlier run's {', '.join(p.name for p in stale)} from {out}",
+                  file=sys.stderr, flush=True)
     return Path(out)
 
 
