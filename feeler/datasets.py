@@ -26,6 +26,11 @@ __all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_t
            "proportion_correct"]
 
 COLUMNS = ("scan_id", "step_mm", "speed_mm_s", "t_s", "x_mm", "ux_mm", "uy_mm", "uz_mm")
+#: the largest magnitude a data value may have: far beyond any measurement in the files'
+#: units (10⁹ km in mm, 30 000 years in s), and small enough that squares and sums of
+#: squares of a few thousand values stay finite in float64 (1e300 overflowed into numpy
+#: warnings and a traceback: an outside audit)
+MAX_MAGNITUDE = 1e12
 #: columns a scans file may leave out: no scan reader uses them (the neuron reads U_y); absent, they read as 0
 UNREAD_COLUMNS = ("ux_mm", "uz_mm")
 
@@ -428,6 +433,11 @@ def numeric_column(frame, col: str, path, *, blank_ok: bool = False):
         row = int(np.flatnonzero(infinite)[0])
         raise DataFileError(path, f"column {col}: {values.iloc[row]} at data row {row + 1}; "
                                   f"values must be finite numbers")
+    huge = np.abs(values.to_numpy()) > MAX_MAGNITUDE
+    if huge.any():
+        row = int(np.flatnonzero(huge)[0])
+        raise DataFileError(path, f"column {col}: {values.iloc[row]:g} at data row {row + 1}; values must lie "
+                                  f"within ±{MAX_MAGNITUDE:g} (no measurement in these units comes near)")
     return values
 
 

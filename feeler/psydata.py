@@ -40,8 +40,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from feeler.datasets import (SEPARATORS, comment_lines, csv_dialect, natural_key, read_text, renamed_hint,
-                             repeated_header_problem)
+from feeler.datasets import (MAX_MAGNITUDE, SEPARATORS, comment_lines, csv_dialect, natural_key, read_text,
+                             renamed_hint, repeated_header_problem)
 from feeler.errors import DataFileError, InputError
 
 __all__ = ["TRIAL_COLUMNS", "NAFC_COLUMNS", "KEY_COLUMNS", "RESPONSES", "read_trials", "write_trials",
@@ -421,6 +421,9 @@ def _number(path, lineno: int, col: str, text: str, *, allow_zero: bool = False)
     if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
         raise DataFileError(path, f"line {lineno}, column {col}: {value!r} must be finite "
                                   f"and {'>= 0' if allow_zero else '> 0'}")
+    if value > MAX_MAGNITUDE:               # 1e300 µm ended in a scipy traceback (an outside audit)
+        raise DataFileError(path, f"line {lineno}, column {col}: {value:g} must be at most {MAX_MAGNITUDE:g} "
+                                  f"(no height in µm or speed in mm/s comes near)")
     return value
 
 

@@ -192,6 +192,8 @@ def test_scan_ids_that_start_again_on_each_plate_are_named(tmp_path):
     (4, "-inf", "column x_mm: -inf at data row 6; values must be finite numbers"),
     (1, "inf", "column step_mm: inf at data row 6; values must be finite numbers"),
     (1, "abc", "column step_mm: missing or non-numeric value at data row 6"),
+    (6, "1e300", "column uy_mm: 1e+300 at data row 6; values must lie within ±1e+12 (no measurement in these "
+                 "units comes near)"),                # squared, it overflowed into numpy warnings and a traceback
 ])
 def test_both_scan_readers_name_a_value_that_is_not_a_finite_number(tmp_path, col, value, words):
     """The fit's reader and classify's/decode's read the same file to the same one line,

@@ -56,6 +56,7 @@ def read_calibration_csv(path: str | Path) -> CalibrationData:
     import pandas as pd
 
     from feeler.calib.fit import read_csv_columns
+    from feeler.datasets import MAX_MAGNITUDE
 
     path = Path(path)
     if not path.is_file():
@@ -72,6 +73,10 @@ def read_calibration_csv(path: str | Path) -> CalibrationData:
             shown = (repr(cell.strip()) if isinstance(cell, str) else "an empty or NaN cell" if pd.isna(cell)
                      else f"{float(cell):g}")                 # never numpy's repr ('np.float64(nan)')
             raise DataFileError(path, f"column {col}, row {bad[0] + 1}: {shown} is not a finite number")
+        huge = np.flatnonzero(np.abs(v) > MAX_MAGNITUDE)
+        if huge.size:
+            raise DataFileError(path, f"column {col}, row {huge[0] + 1}: {v[huge[0]]:g} lies beyond "
+                                      f"±{MAX_MAGNITUDE:g} (no displacement in mm or force in N comes near)")
         values[col] = v
     if len(table) < 4:
         raise DataFileError(path, f"{len(table)} points; a 3x3 matrix needs at least 4")

@@ -70,6 +70,8 @@ def test_scene_errors_name_the_key(tmp_path, old, new, match):
      "column uz_mm, row 4: an empty or NaN cell is not a finite number$"),      # pandas reads both as NaN
     ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3 + "3,0,0.1,0,inf,2,3\n",
      "column fx_n, row 4: inf is not a finite number$"),
+    ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3 + "3,0,0.1,0,1e300,2,3\n",
+     r"column fx_n, row 4: 1e\+300 lies beyond ±1e\+12 \(no displacement in mm or force in N comes near\)$"),
     ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,1,2,3\n" * 3, "3 points; a 3x3 matrix needs at least 4"),
     ("point_id,ux_mm,uy_mm,uz_mm,fx_n,fy_n,fz_n\n" + "0,0,0.1,0,0,0,0\n" * 4,
      "columns fx_n, fy_n, fz_n are 0 in every row: the force gauge read nothing"),

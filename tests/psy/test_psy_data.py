@@ -63,6 +63,7 @@ def test_extra_columns_are_ignored_and_order_is_free(tmp_path):
     (("A,10,20,7.6,20,2.5,1",), HEADER, "column n_trials.*whole number"),
     (("A,10,0,7.6,20,10,1",), HEADER, "column standard_speed_mm_s.*> 0"),
     (("A,10,20,nan,20,10,1",), HEADER, "column comparison_um.*finite"),
+    (("A,10,20,1e300,20,10,1",), HEADER, r"line 2, column comparison_um: 1e\+300 must be at most 1e\+12"),
     ((",10,20,7.6,20,10,1",), HEADER, "column subject: empty"),
     (("A,10,20,7.6,20,10",), HEADER, "line 2: 6 fields"),
     ((), HEADER, "no data rows"),
