@@ -15,7 +15,8 @@ every training plate and the decoded step height with its 90 % interval (inverti
 plate's predictive band: at any true step the interval covers it 90 % of the time),
 integrating over the posterior. A posterior that failed its diagnostics is refused unless
 --accept-failed. --out DIR writes classification.csv. A note names the scans of a mode
-(snaps, rides) whose training scans the fit reads no better than their plates' shares.
+(snaps, rides) whose training scans the fit reads no better than their plates' shares, and
+one the scans that repeat an earlier scan's U_y at every sample (copies).
 """
 from __future__ import annotations
 
@@ -45,8 +46,8 @@ def run(args) -> int:
     from feeler.calib.neuron.classify import chance_mode_notes, classify
     from feeler.calib.neuron.live.envelope import Envelope, readout_noise_mm
     from feeler.calib.neuron.live.scan_csv import read_scan_records
-    from feeler.calib.neuron.live.table import (claims_check, coverage_note, labelled_summary, off_plate_note,
-                                                plate_column, unit_mistake)
+    from feeler.calib.neuron.live.table import (claims_check, copies_note, coverage_note, labelled_summary,
+                                                off_plate_note, plate_column, unit_mistake)
     from feeler.rundir import prepare_out_dir
 
     from feeler.commands._checks import check_out_dir
@@ -93,6 +94,9 @@ def run(args) -> int:
     off = off_plate_note(int(np.sum(c.plate_sds > env.plate_sds)), len(table), env.plate_sds)
     if off:
         print(off)
+    copies = copies_note([f"scan_id {v}" for v in table["scan_id"]], [r.uy_mm for r in records])
+    if copies:
+        print(copies)
     if c.note:
         print(c.note)
     for line in chance_mode_notes(result.posterior["posterior"].attrs, c.snap):

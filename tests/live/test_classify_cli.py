@@ -333,3 +333,20 @@ def test_a_unit_flag_against_a_fit_whose_own_verdict_names_its_units_blames_the_
     assert f"the fit's own verdict names its training scans' units ({own}); refit with them in mm" in text
     assert "probably in m (" not in text
     unit_mistake("new.csv", ["scan_id 0"], [["speed 2x the fit's"]], [own])       # no unit flag: nothing raised
+
+
+def test_copies_of_one_scan_are_named_in_a_note(fit_dir, scans_frame, tmp_path, capsys):
+    """Every scan's U_y replaced by scan 0's (its times kept): each copy was classified at the
+    same p without a word. Real scans give no such note."""
+    frame = scans_frame[["scan_id", "t_s", "uy_mm"]].copy()
+    first = frame[frame.scan_id == frame.scan_id.iloc[0]].uy_mm.to_numpy()
+    frame["uy_mm"] = np.concatenate([first[: (frame.scan_id == s).sum()] for s in frame.scan_id.unique()])
+    frame.to_csv(tmp_path / "copies.csv", index=False)
+    assert _run(fit_dir, tmp_path / "copies.csv") == 0
+    n = frame.scan_id.nunique()
+    first_id, second_id = frame.scan_id.unique()[:2]
+    assert (f"note: {n - 1} of {n} scans repeat an earlier scan's U_y at every sample (e.g. scan_id {second_id} = "
+            f"scan_id {first_id}): a scan copied under new ids") in capsys.readouterr().out
+    scans_frame[["scan_id", "t_s", "uy_mm"]].to_csv(tmp_path / "real.csv", index=False)
+    assert _run(fit_dir, tmp_path / "real.csv") == 0
+    assert "repeat an earlier scan" not in capsys.readouterr().out

@@ -12,7 +12,7 @@ import numpy as np
 
 from feeler.errors import DataFileError
 
-__all__ = ["plate_column", "unit_mistake", "labelled_summary", "claims_check", "coverage_note", "on_a_plate",
+__all__ = ["plate_column", "unit_mistake", "copies_note", "labelled_summary", "claims_check", "coverage_note", "on_a_plate",
            "off_plate_note", "OFF_PLATE_MIN_SCANS", "OFF_PLATE_SHARE"]
 
 # a labelled batch contradicts the fit when what it claims is this improbable (one-sided)…
@@ -46,6 +46,28 @@ def off_plate_note(off: int, n: int, plate_sds: float, what: str = "probabilitie
     return (f"note: {off} of {n} scans read more than {plate_sds:g} sds from every trained plate: a batch on "
             f"another scale (a gain, a unit or a set-up unlike the training's) or of steps the fit was not "
             f"trained on, so the other scans' {what} may not hold either")
+
+
+def copies_note(names, uy_mm) -> str | None:
+    """A note when scans of a batch are copies of one another: the same U_y (mm) at every
+    sample (``uy_mm``: one array per scan, ``names``: how each is named). No two touches
+    of a real read-out agree to the last digit; a scan copied under new ids, or a read-out
+    that did not change between touches, does (an outside audit: 96 copies of one scan
+    were each classified at p = 0.999, without a word). None when no two are equal."""
+    first: dict[bytes, int] = {}
+    copies = []
+    for k, u in enumerate(uy_mm):
+        key = np.ascontiguousarray(np.asarray(u, float)).tobytes()
+        if key in first:
+            copies.append((k, first[key]))
+        else:
+            first[key] = k
+    if not copies:
+        return None
+    k, j = copies[0]
+    return (f"note: {len(copies)} of {len(names)} scans repeat an earlier scan's U_y at every sample (e.g. "
+            f"{names[k]} = {names[j]}): a scan copied under new ids, or a read-out that did not change between "
+            f"touches? Each copy is classified as that one scan, so they are not {len(names)} independent readings")
 
 
 def plate_column(step_mm: float) -> str:
