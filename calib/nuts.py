@@ -32,8 +32,11 @@ dict. Without nutpie installed, PyMC's own sampler runs (``sampler`` "pymc"; PyM
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+import signal
+import threading
 import time
 
 import numpy as np
@@ -106,18 +109,61 @@ def sample_model(model, *, draws: int, tune: int, chains: int, seed: int, target
     t0 = time.perf_counter()
     bar = _Progress(chains * (draws + tune)) if show_progress(progress) else None
     try:
-        tree = nutpie.sample(compiled, draws=draws, tune=tune, chains=chains, cores=cores,
-                             seed=int(seed), target_accept=float(target_accept), save_warmup=False,
-                             progress_bar=False, progress_callback=bar, adaptation=adaptation)
+        with _sigint_seen() as seen:
+            tree = nutpie.sample(compiled, draws=draws, tune=tune, chains=chains, cores=cores,
+                                 seed=int(seed), target_accept=float(target_accept), save_warmup=False,
+                                 progress_bar=False, progress_callback=bar, adaptation=adaptation)
     finally:
         if bar is not None:
             bar.close()
     sampling_s = time.perf_counter() - t0
+    if seen or _kept_draws(tree) < draws:      # nutpie swallows Ctrl-C and returns what it has: not a fit
+        raise KeyboardInterrupt("NUTS sampling interrupted")
     out = _pymc_layout(tree, var_names)
     out["sample_stats"].attrs.update({"compile_seconds": compile_s, "sampling_seconds": sampling_s,
                                       "compile_cache": cache, "sampler": f"nutpie {nutpie.__version__}"})
     log.info("NUTS (nutpie): compile %.2f s (cache %s), sampling %.2f s", compile_s, cache, sampling_s)
     return out
+
+
+@contextlib.contextmanager
+def _sigint_seen():
+    """A list that gets an entry when SIGINT arrives inside the block; the signal still goes
+    to the handler in place (Python's raises KeyboardInterrupt). nutpie catches that
+    KeyboardInterrupt, aborts and returns the draws so far: the longest chain's length,
+    the other chains' unfinished draws NaN (none during warm-up). The fits then failed on
+    that trace with a traceback ('cannot reshape array', 'p < 0, p > 1 or p contains NaNs'),
+    exit 1, instead of feeler's interrupt line and exit 130; an early abort can even raise
+    ('Sampler has no results to take'), re-raised as the interrupt. Outside the main thread, or
+    with SIGINT ignored, nothing is installed (:func:`_kept_draws` still sees a short trace)."""
+    seen: list[int] = []
+    previous = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or not callable(previous):
+        yield seen
+        return
+
+    def note(signum, frame):
+        seen.append(signum)
+        previous(signum, frame)
+
+    signal.signal(signal.SIGINT, note)
+    try:
+        yield seen
+    except Exception:
+        if seen:                # nutpie's abort can fail itself ('Sampler has no results to take')
+            raise KeyboardInterrupt("NUTS sampling interrupted") from None
+        raise
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _kept_draws(tree) -> int:
+    """Kept draws per chain in nutpie's result (0 when it has no posterior yet); fewer than
+    asked for: the run was cut short (:func:`_sigint_seen`)."""
+    try:
+        return int(tree["posterior"].sizes.get("draw", 0))
+    except (KeyError, AttributeError, TypeError):
+        return 0
 
 
 def stats_of(tree, names=("diverging", "lp")) -> SampleStats:

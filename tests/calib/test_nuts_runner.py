@@ -151,3 +151,68 @@ def test_off_a_terminal_a_line_as_the_model_is_built_and_one_as_sampling_starts(
         "NUTS: sampling 1 chain(s) of 50 warm-up and 50 kept draws ..."]
     sample_model(_model(data), draws=50, tune=50, chains=1, seed=3, progress=False)
     assert capsys.readouterr().err == ""
+
+
+def test_a_sampling_run_nutpie_cut_short_is_an_interrupt_not_a_fit(data, monkeypatch):
+    """nutpie catches Ctrl-C, aborts and returns the draws so far; the fits then failed on the
+    short trace with a traceback (exit 1). Here nutpie returns 3 of the 40 draws asked for,
+    as after a Ctrl-C: the runner raises KeyboardInterrupt (the CLI's exit 130)."""
+    import nutpie
+
+    real = nutpie.sample
+
+    def cut_short(compiled, *, draws, **kw):
+        return real(compiled, draws=3, **kw)
+
+    monkeypatch.setattr(nutpie, "sample", cut_short)
+    with pytest.raises(KeyboardInterrupt, match="NUTS sampling interrupted"):
+        sample_model(_model(data), draws=40, tune=20, chains=2, seed=1, progress=False)
+
+
+def test_a_ctrl_c_that_nutpie_swallows_is_raised_again(data, monkeypatch):
+    """A SIGINT during sampling that nutpie catches while every chain still returns its full
+    length (one chain done, another's tail NaN): the runner saw the signal and raises it."""
+    import os
+    import signal
+
+    import nutpie
+
+    real = nutpie.sample
+
+    def interrupted(compiled, **kw):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)           # Python's handler raises KeyboardInterrupt here
+        except KeyboardInterrupt:
+            pass                                          # as nutpie does: abort, return the draws so far
+        return real(compiled, **kw)
+
+    monkeypatch.setattr(nutpie, "sample", interrupted)
+    with pytest.raises(KeyboardInterrupt, match="NUTS sampling interrupted"):
+        sample_model(_model(data), draws=40, tune=20, chains=2, seed=1, progress=False)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler      # the handler put back
+
+
+def test_an_abort_that_fails_after_a_ctrl_c_is_the_interrupt(data, monkeypatch):
+    """nutpie's abort right after Ctrl-C can raise ValueError('Sampler has no results to
+    take'); with the signal seen, that is the interrupt. Without one, an error stays itself."""
+    import os
+    import signal
+
+    import nutpie
+
+    def interrupted(compiled, **kw):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+        except KeyboardInterrupt:
+            raise ValueError("Sampler has no results to take") from None
+
+    monkeypatch.setattr(nutpie, "sample", interrupted)
+    with pytest.raises(KeyboardInterrupt, match="NUTS sampling interrupted"):
+        sample_model(_model(data), draws=40, tune=20, chains=2, seed=1, progress=False)
+
+    def broken(compiled, **kw):
+        raise ValueError("a real error")
+
+    monkeypatch.setattr(nutpie, "sample", broken)
+    with pytest.raises(ValueError, match="a real error"):
+        sample_model(_model(data), draws=40, tune=20, chains=2, seed=1, progress=False)
