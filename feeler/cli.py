@@ -213,6 +213,24 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     finally:
         warnings.showwarning = shown
+        _quiet_exit()
+
+
+_EXIT_QUIET = []
+
+
+def _quiet_exit() -> None:
+    """Ignore Ctrl-C while the interpreter shuts down, once the command has ended: its
+    outputs are written and its exit status is set, and a Ctrl-C then (a user pressing it
+    as the fit finished) printed a KeyboardInterrupt traceback from dask's own atexit
+    handler after 'wrote …', exit 0. atexit runs the handlers last registered first, so
+    this one, registered after the command imported its libraries, runs before theirs."""
+    if not _EXIT_QUIET:
+        import atexit
+        import signal
+
+        _EXIT_QUIET.append(True)
+        atexit.register(signal.signal, signal.SIGINT, signal.SIG_IGN)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -74,3 +74,26 @@ def test_python_dash_m_feeler_is_the_command():
     out = subprocess.run([sys.executable, "-m", "feeler", "--version"], capture_output=True,
                          text=True, check=True)
     assert out.stdout.startswith("feeler ")
+
+
+def test_a_ctrl_c_while_the_interpreter_shuts_down_is_ignored(tmp_path):
+    """A command has ended (its outputs written, its status set); a Ctrl-C while the
+    libraries' atexit handlers run printed a KeyboardInterrupt traceback from dask's after
+    'wrote …'. Here an atexit handler that runs after feeler's sends SIGINT to the process."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent("""
+        import atexit, os, signal, sys, time
+        def late():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.2)
+            print("shut down quietly", flush=True)
+        atexit.register(late)              # registered first: runs after the handlers registered later
+        from feeler.cli import main
+        sys.exit(main(["classify", "no-such-fit", "no-such-scans"]))
+    """)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    assert "shut down quietly" in done.stdout and "KeyboardInterrupt" not in done.stderr, done.stderr
