@@ -87,10 +87,10 @@ class CaptureCamera:
                                 "layout file in the plan's [optics] layout)")
 
     def check_frames(self, needed: int, what: str) -> None:
-        """A video file or image sequence that states fewer frames than ``needed`` fails
-        here, before the stage moves: a recorded scan's video replayed under a plan of four
-        scans ran its first scan, then stopped with 'the video ended (truncated or corrupt)'
-        (an outside audit). A source that states no count is read as it comes."""
+        """A video file or image sequence with fewer frames than ``needed`` fails here, before
+        the stage moves: a recorded scan's video replayed under a plan of four scans ran its
+        first scan, then stopped with 'the video ended (truncated or corrupt)' (an outside
+        audit). The count it states is checked first, then the frames it really holds."""
         import cv2
 
         if self.is_device:
@@ -101,6 +101,20 @@ class CaptureCamera:
             raise DataFileError(self.name, f"holds {count} frames; {what} needs at least {needed}, one per sample "
                                 "(a run's video/scan_NNNN.avi replays its one scan: use a plan of that scan, or "
                                 "an image sequence of the whole run)")
+        # a file cut short still states its whole count (an audit's half.avi: 41 stated, 20 decodable),
+        # and the stage moved and 20 frames were taken, 11.9 s, before 'the video ended': the frames
+        # are grabbed (not decoded into images) up to what the plan needs, then the source reopened
+        readable = 0
+        while readable < needed and self._cap.grab():
+            readable += 1
+        self._cap.release()
+        if readable < needed:
+            stated = f", though it states {count}" if count > readable else ""
+            raise DataFileError(self.name, f"holds {readable} readable frames{stated}; {what} needs at least "
+                                f"{needed}, one per sample (the file is cut short or corrupt)")
+        from feeler.hardware.camera import open_source
+
+        self._cap = open_source(self.src)
 
     def start_scan(self, scan_id: int) -> None:
         pass

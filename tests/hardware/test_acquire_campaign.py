@@ -427,6 +427,27 @@ def test_a_video_shorter_than_the_plan_is_refused_before_the_stage_moves(referen
     assert not out.exists()
 
 
+def test_a_video_cut_short_that_states_its_whole_count_is_refused_before_the_stage_moves(reference, tmp_path,
+                                                                                          capsys):
+    """A recording cut in half keeps its container's frame count: the stage moved and frames
+    were taken for 11.9 s before 'the video ended' (an outside audit). Its frames are counted
+    by grabbing them before anything moves; nothing is written. The whole recording replays."""
+    run, _ = reference
+    whole = run / "video" / "scan_0000.avi"
+    plan = one_scan_plan(tmp_path)
+    cut = tmp_path / "cut.avi"
+    data = whole.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    out = tmp_path / "replay"
+    assert main(["acquire", "--emulate", "--camera", str(cut), "--plan", str(plan), "--out", str(out)]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("feeler:") and not ln.startswith(NOTE)]
+    assert len(err) == 1 and err[0].startswith(f"feeler: error: {cut}: holds ") and "readable frames" in err[0], err
+    assert "(the file is cut short or corrupt)" in err[0]
+    assert not out.exists()
+    assert main(["acquire", "--emulate", "--camera", str(whole), "--plan", str(plan), "--out",
+                 str(tmp_path / "whole"), "--no-progress"]) == 0
+
+
 def test_a_bad_frame_is_a_feeler_warning_line_not_a_log_record(reference, tmp_path):
     """Per-frame warnings printed as 'WARNING feeler.acquire: ...', a log's format, among the
     CLI's 'feeler: error: ...' lines (an outside audit); -v still names the logger."""
