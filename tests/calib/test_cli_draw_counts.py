@@ -4,6 +4,7 @@ any work, as the psychophysics fits do (an outside audit: calibrate neuron --cha
 import pytest
 
 from feeler.cli import main
+from tests.cli._run import refused_in_one_line
 
 # DATASET need not exist: the counts are checked before it is read
 CASES = {
@@ -28,12 +29,7 @@ CASES = {
 def test_too_few_draws_are_refused_before_any_work(capsys, tmp_path, monkeypatch, case):
     monkeypatch.chdir(tmp_path)
     argv, needles = CASES[case]
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    lines = [ln for ln in err.splitlines() if ln.startswith("feeler: error: ")]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    for n in needles:
-        assert n in lines[0], lines[0]
+    refused_in_one_line(capsys, argv, *needles)
 
 
 def test_emcee_neuron_is_not_held_to_chains_and_draws(capsys, tmp_path, monkeypatch):

@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["ENV", "ROOT", "feeler", "python_x", "in_a_pty"]
+__all__ = ["ENV", "ROOT", "feeler", "python_x", "in_a_pty", "refused_in_one_line"]
 
 ROOT = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "MPLBACKEND": "Agg", "NUMBA_CACHE_DIR": str(ROOT / ".cache" / "numba")}
@@ -46,3 +46,17 @@ def in_a_pty(argv: list[str], env: dict | None = None, *, stdout: bool = True, t
     assert proc.wait(timeout=timeout) == 0
     os.close(master)
     return b"".join(chunks).decode("utf-8", "replace")
+
+
+def refused_in_one_line(capsys, argv, *needles) -> str:
+    """``feeler.cli.main(argv)`` in-process exits 2 with one ``feeler: error:`` line holding
+    every one of ``needles``, and no traceback → that line."""
+    from feeler.cli import main
+
+    assert main([str(a) for a in argv]) == 2
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.startswith("feeler: error: ")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    for n in needles:
+        assert n in lines[0], lines[0]
+    return lines[0]

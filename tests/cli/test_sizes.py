@@ -5,19 +5,12 @@ import os
 
 import pytest
 
-from feeler.cli import main
+from tests.cli._run import refused_in_one_line
 
 CPUS = max(2, os.cpu_count() or 1)
 
 
-def _refused(capsys, argv, *needles):
-    assert main([str(a) for a in argv]) == 2
-    err = capsys.readouterr().err
-    lines = [ln for ln in err.splitlines() if ln.startswith("feeler: error: ")]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    for n in needles:
-        assert n in lines[0], lines[0]
-    return lines[0]
+_refused = refused_in_one_line
 
 
 # DATASET need not exist and --out lies under a file: the sizes are checked before anything
