@@ -16,7 +16,7 @@ plate's predictive band: at any true step the interval covers it 90 % of the tim
 integrating over the posterior. A posterior that failed its diagnostics is refused unless
 --accept-failed. --out DIR writes classification.csv. A note names the scans of a mode
 (snaps, rides) whose training scans the fit reads no better than their plates' shares, and
-one the scans that repeat an earlier scan's U_y at every sample (copies).
+another the scans that repeat an earlier scan's U_y at every sample (copies).
 """
 from __future__ import annotations
 
