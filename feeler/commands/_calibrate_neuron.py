@@ -39,7 +39,8 @@ def register(parser) -> None:
     parser.add_argument("--backend", choices=("grid", "nuts", "emcee"), default="grid",
                         help="grid (exact, default), PyMC NUTS, or emcee")
     parser.add_argument("--length-mm", type=float, default=None,
-                        help="representative length for strain = U_y / length, mm (default: the scene's)")
+                        help="representative length for strain = U_y / length, mm, at most 1000 (default: the "
+                             "scene's)")
     parser.add_argument("--noise", choices=("auto", "constant", "growing", "per-plate", "two-mode", "two-mode-growing"),
                         default="auto",
                         help="decoder noise model (default auto: chosen by leave-one-out prediction). two-mode: "
@@ -229,6 +230,12 @@ def locate_scans(path: Path, length_mm: float | None):
                  else f"{csv.name} has no scene.toml beside it")
         raise ArgumentError("--length-mm", None, f"needed: {where} to give the element's representative length; "
                             "give --length-mm (mm; strain = U_y / length)")
-    if not length_mm > 0:
-        raise ArgumentError("--length-mm", length_mm, "> 0 (mm; strain = U_y / length)")
+    from feeler.scene import param_bounds
+    from feeler.scenes.robot_scan import Neuron
+
+    top = param_bounds(Neuron, "length_mm")[1]     # the scene schema's own range
+    if not 0 < length_mm <= top:
+        # the element pitch is 3 mm; 3000 (um typed for mm) passed with verdict ok (an outside audit)
+        slip = f"; {length_mm:g} looks like µm: {length_mm / 1000:g} mm?" if top < length_mm <= 1000 * top else ""
+        raise ArgumentError("--length-mm", length_mm, f"a length in (0, {top:g}] mm (strain = U_y / length){slip}")
     return csv, float(length_mm), kernel

@@ -73,6 +73,9 @@ CASES = {
     "calibrate neuron on a bare CSV": (lambda d: ("calibrate", "neuron", d / "bare.csv"),
                                        ["argument --length-mm: needed: bare.csv has no scene.toml"]),
     "calibrate sensor on a bare CSV": (lambda d: (*FIT, d / "bare-cal"), ["argument --c0: the nominal matrix"]),
+    # um typed for mm: 3000 passed with verdict ok, only rescaling a (an outside audit)
+    "calibrate neuron --length-mm 3000": (lambda d: ("calibrate", "neuron", d / "bare.csv", "--length-mm", "3000"),
+                                          ["--length-mm=3000.0: a length in (0, 1000] mm", "3000 looks like µm: 3 mm?"]),
     # a dataset or fit handed to a command that takes another kind: say what it is and what takes it
     "classify given a dataset as the fit": (lambda d: ("classify", d / "sc", d / "sc"),
                                             ["posterior.nc: missing", "holds a sensor-calibration dataset "
