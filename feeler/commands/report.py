@@ -114,5 +114,8 @@ def run(args) -> int:
     print(f"report: {report.html}")
     if report.pdf is not None:
         print(f"report: {report.pdf} ({report.n_pages} pages)")
+    elif (report.html.parent / "report.pdf").exists():     # --no-pdf beside an earlier report's PDF
+        print(f"note: {report.html.parent / 'report.pdf'} is an earlier report's, not this one's (--no-pdf); "
+              "run without --no-pdf to replace it, or remove it")
     print(f"manifest: {report.manifest} ({len(report.figures)} figures)")
     return 0

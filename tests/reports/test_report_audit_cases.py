@@ -175,3 +175,17 @@ def test_files_the_report_does_not_read_are_named(part_run, tmp_path, capsys):
     html = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
     assert ("Not reported (the report does not read them): four-plates/decisions.csv (decode output), "
             "sbc/sbc.csv (validate sbc output).") in html
+
+
+def test_no_pdf_beside_an_earlier_reports_pdf_says_it_is_not_this_ones(part_run, tmp_path, capsys):
+    """report --no-pdf into a directory holding an earlier report.pdf left that PDF beside the
+    new HTML without a word (a fixer helper noticed). A note says whose it is."""
+    run = part_run("m4")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "report.pdf").write_bytes(b"%PDF-1.7 an earlier report")
+    assert main(["report", str(run), "--no-pdf", "--no-progress", "--out", str(out)]) == 0
+    assert (f"note: {out / 'report.pdf'} is an earlier report's, not this one's (--no-pdf); run without --no-pdf "
+            "to replace it, or remove it") in capsys.readouterr().out
+    assert main(["report", str(run), "--no-pdf", "--no-progress", "--out", str(tmp_path / "clean")]) == 0
+    assert "earlier report" not in capsys.readouterr().out
