@@ -111,6 +111,10 @@ def test_held_out_scene_moves_only_the_seed(tmp_path):
     b = load_scene(held_out_scene(SHIPPED, tmp_path / "held.toml"))
     assert b.scene.seed == a.scene.seed + HELD_OUT_SEED_OFFSET
     assert b.surface == a.surface and b.noise == a.noise and b.repeats == a.repeats
+    # a seed near the top of TOML's range wraps round instead of leaving it (the held-out stage failed)
+    top = tmp_path / "top.toml"
+    top.write_text(SHIPPED.read_text(encoding="utf-8").replace(f"seed = {a.scene.seed}", f"seed = {2**63 - 10}", 1))
+    assert load_scene(held_out_scene(top, tmp_path / "held-top.toml")).scene.seed == HELD_OUT_SEED_OFFSET - 10
 
 
 def test_a_failing_stage_is_named_and_earlier_results_stay(tmp_path, small):

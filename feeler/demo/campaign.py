@@ -129,10 +129,14 @@ def _matching(pattern: str):
 
 
 def held_out_scene(scene_path: Path, dest: Path) -> Path:
-    """A copy of a robot-scan scene with its seed moved by 10⁸: fresh scans, same design."""
+    """A copy of a robot-scan scene with its seed moved by 10⁸: fresh scans, same design. The
+    move wraps round 2**63 (TOML's integer range, which a seed must keep): a scene seed within
+    10⁸ of 2**63 - 1 failed the held-out stage (a fixer helper noticed)."""
+    from feeler.scene import SEED_MAX
+
     text = scene_path.read_text(encoding="utf-8")
-    new, n = re.subn(r"(?m)^(seed\s*=\s*)(\d+)", lambda m: f"{m[1]}{int(m[2]) + HELD_OUT_SEED_OFFSET}",
-                     text, count=1)
+    new, n = re.subn(r"(?m)^(seed\s*=\s*)(\d+)",
+                     lambda m: f"{m[1]}{(int(m[2]) + HELD_OUT_SEED_OFFSET) % (SEED_MAX + 1)}", text, count=1)
     if n != 1:
         raise FeelerError(f"{scene_path}: no 'seed = N' line to derive held-out scans from")
     dest.write_text(new, encoding="utf-8")
