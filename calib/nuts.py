@@ -36,7 +36,6 @@ import contextlib
 import logging
 import os
 import signal
-import threading
 import time
 
 import numpy as np
@@ -136,25 +135,22 @@ def _sigint_seen():
     exit 1, instead of feeler's interrupt line and exit 130; an early abort can even raise
     ('Sampler has no results to take'), re-raised as the interrupt. Outside the main thread, or
     with SIGINT ignored, nothing is installed (:func:`_kept_draws` still sees a short trace)."""
+    from feeler.children import sigint_handler
+
     seen: list[int] = []
     previous = signal.getsignal(signal.SIGINT)
-    if threading.current_thread() is not threading.main_thread() or not callable(previous):
-        yield seen
-        return
 
     def note(signum, frame):
         seen.append(signum)
         previous(signum, frame)
 
-    signal.signal(signal.SIGINT, note)
-    try:
-        yield seen
-    except Exception:
-        if seen:                # nutpie's abort can fail itself ('Sampler has no results to take')
-            raise KeyboardInterrupt("NUTS sampling interrupted") from None
-        raise
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    with sigint_handler(note if callable(previous) else previous):
+        try:
+            yield seen
+        except Exception:
+            if seen:                # nutpie's abort can fail itself ('Sampler has no results to take')
+                raise KeyboardInterrupt("NUTS sampling interrupted") from None
+            raise
 
 
 def _kept_draws(tree) -> int:

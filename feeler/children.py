@@ -22,18 +22,25 @@ import signal
 import threading
 from typing import Iterator
 
-__all__ = ["sigint_ignored"]
+__all__ = ["sigint_ignored", "sigint_handler"]
 
 
 @contextlib.contextmanager
-def sigint_ignored() -> Iterator[None]:
-    """SIGINT ignored while the block runs, for the processes it starts (in the main
-    thread; elsewhere, where Python cannot set a handler, nothing changes)."""
+def sigint_handler(handler) -> Iterator[bool]:
+    """``handler`` (a callable, ``signal.SIG_IGN`` …) for SIGINT while the block runs, the
+    one before put back after; yields whether it was installed (only in the main thread:
+    elsewhere Python cannot set a handler, and nothing changes)."""
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield False
         return
-    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    before = signal.signal(signal.SIGINT, handler)
     try:
-        yield
+        yield True
     finally:
-        signal.signal(signal.SIGINT, before)
+        signal.signal(signal.SIGINT, signal.SIG_DFL if before is None else before)   # None: not set from Python
+
+
+def sigint_ignored():
+    """SIGINT ignored while the block runs, for the processes it starts (main thread only,
+    :func:`sigint_handler`)."""
+    return sigint_handler(signal.SIG_IGN)

@@ -7,17 +7,17 @@ longest step) left a new ``report.html`` beside the previous report's PDF and ma
 renames them over the old ones only once all are written (``os.replace``, atomic per
 file on POSIX). An error or an interrupt before that removes the temporary files and
 leaves the previous set as it was. A Ctrl-C that arrives during the renames (a few
-system calls) is held until they are done, so the set is never split; the files are then
-complete and the interrupt is dropped.
+system calls) is ignored (:func:`feeler.children.sigint_ignored`), so the set is never split;
+the files are then complete.
 """
 from __future__ import annotations
 
 import contextlib
 import os
-import signal
-import threading
 from pathlib import Path
 from typing import Iterator
+
+from feeler.children import sigint_ignored
 
 __all__ = ["StagedFiles", "staged"]
 
@@ -37,7 +37,7 @@ class StagedFiles:
 
     def install(self) -> None:
         """Rename every written file to its final name, all together."""
-        with _sigint_held():
+        with sigint_ignored():                   # a Ctrl-C now is dropped: the set is never split
             for name, temp in list(self._temp.items()):
                 os.replace(temp, self.out / name)
                 del self._temp[name]
@@ -58,17 +58,3 @@ def staged(out: str | Path) -> Iterator[StagedFiles]:
         yield files
     finally:
         files.discard()
-
-
-@contextlib.contextmanager
-def _sigint_held() -> Iterator[None]:
-    """SIGINT recorded, not raised, while the block runs (main thread only: elsewhere
-    Python cannot set a handler and the block runs as it is)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    before = signal.signal(signal.SIGINT, lambda signum, frame: None)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, signal.SIG_DFL if before is None else before)

@@ -69,7 +69,7 @@ MAX_SBC_N = 10_000                 # validate sbc datasets, each one fit: 50 tim
 #: sizes a command checks itself (validate sbc's --draws are thinned draws of each fit, 9-999)
 OWN_SIZES = {"validate sbc": ("draws",)}
 
-__all__ += ["MAX_CHAINS", "MAX_TOTAL_DRAWS", "MAX_TUNE", "MAX_N_TAU", "MAX_N_SCANS", "MAX_EMCEE_STEPS",
+__all__ += ["refuse_unused", "MAX_CHAINS", "MAX_TOTAL_DRAWS", "MAX_TUNE", "MAX_N_TAU", "MAX_N_SCANS", "MAX_EMCEE_STEPS",
             "MAX_SBC_N", "max_workers", "check_sizes", "SIZES_HELP"]
 
 #: what --help says of the sampler sizes
@@ -114,3 +114,19 @@ def check_sizes(args, *, chains_name: str = "chains") -> None:
         if draws * chains > MAX_TOTAL_DRAWS:
             raise ArgumentError("--draws", draws, f"at most {MAX_TOTAL_DRAWS // chains} with {chains} chains: "
                                 f"chains × draws at most {MAX_TOTAL_DRAWS} (the posterior draws must fit in memory)")
+
+
+def refuse_unused(args, defaults: dict, *, used: bool, needs) -> None:
+    """Refuse an option of ``defaults`` (name -> default) typed where it would not be used
+    (``used`` False), in one line saying what it ``needs(name)``; then fill in the defaults of
+    those not typed. Such options default to None (store_true ones to False), so that a
+    typed value can be told from the default (an outside audit: --wait-s without --follow,
+    --target-accept with the exact grid ran and exited 0, the option silently ignored)."""
+    from feeler.errors import ArgumentError
+
+    for name, default in defaults.items():
+        value = getattr(args, name)
+        if value is not None and value is not False and not used:
+            raise ArgumentError(f"--{name.replace('_', '-')}", None if value is True else value, needs(name))
+        if value is None:
+            setattr(args, name, default)

@@ -64,17 +64,13 @@ FOLLOW_ONLY = {"poll_s": 0.2, "wait_s": 30.0}
 def run(args) -> int:
     from pathlib import Path
 
+    from feeler.commands._checks import refuse_unused
     from feeler.errors import ArgumentError, OverwriteError
     from feeler.rundir import prepare_out_dir
 
     path = Path(args.run_dir)
-    for name, default in FOLLOW_ONLY.items():       # an option the decoding would not use: refused
-        value = getattr(args, name)
-        if value is not None and not args.follow:
-            raise ArgumentError(f"--{name.replace('_', '-')}", value, "needs --follow (a finished run is read "
-                                                                      "at once)")
-        if value is None:
-            setattr(args, name, default)
+    refuse_unused(args, FOLLOW_ONLY, used=args.follow, needs=lambda name: "needs --follow (a finished run is read "
+                                                                          "at once)")
     if not args.poll_s > 0:
         raise ArgumentError("--poll-s", args.poll_s, "> 0 s")
     if not 0 < args.threshold <= 1:                 # with the option's name, before anything is read

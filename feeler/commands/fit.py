@@ -243,16 +243,11 @@ NUTS_ONLY = {"separate": False, "target_accept": 0.99, "tune": 1000}
 
 def _check_nuts_only(args) -> None:
     """Refuse a NUTS option with another backend (it would be ignored), then fill in the defaults."""
-    from feeler.errors import ArgumentError
+    from feeler.commands._checks import refuse_unused
 
-    for name, default in NUTS_ONLY.items():
-        value = getattr(args, name)
-        if value not in (None, False) and args.backend != "nuts":
-            raise ArgumentError(f"--{name.replace('_', '-')}", value if value is not True else None,
-                                f"needs --backend nuts (the {args.backend} backend has no sampler"
-                                + (" and no hierarchy to leave out)" if name == "separate" else ")"))
-        if value is None:
-            setattr(args, name, default)
+    refuse_unused(args, NUTS_ONLY, used=args.backend == "nuts",
+                  needs=lambda name: f"needs --backend nuts (the {args.backend} backend has no sampler"
+                                     + (" and no hierarchy to leave out)" if name == "separate" else ")"))
 
 
 def run_psychophysics(args) -> int:

@@ -11,8 +11,9 @@ training envelope and flagged with the reason:
 - duration: the shortest training scan's (twice the last node of the τ grid);
 - stage speed: the scene the fit recorded (``scene_toml``: a robot-scan scene's
   ``motion.speed_mm_s`` or a scan plan's ``scan.speed_mm_s``), else its training scans'
-  speed labels (a fit of a bare scan CSV); not checked for a fit with neither. The scan's speed is measured from ``x_mm`` and ``t_s`` when given, else
-  its ``speed_mm_s`` label;
+  speed labels (a fit of a bare scan CSV); not checked for a fit with neither. The
+  scan's speed is measured from ``x_mm`` and ``t_s`` when given, else its ``speed_mm_s``
+  label;
 - response scale: the scan's peak window sum P at each draw's window against the
   training scans' range at that window (the fit's peak table), as the median ratio
   over draws;
