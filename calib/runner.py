@@ -66,11 +66,7 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
     from feeler.calib.dask_logging import cluster_options
 
     if scheduler is None:
-        from feeler.children import sigint_ignored
-
-        with sigint_ignored():          # the workers never see a Ctrl-C (a traceback each): we stop them
-            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, host="127.0.0.1", **cluster_options())
+        cluster = _local_cluster(LocalCluster, n_workers, cluster_options())
         try:
             client = Client(cluster)
         except BaseException:           # a Ctrl-C while the client connects: the workers are stopped, not orphaned
@@ -105,6 +101,42 @@ def map_seeds(func: Callable[[int], R], seeds: Iterable[int], *, scheduler: str 
         return client.gather(futures)
     finally:
         shut_down(client, cluster)
+
+
+def _local_cluster(local_cluster, n_workers: int, options: dict):
+    """A ``LocalCluster`` whose worker processes never hear a terminal's Ctrl-C, without
+    losing a Ctrl-C pressed while it starts.
+
+    The workers are forked from multiprocessing's fork server (dask's
+    ``multiprocessing-method`` set to ``forkserver`` for this process), which is started
+    with SIGINT ignored (:func:`feeler.children.sigint_ignored`, 0.2 s, once a process):
+    forked from it, every worker inherits that. The cluster itself then starts with
+    SIGINT only recorded, and a Ctrl-C pressed meanwhile stops it and is raised once it
+    is up. Spawned from here instead (dask's default), the workers had to be started
+    inside the ignoring block, and a Ctrl-C in its 0.8-1.5 s was lost: ``calibrate
+    sensors`` of three datasets interrupted 1.5 s in ran to the end, exit 0."""
+    import multiprocessing.forkserver
+
+    import dask
+    from distributed.utils import get_mp_context
+
+    from feeler.children import sigint_handler, sigint_ignored
+
+    dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})   # also for a restarted worker
+    get_mp_context()                    # sets the fork server's imports (distributed's own choice)
+    with sigint_ignored():
+        multiprocessing.forkserver.ensure_running()
+    pressed = []
+    with sigint_handler(lambda *_: pressed.append(True)):
+        # no dashboard; the scheduler's HTTP server (health, metrics) on any free port: at
+        # its default 8787 a second run on the machine printed "Port 8787 is already in use"
+        cluster = local_cluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"},
+                                host="127.0.0.1", **options)
+    if pressed:
+        cluster.close(timeout=SHUTDOWN_TIMEOUT_S)
+        raise KeyboardInterrupt
+    return cluster
 
 
 def shut_down(client, cluster, timeout_s: float = SHUTDOWN_TIMEOUT_S) -> None:

@@ -9,11 +9,12 @@ handler of its own, nor does asyncio's runner), so they never see it; feeler sto
 itself on the way out.
 
 The disposition is process-wide, so a Ctrl-C pressed while the block runs is lost: keep
-the block to the start of the children (a two-worker dask cluster starts in 0.4 s idle,
-0.8 s with both cores busy, measured). Blocking the signal instead (a per-thread mask,
-which children inherit too) would only defer it, but distributed spawns its workers from
-threads that do not carry the mask of the thread that made the cluster (measured: the
-workers' SigBlk was 0).
+the block to the start of the children. Blocking the signal instead (a per-thread mask)
+does not reach distributed's workers: a worker forked from a fork server started under a
+blocked mask still raised KeyboardInterrupt (measured). ``calibrate sensors`` therefore
+ignores SIGINT only while multiprocessing's fork server starts (0.2 s, once a process)
+and forks its dask workers from it (:func:`feeler.calib.runner._local_cluster`); the
+emulator's block is its ``Popen`` alone.
 """
 from __future__ import annotations
 

@@ -140,4 +140,62 @@ def test_a_ctrl_c_while_the_client_connects_stops_the_workers(monkeypatch):
     assert len(made) == 1 and made[0].status.name == "closed"
     left = [p.cmdline() for p in psutil.Process().children(recursive=True) if p.pid not in before
             and p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
-    assert [c for c in left if "multiprocessing.resource_tracker" not in " ".join(c)] == []   # it lives with us
+    assert [c for c in left if not _lives_with_us(c)] == []
+
+
+def _lives_with_us(cmdline: list[str]) -> bool:
+    """multiprocessing's resource tracker and fork server (the workers' parent) stay until we exit."""
+    text = " ".join(cmdline)
+    return "multiprocessing.resource_tracker" in text or "multiprocessing.forkserver" in text
+
+
+def test_a_ctrl_c_while_the_cluster_starts_is_not_lost(monkeypatch):
+    """A Ctrl-C pressed while the LocalCluster starts is raised once it is up, and its
+    workers are stopped: the workers were started with SIGINT ignored, process-wide, and
+    a Ctrl-C in that second was lost (calibrate sensors then ran to the end, exit 0)."""
+    import os
+    import signal
+
+    import distributed
+    import psutil
+
+    made = []
+    real = distributed.LocalCluster
+
+    def pressed_while_starting(*a, **kw):
+        os.kill(os.getpid(), signal.SIGINT)             # as the terminal would, mid-start
+        made.append(real(*a, **kw))
+        return made[-1]
+
+    monkeypatch.setattr(distributed, "LocalCluster", pressed_while_starting)
+    before = {p.pid for p in psutil.Process().children(recursive=True)}
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)    # as at a terminal
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            map_seeds(partial(_seeded_job, n=5), range(4))
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert len(made) == 1 and made[0].status.name == "closed"
+    left = [p.cmdline() for p in psutil.Process().children(recursive=True) if p.pid not in before
+            and p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
+    assert [c for c in left if not _lives_with_us(c)] == []
+
+
+def test_a_second_cluster_on_the_machine_prints_nothing():
+    """The scheduler's HTTP server takes any free port: at its default 8787, held by another
+    run, distributed warned "Port 8787 is already in use ... Hosting the HTTP server on port
+    36369 instead", which reached the user of a second `calibrate sensors` as a warning line."""
+    import socket
+    import warnings
+
+    with socket.socket() as held:
+        held.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            held.bind(("127.0.0.1", 8787))
+            held.listen()
+        except OSError:
+            pass                                      # another process holds it already: the same case
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            assert map_seeds(abs, [-1, 2]) == [1, 2]
+    assert [str(w.message) for w in seen if "8787" in str(w.message)] == []
