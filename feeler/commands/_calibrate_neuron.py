@@ -11,8 +11,10 @@ the labels, a two-mode model when the touches show both modes unless a one-mode 
 predicts clearly better). The
 window τ is weighted by how well the decoder predicts each left-out label; the decoded
 height is z = a·P − h on the least-squares line through the plates. Backends: grid
-(exact, default, fastest), nuts (PyMC), emcee (runs until its chains are 50
-autocorrelation times long, or fails at --emcee-steps). The fit records the scene of
+(exact, default, fastest: --chains × --draws), nuts (PyMC: --chains, --draws, --tune),
+emcee (32 walkers run until their chains are 50 autocorrelation times long, or fail at
+--emcee-steps); an option the chosen backend would not use is refused before any work
+(--chains, --draws or --tune with emcee, say). The fit records the scene of
 DATASET, which `feeler discriminate` then simulates. The verdict fails when the data
 cannot pin the decoder down (one plate, noise-free scans, a window any value of which
 fits), when units look wrong (µm for mm, steps in cm or inches, ms for s), or when the leave-one-out check
@@ -51,8 +53,51 @@ def register(parser) -> None:
     parser.add_argument("--emcee-steps", type=int, default=None,
                         help="emcee: cap on steps per walker (default: run until 50 autocorrelation times, "
                              "at most 200000 steps; 100-200000; needs --backend emcee)")
-    add_fit_arguments(parser, draws=1000, tune=None)       # --tune: nuts only (default 1000)
+    from feeler.commands._checks import MAX_CHAINS, MAX_TOTAL_DRAWS, MAX_TUNE
+
+    # None unless typed: each is refused with a backend that would not use it (_check_backend_options)
+    add_fit_arguments(parser, chains=None, draws=None, tune=None, helps={
+        "chains": f"chains (default {SAMPLER_DEFAULTS['chains']}, at most {MAX_CHAINS}; grid and nuts only: "
+                  f"emcee runs {EMCEE_WALKERS} walkers)",
+        "draws": f"kept draws per chain (default {SAMPLER_DEFAULTS['draws']}; chains × draws at most "
+                 f"{MAX_TOTAL_DRAWS}; grid and nuts only: emcee runs until its chains are 50 autocorrelation "
+                 f"times long, or --emcee-steps)",
+        "tune": f"NUTS warm-up steps per chain (default {NUTS_ONLY['tune']}, at most {MAX_TUNE}; needs --backend "
+                f"nuts)"})
     parser.set_defaults(run=run)
+
+
+#: emcee's walkers, stored as its chains (its steps: --emcee-steps, or until converged)
+EMCEE_WALKERS = 32
+#: --chains and --draws, and their defaults: the grid's exact draws and NUTS's chains
+SAMPLER_DEFAULTS = {"chains": 4, "draws": 1000}
+#: NUTS's warm-up, and its default
+NUTS_ONLY = {"tune": 1000}
+#: what each backend draws with, for the refusal of an option it would not use
+BACKEND_USES = {"grid": "--chains × --draws exact draws",
+                "nuts": "--chains chains of --tune warm-up and --draws kept steps",
+                "emcee": f"{EMCEE_WALKERS} walkers until their chains are 50 autocorrelation times long, or for "
+                         f"--emcee-steps steps"}
+
+
+def _check_backend_options(args) -> None:
+    """Refuse, before any work, an option the chosen backend would not use (--chains and
+    --draws with emcee ran and said nothing: an outside audit), naming the backend and what
+    it draws with; then fill in the defaults and check the sizes and counts."""
+    from feeler.commands._checks import check_sizes, refuse_unused
+
+    backend = args.backend
+    uses = BACKEND_USES[backend]
+    refuse_unused(args, SAMPLER_DEFAULTS, used=backend != "emcee",
+                  needs=lambda name: f"needs --backend grid or nuts (the emcee backend runs {uses})")
+    refuse_unused(args, {"emcee_steps": None}, used=backend == "emcee",
+                  needs=lambda name: f"needs --backend emcee (the {backend} backend runs {uses})")
+    refuse_unused(args, NUTS_ONLY, used=backend == "nuts",
+                  needs=lambda name: f"needs --backend nuts (the {backend} backend has no warm-up: it runs {uses})")
+    check_sizes(args)                   # chains × draws, now that both are known
+    if backend != "emcee":
+        from feeler.calib.psychometric.independent import check_draw_counts
+        check_draw_counts(args.chains, args.draws, flag="--")     # the verdict's R-hat and ESS, before any work
 
 
 def _scores(scores: dict, n_scans: int) -> str:
@@ -80,14 +125,7 @@ def run(args) -> int:
     from feeler.calib.progress import stage
     from feeler.errors import ArgumentError, DataFileError
 
-    if args.backend != "emcee":             # emcee's walkers and steps are its own (--emcee-steps)
-        from feeler.calib.psychometric.independent import check_draw_counts
-        check_draw_counts(args.chains, args.draws, flag="--")     # the verdict's R-hat and ESS, before any work
-    if args.emcee_steps is not None and args.backend != "emcee":    # an option the fit would not use: refused
-        raise ArgumentError("--emcee-steps", args.emcee_steps, "needs --backend emcee")
-    if args.tune is not None and args.backend != "nuts":
-        raise ArgumentError("--tune", args.tune, f"needs --backend nuts (the {args.backend} backend has no "
-                                                 f"warm-up: {'exact draws' if args.backend == 'grid' else '--emcee-steps'})")
+    _check_backend_options(args)
     if args.emcee_steps is not None and args.emcee_steps < 100:
         raise ArgumentError("--emcee-steps", args.emcee_steps, ">= 100")
     if args.backend != "grid" and args.noise.startswith("two-mode"):       # before the scans are read
@@ -105,7 +143,7 @@ def run(args) -> int:
         warnings.simplefilter("ignore", DiagnosticWarning)
         try:
             result = fit_neuron(data, backend=args.backend, noise=args.noise, seed=args.seed, chains=args.chains,
-                                draws=args.draws, tune=1000 if args.tune is None else args.tune, emcee_steps=args.emcee_steps,
+                                draws=args.draws, tune=args.tune, emcee_steps=args.emcee_steps, walkers=EMCEE_WALKERS,
                                 progress=args.progress, scene_toml=scene_toml,
                                 scene_path=str(scene_path.resolve()) if scene_toml else None)
         except ArgumentError as err:

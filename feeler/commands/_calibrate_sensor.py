@@ -10,7 +10,10 @@ errors on U (NUTS); --model forward is the naive U = C F + ε regression (biased
 comparison only). Defaults: 4 chains x 1000 draws (exact, NUTS: 1000 warm-up); emcee
 32 walkers run until their chains are 50 autocorrelation times long with R-hat <= 1.01
 and bulk ESS >= 400 (first quarter discarded; the verdict fails at the cap of 200000
-steps); --draws N --tune M runs emcee for exactly M + N steps.
+steps); --draws N --tune M runs emcee for exactly M + N steps. An option the chosen
+backend would not use is refused before any work: --tune with exact, --chains with emcee
+(its walkers are its chains), --tune with emcee without --draws (and --model forward
+with --eiv, which fits the inverse model).
 
 The verdict also fails on what the data cannot support: design directions with no
 information (all-zero displacements), noise-free forces (residuals at rounding level:
@@ -48,14 +51,24 @@ def register(parser) -> None:
     parser.add_argument("--stage-sd-mm", type=float, default=None,
                         help="stage error sd for --eiv, mm (default: the scene's noise.stage_sd_mm or 0.001; needs --eiv)")
     parser.add_argument("--model", choices=("inverse", "forward"), default="inverse",
-                        help="inverse: F = K U + η (default); forward: naive U = C F + ε")
+                        help="inverse: F = K U + η (default); forward: naive U = C F + ε (not with --eiv)")
     parser.add_argument("--c0", type=float, nargs=9, default=None, metavar="C",
                         help="nominal C₀ row by row, mm/N (overrides the dataset's scene.toml)")
     parser.add_argument("--rel-sd", type=float, default=None, help="prior sd per entry / largest entry")
     parser.add_argument("--predict", type=float, nargs=3, action="append", default=[],
                         metavar=("FX", "FY", "FZ"), help="print the predictive median and 90 %% interval of U for this force, N "
                                                          "(|F| at most 10x the largest calibrated force)")
-    add_fit_arguments(parser, draws=None, tune=None)
+    from feeler.commands._checks import MAX_CHAINS, MAX_TOTAL_DRAWS, MAX_TUNE
+
+    # --chains None unless typed: refused with emcee, whose walkers are its chains (_check_options)
+    add_fit_arguments(parser, chains=None, draws=None, tune=None, helps={
+        "chains": f"chains (default {DEFAULT_CHAINS}, at most {MAX_CHAINS}; exact and nuts only: emcee runs "
+                  f"{EMCEE_WALKERS} walkers, stored as its chains)",
+        "draws": f"kept draws per chain (default 1000; chains × draws at most {MAX_TOTAL_DRAWS}); emcee: run until "
+                 f"converged unless --draws, then exactly --tune + --draws steps per walker (at most "
+                 f"{MAX_TOTAL_DRAWS // EMCEE_WALKERS})",
+        "tune": f"warm-up steps per chain (nuts: default 1000; emcee, with --draws only: default 3000; at most "
+                f"{MAX_TUNE}; needs --backend nuts or emcee)"})
     parser.set_defaults(run=run)
 
 
@@ -120,6 +133,8 @@ DEFAULT_NU = 4.0
 
 #: emcee's walkers (fit_matrix's default), stored as its chains
 EMCEE_WALKERS = 32
+#: --chains of the exact and NUTS backends unless typed
+DEFAULT_CHAINS = 4
 
 
 def _check_options(args) -> None:
@@ -136,6 +151,20 @@ def _check_options(args) -> None:
     if args.tune is not None and args.backend == "exact":
         raise ArgumentError("--tune", args.tune, "needs --backend nuts or emcee (exact draws are independent: "
                                                  "no warm-up)")
+    if args.tune is not None and args.backend == "emcee" and args.draws is None:
+        raise ArgumentError("--tune", args.tune, "needs --draws with --backend emcee (without --draws the emcee "
+                                                 "backend runs until its chains are 50 autocorrelation times long "
+                                                 "and discards the first quarter of its steps)")
+    if args.model == "forward" and args.eiv:
+        raise ArgumentError("--model", args.model, "not used with --eiv (errors-in-variables fits the inverse "
+                                                   "model F = K U + η with a latent stage error on U): leave out "
+                                                   "one of them")
+    from feeler.commands._checks import check_sizes, refuse_unused
+
+    refuse_unused(args, {"chains": DEFAULT_CHAINS}, used=args.backend != "emcee",
+                  needs=lambda name: f"needs --backend exact or nuts (the emcee backend runs {EMCEE_WALKERS} "
+                                     f"walkers, stored as its chains, until converged or for --tune + --draws "
+                                     f"steps)")
     if args.nu is None:
         args.nu = DEFAULT_NU
     if not (math.isfinite(args.nu) and args.nu > 0):
@@ -160,6 +189,8 @@ def _check_options(args) -> None:
             raise ArgumentError("--draws", args.draws, f"at most {MAX_TOTAL_DRAWS // EMCEE_WALKERS} with --backend "
                                 f"emcee ({EMCEE_WALKERS} walkers × draws at most {MAX_TOTAL_DRAWS}: the posterior "
                                 f"draws must fit in memory)")
+    if args.backend != "emcee":
+        check_sizes(args)                # chains × draws, now that --chains is filled in
     for f in args.predict:
         if not all(math.isfinite(v) for v in f):
             raise ArgumentError("--predict", list(f), "three finite forces FX FY FZ, N")

@@ -109,6 +109,8 @@ def check_sizes(args, *, chains_name: str = "chains") -> None:
         raise ArgumentError("--workers", workers, f"at most {most}, this machine's CPUs (a worker process each; "
                             f"more only share them and each holds its own libraries in memory)")
     draws, chains = getattr(args, "draws", None), getattr(args, chains_name, None)
+    if chains is None and hasattr(args, chains_name):
+        return                  # chains per backend: the command checks again once it has filled them in
     if "draws" not in own and _int(draws):
         chains = chains if _int(chains) and chains >= 1 else 1
         if draws * chains > MAX_TOTAL_DRAWS:

@@ -71,22 +71,29 @@ def _without_rounding_noise(table, rel: float = 1e-12):
     return out
 
 
-def add_fit_arguments(parser, *, draws: int | None = 1000, tune: int | None = 1000) -> None:
+def add_fit_arguments(parser, *, draws: int | None = 1000, tune: int | None = 1000, chains: int | None = 4,
+                      helps: dict | None = None) -> None:
     """--out, --force, --seed, --chains, --draws, --tune, --progress/--no-progress.
 
-    ``draws``/``tune`` None: the command picks a default per backend."""
+    ``chains``/``draws``/``tune`` None: the command picks a default per backend, and refuses
+    a typed value its backend would not use (:func:`feeler.commands._checks.refuse_unused`).
+    ``helps``: the --help text of ``chains``, ``draws`` or ``tune`` when the command's own
+    (what each backend does with it)."""
+    helps = helps or {}
     parser.add_argument("--out", default=None, metavar="DIR",
                         help="write posterior.nc, summary.csv and verdict.json into DIR")
     parser.add_argument("--force", action="store_true", help="overwrite an earlier fit in DIR")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random generator (default 0)")
     from feeler.commands._checks import MAX_CHAINS, MAX_TOTAL_DRAWS, MAX_TUNE
 
-    parser.add_argument("--chains", type=int, default=4, help=f"chains (default 4, at most {MAX_CHAINS})")
+    parser.add_argument("--chains", type=int, default=chains,
+                        help=helps.get("chains", f"chains (default {chains or 'per backend'}, at most {MAX_CHAINS})"))
     parser.add_argument("--draws", type=int, default=draws,
-                        help=f"kept draws per chain (default {draws or 'per backend'}; chains × draws at most "
-                             f"{MAX_TOTAL_DRAWS})")
+                        help=helps.get("draws", f"kept draws per chain (default {draws or 'per backend'}; chains × "
+                                                f"draws at most {MAX_TOTAL_DRAWS})"))
     parser.add_argument("--tune", type=int, default=tune,
-                        help=f"warm-up steps per chain (default {tune or 'per backend'}, at most {MAX_TUNE})")
+                        help=helps.get("tune", f"warm-up steps per chain (default {tune or 'per backend'}, at most "
+                                               f"{MAX_TUNE})"))
     parser.add_argument("--progress", action="store_true", default=None, help="always show progress bars")
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="never show progress bars")
     parser.set_defaults(out_files=FIT_FILES)       # checked before the fit (feeler.cli)

@@ -1,7 +1,9 @@
 """An option the chosen backend or mode would not use is refused in one line before any work,
 as --eiv with the exact backend is (an outside audit: --nu 7 without --noise student,
 --emcee-steps with the grid backend, --wait-s without --follow, --separate with Laplace and
---target-accept with the exact grid all ran and exited 0, the option silently ignored)."""
+--target-accept with the exact grid all ran and exited 0, the option silently ignored; so did
+calibrate neuron --backend emcee with --chains or --draws, calibrate sensor --backend emcee with
+--chains, or with --tune but no --draws, and --eiv --model forward)."""
 import pytest
 
 from feeler.cli import main
@@ -22,6 +24,19 @@ CASES = {
     "neuron --tune with grid": (["calibrate", "neuron", "no-data", "--tune", "500"], ["--tune=500", "needs --backend nuts"]),
     "neuron --tune with emcee": (["calibrate", "neuron", "no-data", "--backend", "emcee", "--tune", "500"],
                                  ["--tune=500", "needs --backend nuts", "--emcee-steps"]),
+    "neuron --chains with emcee": (["calibrate", "neuron", "no-data", "--backend", "emcee", "--chains", "8"],
+                                   ["--chains=8", "needs --backend grid or nuts", "emcee backend runs 32 walkers",
+                                    "--emcee-steps"]),
+    "neuron --draws with emcee": (["calibrate", "neuron", "no-data", "--backend", "emcee", "--draws", "500"],
+                                  ["--draws=500", "needs --backend grid or nuts", "32 walkers"]),
+    "neuron --emcee-steps names the grid's draws": (["calibrate", "neuron", "no-data", "--emcee-steps", "500"],
+                                                    ["--emcee-steps=500", "the grid backend runs --chains × --draws"]),
+    "sensor --chains with emcee": (["calibrate", "sensor", "no-data", "--backend", "emcee", "--chains", "8"],
+                                   ["--chains=8", "needs --backend exact or nuts", "32 walkers"]),
+    "sensor --tune with emcee without --draws": (["calibrate", "sensor", "no-data", "--backend", "emcee", "--tune",
+                                                  "100"], ["--tune=100", "needs --draws with --backend emcee"]),
+    "sensor --model forward with --eiv": (["calibrate", "sensor", "no-data", "--backend", "nuts", "--eiv", "--model",
+                                           "forward"], ["--model='forward'", "not used with --eiv"]),
     "decode --wait-s without --follow": (["decode", "no-fit", "no-run", "--wait-s", "5"],
                                          ["--wait-s=5.0", "needs --follow"]),
     "decode --poll-s without --follow": (["decode", "no-fit", "no-run", "--poll-s", "1"],
@@ -47,6 +62,11 @@ def test_an_option_the_backend_ignores_is_refused(capsys, tmp_path, monkeypatch,
     ["calibrate", "sensor", "no-data", "--backend", "nuts", "--eiv", "--stage-sd-mm", "0.01", "--tune", "500"],
     ["calibrate", "neuron", "no-data", "--backend", "emcee", "--emcee-steps", "500"],
     ["calibrate", "neuron", "no-data", "--backend", "nuts", "--tune", "500"],
+    ["calibrate", "neuron", "no-data", "--backend", "grid", "--chains", "8", "--draws", "300"],
+    ["calibrate", "neuron", "no-data", "--backend", "nuts", "--chains", "2", "--draws", "300", "--tune", "200"],
+    ["calibrate", "sensor", "no-data", "--chains", "8", "--draws", "300"],
+    ["calibrate", "sensor", "no-data", "--backend", "emcee", "--draws", "500", "--tune", "100"],
+    ["calibrate", "sensor", "no-data", "--backend", "nuts", "--eiv", "--model", "inverse"],
     ["fit", "psychophysics", "no-data.csv", "--backend", "nuts", "--separate", "--target-accept", "0.9", "--tune", "500"],
 ])
 def test_the_same_options_with_their_backend_get_to_the_data(capsys, tmp_path, monkeypatch, argv):
