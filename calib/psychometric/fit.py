@@ -124,8 +124,8 @@ def fit_psychometric(trials: pd.DataFrame, *, rng: np.random.Generator, backend:
                                   overdispersion=overdispersion, rng=rng, chains=chains, draws=draws,
                                   pc=pc, spec=grid, progressbar=progressbar)
         label = "exact (adaptive grid)" if backend == "exact" else "laplace (approximate)"
-    rows, problems = _rows_and_checks(cells, resolved, fitted, task, pc, label, ESTIMANDS[estimand],
-                                      lapse_per, rng)
+    rows, lead, problems = _rows_and_checks(cells, resolved, fitted, task, pc, label, ESTIMANDS[estimand],
+                                            lapse_per, rng)
     problems = fitted.problems + problems
     seconds = time.perf_counter() - start
     out = dict(fitted.draws)
@@ -146,7 +146,7 @@ def fit_psychometric(trials: pd.DataFrame, *, rng: np.random.Generator, backend:
         more = f" (and {len(fitted.notes) - 1} more)" if len(fitted.notes) > 1 else ""
         warnings.warn(f"Laplace is approximate and its tails disagree with the exact posterior: "
                       f"{fitted.notes[0]}{more}; use --backend exact", ApproximationWarning, stacklevel=2)
-    return with_problems(result, problems)
+    return with_problems(result, problems, lead=lead)
 
 
 def _per_cell(lapse: np.ndarray, ndim: int) -> np.ndarray:
@@ -155,11 +155,13 @@ def _per_cell(lapse: np.ndarray, ndim: int) -> np.ndarray:
 
 
 def _rows_and_checks(cells: Cells, r, fitted, task: Task, pc: float, label: str, estimand: str,
-                     lapse_per: str, rng: np.random.Generator) -> tuple[list[dict], list[str]]:
+                     lapse_per: str, rng: np.random.Generator) -> tuple[list[dict], list[str], list[str]]:
+    """(rows, the problems that lead the verdict: a likely slip that explains others, the
+    other problems)."""
     lo, hi = stimulus_ranges(cells)
     problems = checks.straddle_problems(task, cells) + checks.unit_problems(
         np.concatenate([cells.x_um, cells.standard_um])) + checks.speed_problems([c[1:] for c in cells.conditions])
-    rows = []
+    rows, data = [], {}
     keys = sorted(fitted.stats, key=lambda k: (k[0] < 0, k[0], k[1]))
     row_rngs = dict(zip(keys, rng.spawn(len(keys))))
     pooled = cells.pooled()
@@ -176,6 +178,7 @@ def _rows_and_checks(cells: Cells, r, fitted, task: Task, pc: float, label: str,
         population = o < 0 and estimand == "population mean"
         dev, ppp = checks.gof(task, x, n, k, d, point, row_rngs[(o, c)]) if not population else (np.nan, np.nan)
         n_levels = int(np.unique(x).size)
+        data[name] = (x, n, k)
         rows.append({"subject": subject, "estimand": estimand if o < 0 else "subject",
                      "standard_um": cells.conditions[c][0], "standard_speed_mm_s": cells.conditions[c][1],
                      "comparison_speed_mm_s": cells.conditions[c][2], "design": task.label,
@@ -209,7 +212,9 @@ def _rows_and_checks(cells: Cells, r, fitted, task: Task, pc: float, label: str,
     for rw in rows:
         if rw["gof_ok"] is not None:
             rw["gof_ok"] = bool(rw["gof_p"] >= cut)
-    return rows, problems + gof
+    failing = [(rw["label"], *data[rw["label"]]) for rw in rows if rw["gof_ok"] is False]
+    lead = checks.nafc_slip_problems(task, failing, cut, sum(rw["gof_ok"] is not None for rw in rows))
+    return rows, lead, problems + gof
 
 
 def _point(mp, c: int, lapse_per: str, stats: dict) -> dict:
@@ -229,13 +234,15 @@ def _map_row(task: Task, point: dict, pc: float, mp) -> dict:
             "threshold": x if np.isfinite(x) else np.inf, "slope": float(task.slope_at(pc, s, lam))}
 
 
-def with_problems(result: FitResult, problems) -> FitResult:
-    """``result`` with extra verdict problems (failed when any), each issued as a warning."""
-    if not problems:
+def with_problems(result: FitResult, problems, *, lead=()) -> FitResult:
+    """``result`` with extra verdict problems (failed when any), each issued as a warning;
+    ``lead``: problems put first, before the sampler's (a likely slip that explains the rest)."""
+    problems, lead = list(problems), list(lead)
+    if not problems and not lead:
         return result
-    for p in problems:
+    for p in lead + problems:
         warnings.warn(f"posterior failed its diagnostics: {p}", DiagnosticWarning, stacklevel=2)
-    verdict = replace(result.verdict, ok=False, problems=result.verdict.problems + tuple(problems))
+    verdict = replace(result.verdict, ok=False, problems=tuple(lead) + result.verdict.problems + tuple(problems))
     return replace(result, verdict=verdict)
 
 

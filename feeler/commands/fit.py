@@ -299,6 +299,14 @@ def run_psychophysics(args) -> int:
                                   priors=priors, lapse_per=args.lapse, all_estimand=args.all_estimand,
                                   nafc=args.nafc, pc=args.pc, chains=args.chains, draws=args.draws,
                                   tune=args.tune, target_accept=args.target_accept, progressbar=args.progress)
+    from feeler.calib.psychometric.outputs.checks import SLIP_PREFIX
+
+    first = result.verdict.problems[0] if result.verdict.problems else ""
+    if first.startswith(SLIP_PREFIX):          # stderr, before the table: the verdict's line comes after it
+        import sys
+        head = first.split(":")[0]
+        print(f"note: {head}: the rows that fail the comparison design fit {head.split()[-1]}AFC proportions "
+              f"correct far better (the verdict's first line says more)", file=sys.stderr, flush=True)
     print(f"M4 psychometric functions: {what}")
     print_summary(result)
     table = threshold_table(result)

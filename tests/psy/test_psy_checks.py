@@ -42,6 +42,42 @@ def test_data_forced_into_the_wrong_design_fail_the_fit_check():
     assert right.verdict.ok and threshold_table(right).gof_ok.all()
 
 
+def _forced_2afc(rng, subjects: int) -> pd.DataFrame:
+    """2AFC counts correct (floor ½) of ``subjects`` subjects at two speeds, in the column of
+    'comparison judged higher' (floor 0): the table of a fit without --nafc 2."""
+    rows = []
+    for s in range(subjects):
+        for speed in (20.0, 40.0):
+            k = rng.binomial(60, Task(2).p(LEVELS - 7.0, 3.0 + 0.3 * (speed == 40.0), 0.8, 0.02))
+            rows += [(f"S{s + 1}", 3.0, speed, round(x - 7.0, 1), 20.0, 60, int(kk)) for x, kk in zip(LEVELS, k)]
+    return pd.DataFrame(rows, columns=list(TRIAL_COLUMNS))
+
+
+def test_a_likely_missing_nafc_leads_the_verdict():
+    """Proportions correct fitted without --nafc 2: the verdict's first line says so, naming
+    --nafc 2 (its hint '(--nafc?)' stood mid-line in each of ten misfit lines, the first of
+    them after the summary table); the rest of the verdict is as it was, and with --nafc 2
+    the fit passes."""
+    wrong = _forced_2afc(np.random.default_rng(12), subjects=6)
+    problems = _fit(wrong).verdict.problems
+    assert problems[0].startswith(f"{checks.SLIP_PREFIX} 2: ") and "fit with --nafc 2" in problems[0], problems[0]
+    misfits = [p for p in problems if "does not fit its data" in p]
+    assert len(misfits) >= 5 and problems[1:] == tuple(misfits), problems          # the rows' own lines, after it
+    assert not any(p.startswith(checks.SLIP_PREFIX) for p in problems[1:])
+    right = _fit(wrong.rename(columns={"n_comparison_higher": "n_correct"}), nafc=2)
+    assert not any(p.startswith(checks.SLIP_PREFIX) for p in right.verdict.problems)
+
+
+def test_a_misfit_that_no_nafc_curve_fits_names_no_slip(simulate):
+    """A typed count fails the fit however it is read: no --nafc line; nor does a good fit get one."""
+    k = np.array([18, 3, 6, 10, 14, 17, 19])
+    rows = [("A", 10.0, 20.0, x, 20.0, 20, int(kk)) for x, kk in zip(LEVELS, k)]
+    problems = _fit(pd.DataFrame(rows, columns=list(TRIAL_COLUMNS))).verdict.problems
+    assert problems and not any(p.startswith(checks.SLIP_PREFIX) for p in problems), problems
+    trials, _ = simulate(300, n_subjects=3)
+    assert not any(p.startswith(checks.SLIP_PREFIX) for p in _fit(trials).verdict.problems)
+
+
 def test_a_typed_count_is_named_where_the_fit_fails():
     """One count typed wrong (18 for 1 of 20 at the lowest level): the misfit names that
     cell (it said only 'deviance 40.7 on 7 cells')."""

@@ -260,3 +260,24 @@ def test_the_shipped_scenes_data_pass_the_finger_route(tmp_path, capsys):
     assert main(["fit", "finger-route", str(tmp_path / "psy"), "--n-tau", "61", "--draws", "300",
                  "--no-progress"]) == 0
     assert "verdict: ok" in capsys.readouterr().out
+
+
+def test_a_likely_missing_nafc_is_said_on_stderr_before_the_table(tmp_path, capsys):
+    """2AFC counts correct in the n_comparison_higher column: a one-line note on stderr,
+    before the table on stdout, names --nafc 2; the verdict's first line says why."""
+    from feeler.calib.psychometric.model.task import Task
+
+    levels = np.array([0.6, 1.4, 2.2, 3.0, 3.8, 4.6, 5.4])
+    rng = np.random.default_rng(12)
+    rows = [(f"S{s}", 3.0, speed, x, 20.0, 60, int(k)) for s in (1, 2, 3) for speed in (20.0, 40.0)
+            for x, k in zip(levels, rng.binomial(60, Task(2).p(levels, 3.0 + 0.3 * (speed == 40.0), 0.8, 0.02)))]
+    path = tmp_path / "correct.csv"
+    pd.DataFrame(rows, columns=["subject", "standard_um", "standard_speed_mm_s", "comparison_um",
+                                "comparison_speed_mm_s", "n_trials", "n_comparison_higher"]).to_csv(path, index=False)
+    assert main(["fit", "psychophysics", str(path), "--no-progress"]) == 1
+    out, err = capsys.readouterr()
+    notes = [ln for ln in err.splitlines() if "--nafc" in ln]
+    assert len(notes) == 1 and notes[0].startswith("note: likely a missing --nafc 2: "), err
+    verdict = out.splitlines()[out.splitlines().index(next(ln for ln in out.splitlines()
+                                                             if ln.startswith("verdict: FAILED"))) + 1]
+    assert verdict.startswith("  likely a missing --nafc 2: ") and "fit with --nafc 2" in verdict

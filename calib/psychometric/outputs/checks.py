@@ -37,7 +37,8 @@ __all__ = ["deviance", "gof", "worst_cell", "unit_problems", "conflict_problems"
            "bracket_problems", "gof_problems", "interior_problems", "threshold_problems", "MIN_LEVELS",
            "MIN_INTERIOR", "spread_problems", "one_answer_problem", "GOF_ALPHA", "CONFLICT_Z",
            "CONFLICT_TAIL", "PLAUSIBLE_UM", "BOUNDARY_LR", "FALLING_LR", "speed_problems", "PLAUSIBLE_SPEED_MM_S",
-           "straddle_problems"]
+           "straddle_problems", "least_deviance", "nafc_slip_problems", "SLIP_NAFC",
+           "SLIP_PREFIX"]
 
 GOF_ALPHA = 0.05
 CONFLICT_Z = 4.0
@@ -112,6 +113,62 @@ def gof_problems(rows: list[dict]) -> list[str]:
             f"{r['gof_p']:.4f} < {cut:.2g} = {GOF_ALPHA}/{len(tested)}); check the design (--nafc?) and that "
             f"cell's counts, or try --overdispersion"
             for r in tested if r["gof_p"] < cut]
+
+
+#: numbers of alternatives tried when a comparison-design fit fails its goodness of fit
+SLIP_NAFC = (2, 3, 4)
+#: how the verdict's line on a likely missing --nafc begins (the command repeats it on stderr)
+SLIP_PREFIX = "likely a missing --nafc"
+
+
+def least_deviance(task, x, n, k) -> float:
+    """The smallest deviance of ``task``'s curve over a grid of location (the tested range
+    and as much again on either side), spread (1/200 to 3 times that range, log-spaced) and
+    lapse (0 to 0.3): deterministic, and an upper bound on the maximum-likelihood deviance,
+    close to it."""
+    x, n, k = (np.asarray(v, float) for v in (x, n, k))
+    span = float(np.ptp(x)) or max(abs(float(x.mean())), 1.0)
+    m = np.linspace(x.min() - span, x.max() + span, 121)[:, None, None, None]
+    s = np.geomspace(span / 200, 3 * span, 61)[None, :, None, None]
+    lam = np.array([0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3])[None, None, :, None]
+    p = np.clip(task.p(x, m, s, lam), 1e-12, 1 - 1e-12)
+    return float(np.min(deviance(n, k, p)))
+
+
+def nafc_slip_problems(task, failing: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]], cut: float,
+                       n_rows: int) -> list[str]:
+    """One problem, to lead the verdict, when the comparison-design rows that fail their
+    goodness of fit (``failing``: label, levels, trials, counts) fit an nAFC curve (P
+    correct, floor 1/N) far better: proportions correct read as 'comparison judged
+    higher' without --nafc N. Each such row's own misfit line (:func:`gof_problems`) ends
+    in '(--nafc?)', late in a long verdict (an outside audit). Far better: the rows' least
+    deviance in all at most half the comparison curve's, and at least half of the rows
+    fitting the nAFC curve (the χ² p-value of its deviance on cells − 3 degrees of freedom
+    at least ``cut``, the rows' goodness-of-fit threshold; a typed count fits neither
+    curve). N is the number of alternatives (2-4) with the smallest deviance in all."""
+    from scipy.stats import chi2
+
+    from feeler.calib.psychometric.model.task import Task
+
+    if task.is_nafc or not failing:
+        return []
+    base = sum(least_deviance(task, x, n, k) for _, x, n, k in failing)
+    best = None
+    for alternatives in SLIP_NAFC:
+        devs = [least_deviance(Task(alternatives), x, n, k) for _, x, n, k in failing]
+        fit = sum(chi2.sf(d, max(np.size(x) - 3, 1)) >= cut for d, (_, x, _, _) in zip(devs, failing))
+        if 2 * fit >= len(failing) and 2 * sum(devs) <= base and (best is None or sum(devs) < best[1]):
+            best = (alternatives, sum(devs), fit)
+    if best is None:
+        return []
+    n_alt, dev, fit = best
+    one = len(failing) == 1
+    return [f"{SLIP_PREFIX} {n_alt}: {len(failing)} of {n_rows} rows {'does' if one else 'do'} not fit the "
+            f"comparison design (P 'comparison judged higher', falling to 0 below the PSE), and {n_alt}AFC "
+            f"proportions correct (a floor of 1/{n_alt}) fit {'it' if one else 'them'} far better (deviance "
+            f"{dev:.1f} in all, against {base:.1f}{'' if one else f'; {fit} of the {len(failing)} within the fit check'}"
+            f"); if the counts are correct answers, fit with --nafc {n_alt} "
+            f"({'its' if one else 'each row' + chr(39) + 's'} misfit follows)"]
 
 
 def _off_scale(values, window: tuple[float, float], *, label: str, what: str, unit: str, norm: str,
