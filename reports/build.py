@@ -24,8 +24,8 @@ from typing import Callable
 from feeler.reports.discover import Inventory, discover
 from feeler.reports.staged import staged
 
-__all__ = ["Report", "build_report", "render_html", "write_pdf", "BUILDERS", "section_id", "nothing_to_show",
-           "OWN_FILES"]
+__all__ = ["Report", "build_report", "render_html", "write_pdf", "BUILDERS", "INPUTS", "section_id",
+           "nothing_to_show", "read_inputs", "OWN_FILES"]
 
 TEMPLATE_DIR = Path(__file__).resolve().parent / "templates"
 MANIFEST = "report-manifest.json"
@@ -37,6 +37,12 @@ BUILDERS = {"robot": "sec_robot:robot_section", "fit": "sec_fits:fit_section",
             "classify": "sec_classify:classify_section", "compare": "sec_compare:compare_section",
             "finger": "sec_finger:finger_section", "speed": "sec_speed:speed_section",
             "calibration-data": "sec_caldata:caldata_section"}
+#: builder name -> "module:function" that reads and checks every file the section will use
+#: (kept in the inventory's cache, where the section finds them), run before any figure
+INPUTS = {"robot": "sec_robot:robot_inputs", "fit": "sec_fits:fit_inputs",
+          "classify": "sec_classify:classify_inputs", "compare": "sec_compare:compare_inputs",
+          "finger": "sec_finger:finger_inputs", "speed": "sec_speed:speed_inputs",
+          "calibration-data": "sec_caldata:caldata_inputs"}
 
 
 @dataclass(frozen=True)
@@ -76,10 +82,10 @@ def is_number(cell: str) -> bool:
     return bool(_NUMBER.fullmatch(str(cell)))
 
 
-def _builder(name: str) -> Callable:
+def _builder(name: str, table: dict | None = None) -> Callable:
     import importlib
 
-    module, func = BUILDERS[name].split(":")
+    module, func = (BUILDERS if table is None else table)[name].split(":")
     return getattr(importlib.import_module(f"feeler.reports.{module}"), func)
 
 
@@ -140,7 +146,7 @@ def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf:
     inv = discover(run_dir)
     if not inv.parts:
         raise nothing_to_show(inv)
-    _read_fits(inv, progress)
+    read_inputs(inv, progress)
     sections, drawn, where = [], [0], [""]
 
     def figure(title: str) -> None:
@@ -174,17 +180,32 @@ def build_report(run_dir: str | Path, out_dir: str | Path | None = None, *, pdf:
                   inventory=inv, failed=tuple(s.title for s in sections if s.failed), figures=tuple(manifest))
 
 
-def _read_fits(inv: Inventory, progress: Callable[[str], None]) -> None:
-    """Read every fit of the run (posterior, summary, verdict) before any figure: a corrupt
-    one stopped the report only when its section came, after seconds of figures. Kept in
-    the inventory's cache, so the sections do not read them again."""
+def read_inputs(inv: Inventory, progress: Callable[[str], None] = lambda stage: None) -> None:
+    """Read and check every file of the run the report will use before its first figure:
+    a corrupt one stopped the report only when its section came, after seconds of figures
+    (a fit, then also scans, tables, JSON files, curves and scene files). Every fit first
+    (posterior, summary, verdict), then each section's inputs (:data:`INPUTS`), the first
+    page's and the appendix's. Kept in the inventory's cache, so the sections do not read
+    them again.
+
+    Raises:
+        DataFileError, SceneError: the first unreadable file, in one line naming it.
+    """
     from feeler.reports.readers import load_fit
+    from feeler.reports.sec_appendix import appendix_inputs
+    from feeler.reports.sec_front import front_inputs
 
     fits = inv.of("fit")
     if fits:
         progress(f"reading {len(fits)} fit{'s' if len(fits) != 1 else ''}")
     for part in fits:
         load_fit(inv.run_dir / part.rel, inv)
+    if any(spec.builder != "fit" for spec in inv.present):
+        progress("reading the run's other files")
+    for spec in inv.present:
+        _builder(spec.builder, INPUTS)(inv, spec)
+    front_inputs(inv)
+    appendix_inputs(inv)
 
 
 def render_html(inv: Inventory, sections, manifest) -> str:

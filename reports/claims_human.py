@@ -15,7 +15,7 @@ import numpy as np
 from feeler.reports.claims import Claim, absent
 from feeler.reports.model import fmt, interval
 
-__all__ = ["claim_faster_felt_higher", "claim_tau", "claim_threshold", "claim_weber", "human_reference_rows"]
+__all__ = ["claim_faster_felt_higher", "claim_tau", "tau_report", "claim_threshold", "claim_weber", "human_reference_rows"]
 
 
 def _verdict_ok(inv, part) -> bool | None:
@@ -72,16 +72,21 @@ def claim_faster_felt_higher(inv) -> Claim:
     return Claim(key, claim, paper, run, crit, mark, (human.thresholds_rel,))
 
 
-def claim_tau(inv) -> Claim:
-    from feeler.reports.readers import read_json
+def tau_report(inv) -> tuple:
+    """(the run's τ report part, its tau_report.json), or (None, None)."""
+    from feeler.reports.readers import run_json
 
+    part = inv.first("tau-report", prefer="finger-route")
+    return (None, None) if part is None else (part, run_json(inv, part.path("tau_report.json"), ("tau_median_s",)))
+
+
+def claim_tau(inv) -> Claim:
     key = "tau"
     claim = "τ ≤ 300 ms fits the human data (§4.2, Fig. 6)"
     paper, crit = "τ ≤ 300 ms", "P(τ ≤ 300 ms | data) ≥ 0.95 and the fit passed its diagnostics"
-    part = inv.first("tau-report", prefer="finger-route")
+    part, rep = tau_report(inv)
     if part is None:
         return absent(key, claim, paper, crit, "the finger-route fit (tau_report.json)")
-    rep = read_json(inv.run_dir / part.path("tau_report.json"), ("tau_median_s",))
     p = float(rep.get("p_tau_le_300ms", math.nan))
     eti = list(rep.get("tau_eti95_s", [math.nan, math.nan]))[:2] + [math.nan, math.nan]
     ok = _verdict_ok(inv, part)

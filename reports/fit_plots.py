@@ -17,7 +17,7 @@ import numpy as np
 
 from feeler.reports.model import Figure, Note, make_figure, subplots
 
-__all__ = ["labels_of", "plots_of", "conditions_of", "split_finite", "NO_FINITE", "DENSITY",
+__all__ = ["labels_of", "plots_of", "plot_inputs", "conditions_of", "split_finite", "NO_FINITE", "DENSITY",
            "fixed_and_copies", "even_chunk"]
 
 _UNITS = {"a": "a (mm per unit strain)", "tau_s": "τ (s)", "h": "h (mm)", "sigma_mm": "σ (mm)",
@@ -202,12 +202,12 @@ def _summary_cols(result, names):
 
 
 def _true_c(inv):
-    from feeler.reports.readers import read_json
+    from feeler.reports.readers import run_json
 
     part = inv.first("calibration-data", prefer="sensor-calibration")
     if part is None or not inv.has(part.path("truth.json")):
         return None, None
-    truth = read_json(inv.run_dir / part.path("truth.json"))
+    truth = run_json(inv, part.path("truth.json"))
     c = truth.get("scene", {}).get("sensor", {}).get("c_mm_per_n")
     return (np.asarray(c, float).ravel(), part.path("truth.json")) if c is not None else (None, None)
 
@@ -230,6 +230,17 @@ def _m1(inv, result, draws, sampler, src) -> list:
     out.append(_marginals(draws, rest, labels, per_chain=sampler, title="Marginals of C row z, σ and cond(C)",
                           src=src))
     return out
+
+
+def plot_inputs(inv, part) -> None:
+    """Read the run's files :func:`plots_of` draws from beside the fit (M1: the campaign's
+    truth.json; the human fits: the human data), before the report's first figure."""
+    if part.model == "m1":
+        _true_c(inv)
+    elif part.model in ("m4", "finger-route"):
+        from feeler.reports.psy_plots import synthetic_inv
+
+        synthetic_inv(inv)
 
 
 def plots_of(inv, part, result, attrs, *, sampler: bool) -> list:

@@ -11,9 +11,9 @@ import numpy as np
 
 from feeler.reports.humandata import THRESH_COLS, parse_value
 from feeler.reports.model import Gallery, Table, fmt, interval
-from feeler.reports.readers import read_table
+from feeler.reports.readers import run_table
 
-__all__ = ["thresholds_table", "curves_gallery", "CURVE_INDEX"]
+__all__ = ["thresholds_table", "thresholds_frame", "curves_gallery", "curve_items", "CURVE_INDEX"]
 
 CURVE_INDEX = "curves/index.csv"
 CURVE_WIDTH_IN = 3.3        # the width the fit draws each curve at (calib.psychometric.outputs.plots)
@@ -24,11 +24,16 @@ SHOWN = {"standard_um": "standard (µm)", "estimand": "estimand", "backend": "ba
 _PAIRS = (("PSE (µm)", "pse_um", "pse_lb_um", "pse_ub_um"), ("DT (µm)", "dt_um", "dt_lb_um", "dt_ub_um"))
 
 
+def thresholds_frame(inv, part):
+    """The fit's thresholds.csv, with its columns checked (read once per report)."""
+    return run_table(inv, part.path("thresholds.csv"), THRESH_COLS)
+
+
 def thresholds_table(inv, part) -> Table:
     """Every row of thresholds.csv: PSE and DT as intervals, then the :data:`SHOWN` columns the
     file has; the caption names its other columns."""
     rel = part.path("thresholds.csv")
-    t = read_table(inv.run_dir / rel, THRESH_COLS)
+    t = thresholds_frame(inv, part)
     used = {c for _, *cs in _PAIRS for c in cs} | {"subject", "standard_speed_mm_s", "comparison_speed_mm_s"}
     extra = [c for c in SHOWN if c in t.columns]
     rest = [c for c in t.columns if c not in used and c not in extra]
@@ -63,15 +68,32 @@ def _cell(r, c: str) -> str:
     return "—"
 
 
-def curves_gallery(inv, part) -> Gallery | None:
-    """Every PNG listed in the fit's curves/index.csv (None when there is no index)."""
-    from feeler.errors import DataFileError
-
+def curve_items(inv, part) -> tuple | None:
+    """(title, data: URI, run-relative PNG) of every curve the fit's curves/index.csv lists,
+    each PNG checked (None when there is no index); read once per report."""
     rel = part.path(CURVE_INDEX)
     if not inv.has(rel):
         return None
-    index = read_table(inv.run_dir / rel, ("subject", "standard_um", "standard_speed_mm_s",
-                                           "comparison_speed_mm_s", "file"))
+    return inv.cached(("curves", rel), lambda: _curve_items(inv, part, rel))
+
+
+def curves_gallery(inv, part) -> Gallery | None:
+    """Every PNG listed in the fit's curves/index.csv (None when there is no index)."""
+    rel = part.path(CURVE_INDEX)
+    items = curve_items(inv, part)
+    if items is None:
+        return None
+    # two a row at about the size the fit draws them (3.3 in): four a row printed their
+    # annotations at 3-4 pt (an outside reader of the report)
+    return Gallery("Psychometric curve of every subject and condition", tuple(items),
+                   (rel,) + tuple(i[2] for i in items), caption=f"Images written by the fit, as listed in {rel}.",
+                   width_in=CURVE_WIDTH_IN)
+
+
+def _curve_items(inv, part, rel: str) -> tuple:
+    from feeler.errors import DataFileError
+
+    index = run_table(inv, rel, ("subject", "standard_um", "standard_speed_mm_s", "comparison_speed_mm_s", "file"))
     items = []
     for r in index.itertuples(index=False):
         png = part.path(str(r.file))  # relative to the fit directory, as the fit writes it
@@ -82,8 +104,4 @@ def curves_gallery(inv, part) -> Gallery | None:
         title = (f"{r.subject} · {fmt(r.standard_um)} µm at {fmt(r.standard_speed_mm_s)} vs "
                  f"{fmt(r.comparison_speed_mm_s)} mm/s")
         items.append((title, "data:image/png;base64," + base64.b64encode(data).decode("ascii"), png))
-    # two a row at about the size the fit draws them (3.3 in): four a row printed their
-    # annotations at 3-4 pt (an outside reader of the report)
-    return Gallery("Psychometric curve of every subject and condition", tuple(items),
-                   (rel,) + tuple(i[2] for i in items), caption=f"Images written by the fit, as listed in {rel}.",
-                   width_in=CURVE_WIDTH_IN)
+    return tuple(items)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from feeler.errors import DataFileError
 
-__all__ = ["read_json", "read_table", "load_fit", "scene_text", "verdict_ok"]
+__all__ = ["read_json", "read_table", "load_fit", "scene_text", "verdict_ok", "run_table", "run_json", "run_text"]
 
 
 def read_json(path: str | Path, keys: tuple[str, ...] = ()) -> dict:
@@ -51,6 +51,26 @@ def read_table(path: str | Path, columns: tuple[str, ...] = (), numeric: tuple[s
     return frame
 
 
+def run_table(inv, rel: str, columns: tuple[str, ...] = (), numeric: tuple[str, ...] = ()):
+    """:func:`read_table` of the run's file ``rel``, read once per report (the report reads
+    every input before its first figure, :func:`feeler.reports.build.read_inputs`, and the
+    sections take them from the inventory's cache); each call gets its own copy."""
+    key = ("table", rel, tuple(columns), tuple(numeric))
+    return inv.cached(key, lambda: read_table(inv.run_dir / rel, tuple(columns), tuple(numeric))).copy()
+
+
+def run_json(inv, rel: str, keys: tuple[str, ...] = ()) -> dict:
+    """:func:`read_json` of the run's file ``rel``, read once per report (a copy each call)."""
+    import copy
+
+    return copy.deepcopy(inv.cached(("json", rel, tuple(keys)), lambda: read_json(inv.run_dir / rel, tuple(keys))))
+
+
+def run_text(inv, rel: str) -> str:
+    """:func:`scene_text` of the run's file ``rel``, read once per report."""
+    return inv.cached(("text", rel), lambda: scene_text(inv.run_dir / rel))
+
+
 def load_fit(directory: str | Path, inv=None):
     """A :class:`feeler.calib.fit.FitResult` (corrupt posterior.nc etc. → DataFileError);
     read once per report when the inventory ``inv`` is given."""
@@ -65,7 +85,7 @@ def verdict_ok(inv, part) -> bool | None:
     """The verdict of the fit in ``part``'s directory (None when there is none)."""
     if part is None or not inv.has(part.path("verdict.json")):
         return None
-    return bool(read_json(inv.run_dir / part.path("verdict.json"), ("ok",))["ok"])
+    return bool(run_json(inv, part.path("verdict.json"), ("ok",))["ok"])
 
 
 def scene_text(path: str | Path) -> str:

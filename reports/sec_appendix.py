@@ -6,9 +6,9 @@ import platform
 from importlib import metadata
 
 from feeler.reports.model import Note, Section, Table
-from feeler.reports.readers import scene_text
+from feeler.reports.readers import run_text
 
-__all__ = ["appendix_section", "versions", "PACKAGES", "figure_list"]
+__all__ = ["appendix_section", "appendix_inputs", "versions", "PACKAGES", "figure_list"]
 
 PACKAGES = ("feeler", "numpy", "scipy", "pandas", "xarray", "h5netcdf", "arviz", "pymc", "pytensor",
             "emcee", "numba", "matplotlib", "scikit-fem", "jinja2", "weasyprint")
@@ -32,22 +32,38 @@ def figure_list(manifest: list[dict]) -> Table:
                  caption="Also in report-manifest.json beside the report.")
 
 
-def appendix_section(inv, manifest: list[dict]) -> Section:
-    """Scene files, the figure list and the package versions."""
+def _scenes(inv) -> list[tuple[str, str | None]]:
+    """(scene file, the earlier one it repeats but for its seed and name, or None) of the
+    run's parts, in order."""
     from feeler.reports.discover import design
 
-    blocks, designs, done = [], {}, set()
+    out, designs, done = [], {}, set()
     for part in inv.parts:
         rel = part.path("scene.toml")
         if rel in done or not inv.has(rel):
             continue
         done.add(rel)
         d = design(inv.run_dir, part)
-        if d in designs:
-            blocks.append(Note(f"{rel}: as {designs[d]} except its seed (and name).", sources=(rel,)))
+        out.append((rel, designs.get(d)))
+        designs.setdefault(d, rel)
+    return out
+
+
+def appendix_inputs(inv) -> None:
+    """Read the scene files the appendix prints, before the report's first figure."""
+    for rel, same in _scenes(inv):
+        if same is None:
+            run_text(inv, rel)
+
+
+def appendix_section(inv, manifest: list[dict]) -> Section:
+    """Scene files, the figure list and the package versions."""
+    blocks = []
+    for rel, same in _scenes(inv):
+        if same is not None:
+            blocks.append(Note(f"{rel}: as {same} except its seed (and name).", sources=(rel,)))
         else:
-            designs[d] = rel
-            blocks.append(Note(scene_text(inv.run_dir / rel), level="code", sources=(rel,)))
+            blocks.append(Note(run_text(inv, rel), level="code", sources=(rel,)))
     if not blocks:
         blocks.append(Note("No scene files in this run."))
     if manifest:

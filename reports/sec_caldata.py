@@ -4,15 +4,26 @@ from __future__ import annotations
 
 from feeler.reports.model import Note, Section, make_figure, subplots
 
-__all__ = ["caldata_section"]
+__all__ = ["caldata_section", "caldata_inputs"]
+
+
+def _calibration(inv, part):
+    """The part's calibration.csv, read once per report."""
+    from feeler.calib.matrix import read_calibration_csv
+
+    rel = part.path("calibration.csv")
+    return inv.cached(("calibration", rel), lambda: read_calibration_csv(inv.run_dir / rel))
+
+
+def caldata_inputs(inv, spec) -> None:
+    """Read the campaign before the report's first figure."""
+    _calibration(inv, spec.parts[0])
 
 
 def caldata_section(inv, spec) -> Section:
-    from feeler.calib.matrix import read_calibration_csv
-
     part = spec.parts[0]
     rel = part.path("calibration.csv")
-    data = read_calibration_csv(inv.run_dir / rel)
+    data = _calibration(inv, part)
     fig, axes = subplots(3, width_in=7.0 / 3, height_in=2.2)
     for j, ax in enumerate(axes):
         for i in range(3):

@@ -15,9 +15,9 @@ import re
 import numpy as np
 
 from feeler.reports.model import Figure, Note, Section, Table, fmt, make_figure, subplots
-from feeler.reports.readers import read_table
+from feeler.reports.readers import run_table
 
-__all__ = ["classify_section", "plate_columns", "reliability", "MIN_BINS"]
+__all__ = ["classify_section", "classify_inputs", "plate_columns", "reliability", "MIN_BINS"]
 
 MIN_BINS = 3             # a calibration curve needs this many occupied confidence bins
 _P = re.compile(r"^p_(.+)mm$")
@@ -44,21 +44,33 @@ def reliability(conf, hit, n_bins: int = 10):
     return np.array(rows, float).reshape(-1, 3)
 
 
+def _classification(inv, part):
+    """(classification.csv with its numeric columns, its probability columns {name: plate mm})."""
+    from feeler.errors import DataFileError
+
+    rel = part.path("classification.csv")
+    cols = ("step_mm", "plate_mm", "lo90_mm", "hi90_mm")
+    frame = run_table(inv, rel, cols, cols)
+    pcols = plate_columns(frame.columns)
+    if not pcols:
+        raise DataFileError(inv.run_dir / rel, "no probability columns p_<plate>mm")
+    run_table(inv, rel, tuple(pcols), tuple(pcols))            # every probability numeric
+    return frame, pcols
+
+
+def classify_inputs(inv, spec) -> None:
+    """Read and check classification.csv before the report's first figure."""
+    _classification(inv, spec.parts[0])
+
+
 def classify_section(inv, spec) -> Section:
     """Confusion matrix (counts and mean confidence), calibration curve and summary table."""
     from feeler.calib.neuron.classify import expected_calibration_error
     from feeler.calib.neuron.live.table import claims_check, coverage_note, plate_column
-    from feeler.errors import DataFileError
 
     part = spec.parts[0]
     rel = part.path("classification.csv")
-    path = inv.run_dir / rel
-    frame = read_table(path, ("step_mm", "plate_mm", "lo90_mm", "hi90_mm"),
-                       ("step_mm", "plate_mm", "lo90_mm", "hi90_mm"))
-    pcols = plate_columns(frame.columns)
-    if not pcols:
-        raise DataFileError(path, "no probability columns p_<plate>mm")
-    read_table(path, tuple(pcols), tuple(pcols))            # every probability numeric
+    frame, pcols = _classification(inv, part)
     src = (rel,)
     left_out = ""
     if "flagged" in frame.columns:      # outside the fit's envelope: left out, as `feeler classify` does

@@ -29,7 +29,7 @@ from feeler.reports.discdata import pairs_frame, robot_disc
 from feeler.reports.humandata import condition_words, human_data
 from feeler.reports.model import Note, Section, Table, fmt, interval, make_figure, subplots
 
-__all__ = ["compare_section", "Z75", "human_curve", "folded_points", "FAILED_FIT", "Shown"]
+__all__ = ["compare_section", "compare_inputs", "Z75", "human_curve", "folded_points", "FAILED_FIT", "Shown"]
 
 Z75 = 0.6744897501960817            # Φ⁻¹(0.75): DT = σ·z₇₅ for a cumulative normal
 FAILED_FIT = "from a failed fit: see its verdict"
@@ -246,6 +246,12 @@ MODEL_PAIRS = ("Model-based (M3): fresh touches simulated from the calibrated mo
                "by the larger peak z (one decoder for every touch), with the Monte Carlo and posterior error. "
                "The robot section's 'empirical' table counts pairs of this run's own scans instead (a few dozen a "
                "plate, so its interval is wide): the two estimate different things and need not agree.")
+
+
+def compare_inputs(inv, spec) -> None:
+    """Read the robot's discrimination, the human data and their fits' verdicts before the
+    report's first figure (cached for the section)."""
+    _shown(inv, robot_disc(inv), human_data(inv))
 
 
 def compare_section(inv, spec) -> Section:

@@ -15,9 +15,39 @@ from feeler.reports import finger_plots as fp
 from feeler.reports.fingerdata import finger_data
 from feeler.reports.humandata import human_data
 from feeler.reports.model import Note, Section, Table, fmt, make_figure, table_from_frame
-from feeler.reports.readers import read_json, read_table
+from feeler.reports.readers import run_json, run_table
 
-__all__ = ["finger_section", "human_points", "ladder_blocks", "fig6_caption", "LINES_CAPTION"]
+__all__ = ["finger_section", "finger_inputs", "human_points", "ladder_blocks", "ladder_files", "fig6_caption",
+           "LINES_CAPTION", "LADDER_COLUMNS"]
+
+#: trade.csv's columns, and those that must be numbers
+LADDER_COLUMNS = (("level", "mesh", "seconds_per_slide", "rate_error"), ("seconds_per_slide", "rate_error"))
+_FIG5 = ("step_um", "speed_mm_s", "peak_z_norm")
+_FIG6 = ("tau_s", "step_um", "speed_mm_s", "accepted_um")
+
+
+def ladder_files(inv, part) -> tuple:
+    """(trade.csv, ladder.json or {}) of a ladder part, read once per report."""
+    trade = run_table(inv, part.path("trade.csv"), *LADDER_COLUMNS)
+    info = run_json(inv, part.path("ladder.json")) if inv.has(part.path("ladder.json")) else {}
+    return trade, info
+
+
+def finger_inputs(inv, spec) -> None:
+    """Read what the section draws before the report's first figure: the strain histories
+    and their scene (or a `feeler skin figures` directory's tables), the human PSEs of
+    Fig. 6, and each ladder's files."""
+    human_data(inv)
+    if finger_data(inv) is None:
+        figs = next((p for p in spec.parts if p.kind == "skin-figures"), None)
+        if figs is not None and "fig5_peaks.csv" in figs.files:
+            run_table(inv, figs.path("fig5_peaks.csv"), _FIG5, _FIG5)
+        if figs is not None and "fig6_accepted.csv" in figs.files:
+            run_table(inv, figs.path("fig6_accepted.csv"), _FIG6, _FIG6)
+    for part in (p for p in spec.parts if p.kind == "ladder"):
+        ladder_files(inv, part)
+        if inv.has(part.path("convergence.csv")):
+            run_table(inv, part.path("convergence.csv"))
 
 
 #: how Figs 5 and 6 keep a speed's line visible under another's (:func:`finger_plots.speed_line`)
@@ -88,7 +118,7 @@ def _from_figure_csvs(inv, part) -> list:
                    "(`feeler simulate datasets-synthetic/finger-steps.toml`).")]
     if "fig5_peaks.csv" in part.files:
         rel = part.path("fig5_peaks.csv")
-        t = read_table(inv.run_dir / rel, ("step_um", "speed_mm_s", "peak_z_norm"), ("step_um", "speed_mm_s", "peak_z_norm"))
+        t = run_table(inv, rel, _FIG5, _FIG5)
         h, v = np.unique(t["step_um"]), np.unique(t["speed_mm_s"])
         peaks = t.pivot_table(index="step_um", columns="speed_mm_s", values="peak_z_norm").to_numpy()
         blocks.append(make_figure("Fig. 5: peak pulse density against step height", fp.fig5(h, v, peaks), (rel,),
@@ -96,9 +126,8 @@ def _from_figure_csvs(inv, part) -> list:
                                   "per speed; " + LINES_CAPTION + "."))
     if "fig6_accepted.csv" in part.files:
         rel = part.path("fig6_accepted.csv")
-        cols = ("tau_s", "step_um", "speed_mm_s", "accepted_um")
-        t = read_table(inv.run_dir / rel, cols, cols)
-        taus, h, v = (np.unique(t[c]) for c in cols[:3])
+        t = run_table(inv, rel, _FIG6, _FIG6)
+        taus, h, v = (np.unique(t[c]) for c in _FIG6[:3])
         acc = np.full((len(taus), len(h), len(v)), np.nan)
         for r in t.itertuples(index=False):
             acc[np.searchsorted(taus, r.tau_s), np.searchsorted(h, r.step_um), np.searchsorted(v, r.speed_mm_s)] = r.accepted_um
@@ -111,9 +140,7 @@ def _from_figure_csvs(inv, part) -> list:
 def ladder_blocks(inv, part) -> list:
     """The trade plot, the trade table, the mesh convergence and the goals of a ladder part."""
     rel = part.path("trade.csv")
-    trade = read_table(inv.run_dir / rel, ("level", "mesh", "seconds_per_slide", "rate_error"),
-                       ("seconds_per_slide", "rate_error"))
-    info = read_json(inv.run_dir / part.path("ladder.json")) if inv.has(part.path("ladder.json")) else {}
+    trade, info = ladder_files(inv, part)
     where = str(info.get("measured", "by `feeler skin ladder`" + (" --small" if info.get("small") else "")))
     met = info.get("met")
     converged = bool(met["convergence"]) if isinstance(met, dict) and "convergence" in met else None
@@ -129,7 +156,7 @@ def ladder_blocks(inv, part) -> list:
               table_from_frame(shown, title="Trade table", sources=(rel,), caption=finest.strip())]
     conv = part.path("convergence.csv")
     if inv.has(conv):
-        blocks.append(table_from_frame(read_table(inv.run_dir / conv), title="L2 mesh convergence", sources=(conv,)))
+        blocks.append(table_from_frame(run_table(inv, conv), title="L2 mesh convergence", sources=(conv,)))
     if isinstance(met, dict):
         words = "; ".join(f"{k.replace('_', ' ')}: {'met' if v else 'NOT met'}" for k, v in met.items())
         size = info.get("size", "small" if info.get("small") else "full")

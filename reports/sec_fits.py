@@ -16,7 +16,7 @@ import re
 from feeler.reports.model import Note, Section, Table, fmt, interval
 from feeler.reports.readers import load_fit
 
-__all__ = ["fit_section", "SAMPLERS", "summary_table", "readable_prior", "independent_draws"]
+__all__ = ["fit_section", "fit_inputs", "SAMPLERS", "summary_table", "readable_prior", "independent_draws"]
 
 SAMPLERS = ("nuts", "emcee", "pymc", "mcmc")
 #: fits of the human 2AFC trials: labelled SYNTHETIC when the trials are
@@ -137,6 +137,27 @@ def _reading_note(attrs, src) -> list:
                  sources=(src,))]
 
 
+def fit_inputs(inv, spec) -> None:
+    """Read what the fit's section shows beside the fit (read already, :func:`feeler.reports.
+    build.read_inputs`) before the report's first figure: the human data of a human fit,
+    the campaign's true C beside M1, the τ report, thresholds.csv and the curves it lists."""
+    from feeler.reports.fit_plots import plot_inputs
+
+    part = spec.parts[0]
+    if part.model in HUMAN_MODELS:
+        from feeler.reports.humandata import human_data
+
+        human_data(inv)
+    plot_inputs(inv, part)
+    if part.model == "finger-route" and inv.has(part.path("tau_report.json")):
+        _tau_report(inv, part)
+    if inv.has(part.path("thresholds.csv")):
+        from feeler.reports.m4_extras import curve_items, thresholds_frame
+
+        thresholds_frame(inv, part)
+        curve_items(inv, part)
+
+
 def fit_section(inv, spec) -> Section:
     """Verdict, posterior plots chosen for the model, the diagnostics and the priors."""
     from feeler.reports.fit_plots import labels_of, plots_of
@@ -183,17 +204,25 @@ def fit_section(inv, spec) -> Section:
     return Section(spec.key, spec.title, tuple(blocks), failed=not verdict.ok, problems=tuple(verdict.problems))
 
 
+def _tau_report(inv, part) -> tuple[dict, float]:
+    """(tau_report.json, its τ median in s, checked > 0)."""
+    from feeler.errors import DataFileError
+    from feeler.reports.readers import run_json
+
+    rel = part.path("tau_report.json")
+    rep = run_json(inv, rel, ("tau_median_s",))
+    tau_s = float(rep["tau_median_s"])
+    if not tau_s > 0:
+        raise DataFileError(inv.run_dir / rel, f"tau_median_s = {tau_s!r} must be > 0")
+    return rep, tau_s
+
+
 def _tau_blocks(inv, part) -> list:
     """The finger route's τ report in words and Fig. 6 at the fitted τ with the human points."""
     from feeler.reports.psy_plots import finger_route_fig6
-    from feeler.reports.readers import read_json
 
     rel = part.path("tau_report.json")
-    rep = read_json(inv.run_dir / rel, ("tau_median_s",))
-    tau_s = float(rep["tau_median_s"])
-    if not tau_s > 0:
-        from feeler.errors import DataFileError
-        raise DataFileError(inv.run_dir / rel, f"tau_median_s = {tau_s!r} must be > 0")
+    rep, tau_s = _tau_report(inv, part)
     eti = [float(x) * 1e3 for x in rep.get("tau_eti95_s", [])][:2] or [float("nan")] * 2
     paper = str(rep.get("paper", ""))               # the paper's claim against P(τ ≤ 300 ms | data), P included
     tail = (f"The paper: {paper}." if paper else

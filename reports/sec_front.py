@@ -10,7 +10,7 @@ from collections import Counter
 
 from feeler.reports.model import Note, Section, Table, fmt
 
-__all__ = ["front_section", "fit_verdicts"]
+__all__ = ["front_section", "front_inputs", "fit_verdicts"]
 
 _KIND_WORDS = {"robot": "simulated robot scans", "acquisition": "acquired robot scans",
                "calibration-data": "a sensor calibration campaign", "psychophysics": "human 2AFC trials",
@@ -20,14 +20,32 @@ _KIND_WORDS = {"robot": "simulated robot scans", "acquisition": "acquired robot 
                "benchmarks": "benchmark tables", "speed": "speed/accuracy tables measured by the demo"}
 
 
+def front_inputs(inv) -> None:
+    """Read what the first page's claims and verdicts use, before the report's first figure:
+    the robot scans, the finger histories, the human data, the robot's discrimination, the
+    τ report and every fit's verdict (the sections read most of them too, from the cache)."""
+    from feeler.reports.claims import _robot
+    from feeler.reports.claims_human import tau_report
+    from feeler.reports.discdata import robot_disc
+    from feeler.reports.fingerdata import finger_data
+    from feeler.reports.humandata import human_data
+
+    _robot(inv)
+    finger_data(inv)
+    human_data(inv)
+    robot_disc(inv)
+    tau_report(inv)
+    fit_verdicts(inv)
+
+
 def fit_verdicts(inv) -> list[tuple[bool, str, str, str, str]]:
     """(ok, fit, directory, backend and seconds, verdict text) per fit, failed first."""
     from feeler.reports.discover import FIT_TITLES
-    from feeler.reports.readers import read_json
+    from feeler.reports.readers import run_json
 
     rows = []
     for p in inv.of("fit"):
-        v = read_json(inv.run_dir / p.path("verdict.json"), ("ok",))
+        v = run_json(inv, p.path("verdict.json"), ("ok",))
         ok = bool(v["ok"])
         problems = "; ".join(str(x) for x in v.get("problems", []))
         backend = ""

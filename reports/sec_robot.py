@@ -13,7 +13,7 @@ import numpy as np
 from feeler.reports.model import Figure, Note, Section, Table, fmt, interval, make_figure, subplots
 from feeler.reports.robotdata import robot_data
 
-__all__ = ["robot_section", "plate_rows"]
+__all__ = ["robot_section", "robot_inputs", "plate_rows"]
 
 
 MAX_CURVES = 8          # plates drawn as curves in Figs 7-9 (a legend entry each)
@@ -126,6 +126,13 @@ def _tables(datas, srcs) -> list:
     if len(datas[0].steps) > 1:
         blocks.append(_pairs_table(datas[0], srcs[0]))
     return blocks
+
+
+def robot_inputs(inv, spec) -> None:
+    """Read every scan directory of the section (scans, scene, an acquisition's summary),
+    before the report's first figure; the section takes them from the inventory's cache."""
+    for part in spec.parts:
+        robot_data(inv, part)
 
 
 def robot_section(inv, spec) -> Section:

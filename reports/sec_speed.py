@@ -15,9 +15,9 @@ import re
 import numpy as np
 
 from feeler.reports.model import Note, Section, Table, fmt, log_axis, make_figure, subplots, table_from_frame
-from feeler.reports.readers import read_json, read_table
+from feeler.reports.readers import run_json, run_table
 
-__all__ = ["speed_section", "trade_columns", "table_columns", "TIME_COLS", "ERROR_COLS", "ACCURACY_COLS", "times"]
+__all__ = ["speed_section", "speed_inputs", "trade_columns", "table_columns", "TIME_COLS", "ERROR_COLS", "ACCURACY_COLS", "times"]
 
 TIME_COLS = ("latency_s", "decision_latency_s", "seconds_per_slide", "seconds", "fit_s", "median_s", "min_s")
 ERROR_COLS = ("error_ref_sd", "error_sd", "error", "rate_error", "max_abs_mean_err_sd", "max_error")
@@ -113,7 +113,7 @@ def _tables(inv, part, names, provenance) -> list:
     blocks = []
     for name in names:
         rel = part.path(name)
-        frame = read_table(inv.run_dir / rel)
+        frame = run_table(inv, rel)
         stem = name.removesuffix(".csv")
         if frame.empty:
             blocks.append(Note(f"{rel}: no rows.", sources=(rel,)))
@@ -130,7 +130,7 @@ def _bench_blocks(inv, part) -> list:
     names = list(part.files)
     stamp = ""
     if "ratios.csv" in names:
-        ratios = read_table(inv.run_dir / part.path("ratios.csv"))
+        ratios = run_table(inv, part.path("ratios.csv"))
         stamps = sorted(set(ratios["measured_at"].astype(str))) if "measured_at" in ratios and len(ratios) else []
         stamp = (f" at {stamps[0]}" if len(stamps) == 1 else
                  f" in {len(stamps)} runs from {stamps[0]} to {stamps[-1]} (each row's time in ratios.csv)" if stamps
@@ -140,16 +140,38 @@ def _bench_blocks(inv, part) -> list:
                  sources=tuple(part.path(n) for n in names))] + _tables(inv, part, names, provenance)
 
 
+def _demo_index(inv, part) -> tuple[dict, list[str]]:
+    """(speed.json, the names of its tables present beside it)."""
+    index = run_json(inv, part.path("speed.json"), ("measured", "tables"))
+    return index, [f"{n}.csv" for n in index["tables"] if inv.has(part.path(f"{n}.csv"))]
+
+
+def speed_inputs(inv, spec) -> None:
+    """Read every table the section shows before the report's first figure: `make bench`'s
+    tables, the demo's speed.json with its tables, each ladder's files."""
+    from feeler.reports.sec_finger import ladder_files
+
+    for part in spec.parts:
+        if part.kind == "benchmarks":
+            names = list(part.files)
+        elif part.kind == "speed":
+            names = _demo_index(inv, part)[1]
+        else:
+            ladder_files(inv, part)
+            continue
+        for name in names:
+            run_table(inv, part.path(name))
+
+
 def _demo_blocks(inv, part) -> list:
     rel = part.path("speed.json")
-    index = read_json(inv.run_dir / rel, ("measured", "tables"))
+    index, names = _demo_index(inv, part)
     times = f"; {index['times']}" if index.get("times") else ""
     provenance = f"measured {index['measured']}{times}: a small version, `make bench` measures the full one"
     blocks = [Note(f"{provenance[0].upper()}{provenance[1:]}.", level="measured", sources=(rel,))]
     for name, what in dict(index["tables"]).items():
         if what:
             blocks.append(Note(f"{name}: {what}", sources=(part.path(f"{name}.csv"),)))
-    names = [f"{n}.csv" for n in index["tables"] if inv.has(part.path(f"{n}.csv"))]
     return blocks + _tables(inv, part, names, provenance)
 
 
@@ -160,6 +182,7 @@ def times(ratio: float) -> str:
 
 def speed_section(inv, spec) -> Section:
     from feeler.reports.finger_plots import mesh_name
+    from feeler.reports.sec_finger import ladder_files
 
     blocks = []
     for part in spec.parts:
@@ -169,10 +192,8 @@ def speed_section(inv, spec) -> Section:
             blocks += _demo_blocks(inv, part)
     for part in (p for p in spec.parts if p.kind == "ladder"):
         rel = part.path("trade.csv")
-        t = read_table(inv.run_dir / rel, ("level", "mesh", "seconds_per_slide", "rate_error"),
-                       ("seconds_per_slide", "rate_error"))
+        t, info = ladder_files(inv, part)
         ref = t["seconds_per_slide"].max()
-        info = read_json(inv.run_dir / part.path("ladder.json")) if inv.has(part.path("ladder.json")) else {}
         met = info.get("met") if isinstance(info.get("met"), dict) else {}
         converged = bool(met["convergence"]) if "convergence" in met else None
         words = "; ".join(f"{r.level.upper()} ({mesh_name(str(r.mesh), converged)}) "

@@ -11,8 +11,9 @@ Writes report.html (self-contained: figures inlined, opens offline), report.pdf 
 HTML laid out by WeasyPrint) and report-manifest.json (every figure with the files it
 came from). Progress: a live line on a terminal, otherwise a line per stage: each
 section, each figure drawn, each PDF step and page (--no-progress: none). A corrupt file
-of the run stops with a one-line error naming it (exit 2), and so does a directory holding
-nothing the report can show. Otherwise the exit status is 0 once the report is written,
+of the run stops with a one-line error naming it (exit 2) before any figure is drawn (every
+file the report uses is read first), and so does a directory holding nothing the report
+can show. Otherwise the exit status is 0 once the report is written,
 whatever the verdicts it holds: a failed fit is a result to show (first, and named on
 stdout as "FAILED calibration shown first: ..."), not a failure of the report. Files of
 other commands the report does not read (decode's decisions.csv, validate sbc's ranks.csv

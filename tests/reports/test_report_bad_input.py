@@ -36,11 +36,63 @@ FP, PSY = ("four-plates",), ("finger-route", "m4", "psychophysics")
 def test_corrupt_file_is_named_in_one_line(part_run, tmp_path, parts, rel, content, problem):
     run = part_run(*parts)
     (run / rel).write_bytes(content)
+    stages = []
     with pytest.raises(DataFileError) as info:
-        build_report(run, tmp_path / "out", pdf=False)
+        build_report(run, tmp_path / "out", pdf=False, progress=stages.append)
     message = str(info.value)
     assert "\n" not in message and rel.split("/")[-1] in message and problem in message
+    assert not [s for s in stages if "figure" in s], stages
     assert not (tmp_path / "out" / "report.html").exists()
+
+
+# each beside the four-plates scans, whose section comes first and draws figures: the corrupt
+# file's own section came later, and its error only after those figures (an outside audit)
+@pytest.mark.parametrize("parts, rel, content, problem", [
+    (FP + ("held-out",), "held-out/scans.csv", b"scan_id,t_s\n0,0\n", "missing column(s)"),
+    (FP + ("held-out",), "held-out/scene.toml", b"[scene\nkind = 1", "not valid TOML"),
+    (FP + ("m1", "sensor-calibration"), "sensor-calibration/truth.json", b"{not json", "not a readable JSON file"),
+    (FP + ("m4",), "m4/thresholds.csv", b"subject,pse_um\nall,1\n", "missing column(s)"),
+    (FP + ("m4",), "m4/curves/index.csv", b"subject\nS1\n", "missing column(s)"),
+    (FP + ("m4",), "m4/curves/S1_10um_20mm_s_20mm_s.png", b"not a png", "not a readable PNG"),
+    (FP + ("classify",), "classify/classification.csv", b"step_mm,plate_mm,lo90_mm,hi90_mm\n0,0,0,0\n",
+     "no probability columns"),
+    (FP + ("discriminate",), "discriminate/discrimination.json", b"{not json", "not a readable JSON file"),
+    (FP + ("psychophysics",), "psychophysics/trials.csv", b"subject,standard_um\nS1,oops\n", "missing column(s)"),
+    (FP + ("psychophysics",), "psychophysics/scene.toml", b"\xff\xfe garbage", "not a readable text file"),
+    (FP + ("finger",), "finger/strain.csv", b"step_um,speed_mm_s,t_s,x_mm,eps_y\n5,20,0,0,0\n", "every step height"),
+    (FP + ("skin-ladder",), "skin-ladder/ladder.json", b"{not json", "not a readable JSON file"),
+    (FP + ("skin-ladder",), "skin-ladder/convergence.csv", b"\x00\xff\xfe", "not a readable CSV"),
+    (FP + ("speed",), "speed/decoder.csv", b"\x00\xff\xfe", "not a readable CSV"),
+    (FP + ("speed",), "speed/speed.json", b'{"tables": {}}', "missing key(s) measured"),
+    (FP + PSY, "finger-route/tau_report.json", b'{"tau_median_s": -1}', "must be > 0"),
+])
+def test_every_input_is_read_before_the_first_figure(part_run, tmp_path, parts, rel, content, problem):
+    """A corrupt file of any section stops the report with its one-line error before any
+    figure is drawn (only the fits were read first; the others when their section came)."""
+    from feeler.errors import InputError
+
+    run = part_run(*parts)
+    (run / rel).write_bytes(content)
+    stages = []
+    with pytest.raises(InputError) as info:
+        build_report(run, tmp_path / "out", pdf=False, progress=stages.append)
+    message = str(info.value)
+    assert "\n" not in message and rel in message and problem in message, message
+    assert not [s for s in stages if "figure" in s], stages
+    assert not (tmp_path / "out" / "report.html").exists()
+
+
+def test_skin_figure_tables_are_read_before_the_first_figure(part_run, tmp_path):
+    """`feeler skin figures` tables (no strain histories): read with the rest, before any figure."""
+    run = part_run(*FP)
+    (run / "skin-figures").mkdir()
+    (run / "skin-figures" / "fig5_peaks.csv").write_text("step_um,speed_mm_s,peak_z_norm\n1,20,0.5\n2,20,1\n",
+                                                         encoding="utf-8")
+    (run / "skin-figures" / "fig6_accepted.csv").write_text("tau_s,step_um\n0.1,1\n", encoding="utf-8")
+    stages = []
+    with pytest.raises(DataFileError, match=r"fig6_accepted\.csv: missing column\(s\) speed_mm_s, accepted_um"):
+        build_report(run, tmp_path / "out", pdf=False, progress=stages.append)
+    assert not [s for s in stages if "figure" in s], stages
 
 
 @pytest.mark.parametrize("where", ["discrimination.json", "threshold_curve.csv"])

@@ -71,6 +71,7 @@ def test_flagged_scans_are_left_out_of_the_numbers_as_classify_does(copy_run):
     assert {r[0]: r for r in table.rows}["all"][1:3] == ("2", "1")
     assert table.caption.endswith(" 1 of 3 scans, flagged as unlike the fit's training scans, are left out.")
     path.write_text(head + rows[1] + "\n", encoding="utf-8")
+    inv = discover(copy_run)                     # an inventory reads each file once (one report)
     (block,) = classify_section(inv, _spec(inv, "classify:classify")).blocks
     assert block.kind == "note" and block.text.startswith("All 1 classified scans are flagged")
 
@@ -90,6 +91,7 @@ def test_labels_that_contradict_the_fit_are_a_warning_first(copy_run):
     assert "15 of 30 labels inside" in first.text and "15 of 30 classified as their labelled plate" in first.text
     path.write_text(head + "\n".join(right + [w.replace(",0.0,0.1,", ",0.1,0.1,") for w in wrong]) + "\n",
                     encoding="utf-8")
+    inv = discover(copy_run)                     # an inventory reads each file once (one report)
     assert not any(b.kind == "note" and "Warning" in b.text
                    for b in classify_section(inv, _spec(inv, "classify:classify")).blocks)
 
