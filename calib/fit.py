@@ -143,11 +143,12 @@ def require_ok(result: FitResult, *, accept_failed: bool = False, what: str = "c
     return result
 
 
-def read_csv_columns(path: str | Path, columns) -> pd.DataFrame:
-    """A CSV that must have ``columns``; unreadable or incomplete → one-line DataFileError."""
+def read_csv_columns(path: str | Path, columns, *, text: str | None = None) -> pd.DataFrame:
+    """A CSV that must have ``columns``; unreadable or incomplete → one-line DataFileError.
+    ``text``: the file's text, when the caller has read it already."""
     from feeler.datasets import missing_columns_problem, read_csv_file
 
-    table = read_csv_file(path)
+    table = read_csv_file(path, text=text)
     problem = missing_columns_problem(table, columns)
     if problem:
         raise DataFileError(path, problem)
@@ -170,10 +171,10 @@ def _read_summary(path: Path, entries: list[str]) -> pd.DataFrame:
     """
     import csv
 
-    from feeler.datasets import csv_dialect, header_line, read_text
+    from feeler.datasets import csv_dialect, csv_text, header_line
 
-    table = read_csv_columns(path, SUMMARY_COLUMNS)
-    text = read_text(path)
+    text = csv_text(path)                    # read once: the table, and its rows' widths
+    table = read_csv_columns(path, SUMMARY_COLUMNS, text=text)
     sep, _ = csv_dialect(header_line(text))
     rows = [r for r in csv.reader(text.splitlines(), delimiter=sep) if r and not r[0].lstrip().startswith("#")]
     width = len(rows[0])

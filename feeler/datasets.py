@@ -19,7 +19,7 @@ import numpy as np
 
 from feeler.errors import DataFileError
 
-__all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_text", "read_csv_file",
+__all__ = ["COLUMNS", "Scans", "Features", "csv_dialect", "header_line", "read_text", "csv_text", "read_csv_file",
            "missing_columns_problem", "renamed_hint", "shared_scan_id_problem", "scan_time_problem", "starts_again",
            "varying_label_problem", "repeated_header_problem", "read_scans", "scan_files", "header_columns",
            "scan_file_frames", "natural_key", "strain", "jump_uy_mm", "peak_rate_uy_mm_s", "scan_features",
@@ -136,7 +136,19 @@ def _repeated_header(text: str, header: str) -> list[int]:
     return out
 
 
-def read_csv_file(path: Path, *, comment: str | None = None):
+def csv_text(path: Path) -> str:
+    """The text of the CSV at ``path`` (:func:`read_text`); DataFileError naming it when
+    missing or unreadable."""
+    path = Path(path)
+    try:
+        return read_text(path)
+    except FileNotFoundError:
+        raise DataFileError(path, "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataFileError(path, f"not a readable CSV: {exc}") from None
+
+
+def read_csv_file(path: Path, *, comment: str | None = None, text: str | None = None):
     """The CSV at ``path`` as a DataFrame; DataFileError naming it when missing or unreadable.
 
     Separated by commas, semicolons or tabs (:func:`csv_dialect`); in a file separated by
@@ -145,18 +157,14 @@ def read_csv_file(path: Path, *, comment: str | None = None):
     are skipped, and kept (without it) in ``attrs["comments"]``; lines starting with ``#``
     are always skipped so (a lab's notes above the header: sensor, date, operator), as
     they were only for the readers that asked. The header repeated further down (files
-    joined with ``cat``) is an error naming its line."""
+    joined with ``cat``) is an error naming its line. ``text``: the file's text, when the
+    caller has read it already (:func:`csv_text`)."""
     import io
 
     import pandas as pd
 
     path = Path(path)
-    try:
-        text = read_text(path)
-    except FileNotFoundError:
-        raise DataFileError(path, "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataFileError(path, f"not a readable CSV: {exc}") from None
+    text = csv_text(path) if text is None else text
     header = header_line(text)
     sep, decimal = csv_dialect(header)
     repeats = _repeated_header(text, header)

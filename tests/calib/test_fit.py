@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -230,6 +231,16 @@ def test_a_summary_cut_short_is_named_not_read_as_a_smaller_fit(tmp_path, cut, m
     with pytest.raises(DataFileError, match=match) as e:
         load(tmp_path)
     assert "\n" not in str(e.value)
+
+
+def test_a_summary_is_read_once(saved, monkeypatch):
+    """load reads summary.csv once (it read it twice: for the table, then for its rows' widths)."""
+    import feeler.datasets as datasets
+
+    reads, read_text = [], datasets.read_text
+    monkeypatch.setattr(datasets, "read_text", lambda path: reads.append(Path(path).name) or read_text(path))
+    load(saved)
+    assert reads.count("summary.csv") == 1, reads
 
 
 def test_missing_file(saved):
