@@ -39,7 +39,15 @@ from feeler.errors import ArgumentError
 from feeler.models.surface import Profile
 
 __all__ = ["Motion", "ProbeParams", "Touch", "Footprint", "draw_touch", "smoothed_height_mm",
-           "tip_displacement"]
+           "tip_displacement", "samples_per_scan"]
+
+
+def samples_per_scan(speed_mm_s: float, traverse_mm: float, dt_s: float) -> int:
+    """Samples in one traverse, one every ``dt_s`` from its start: ``floor(traverse / (v·dt)) + 1``
+    (the stage stops at the end; 1e-9 absorbs the rounding of the quotient). The one rule of
+    a simulated scan (:attr:`Motion.n_samples`), a robot scene's frame count and an
+    acquisition plan's samples (``sample_period_s`` for ``dt_s``)."""
+    return int(math.floor(traverse_mm / (speed_mm_s * dt_s) + 1e-9)) + 1
 
 
 @dataclass(frozen=True)
@@ -60,7 +68,7 @@ class Motion:
     @property
     def n_samples(self) -> int:
         """Samples in one traverse: floor(traverse / (v·dt)) + 1 (the stage stops at the end)."""
-        return int(math.floor(self.traverse_mm / (self.speed_mm_s * self.dt_s) + 1e-9)) + 1
+        return samples_per_scan(self.speed_mm_s, self.traverse_mm, self.dt_s)
 
     def times_s(self) -> np.ndarray:
         """Sample times, ndarray[n_samples] in s, starting at 0."""

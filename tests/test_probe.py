@@ -143,3 +143,16 @@ def test_invalid_motion_and_params_name_the_argument(make, name):
     with pytest.raises(ArgumentError) as info:
         make()
     assert info.value.name == name
+
+
+def test_one_rule_gives_the_samples_of_a_scan():
+    """The simulated probe, a robot scene's frame count and an acquisition plan take the
+    samples of a scan by one rule, floor(traverse / (v·dt)) + 1 (it was written out in three
+    places)."""
+    from feeler.models.probe import samples_per_scan
+    from feeler.scenes import scan_plan
+
+    assert scan_plan.samples_per_scan is samples_per_scan
+    for speed, traverse, dt in ((0.3, 1.0, 1.0), (1.0, 10.0, 0.1), (20.0, 40.0, 0.005), (3.0, 0.9, 0.1)):
+        assert Motion(speed, traverse, dt).n_samples == samples_per_scan(speed, traverse, dt)
+    assert samples_per_scan(1.0, 10.0, 0.1) == 101 and samples_per_scan(3.0, 0.9, 0.1) == 4

@@ -10,7 +10,6 @@ read: the contact discs of the scene's lightest and hardest touches must suit th
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -136,11 +135,12 @@ class Scene:
 
     def _check_frames(self, path) -> None:
         """At ``images``: the contact discs of the lightest and hardest touches suit the camera."""
+        from feeler.models.probe import samples_per_scan
         from feeler.scenes._frames import check_frames, check_photons, contact_areas, round_down, scene_layout
 
         optics, layout = self.optics or Optics(), scene_layout(self.optics, path)
         m, n_el = self.motion, len(layout.elements)
-        n_time = int(math.floor(m.traverse_mm / (m.speed_mm_s * m.dt_s) + 1e-9)) + 1     # probe.Motion.n_samples
+        n_time = samples_per_scan(m.speed_mm_s, m.traverse_mm, m.dt_s)
         n_scans = len(self.surface.heights_mm) * self.repeats.scans_per_plate
         check_photons(optics, path, -(-n_scans // n_el) * n_time, n_el)
         along = np.array([-self.probe.shear_per_normal, 1.0, 0.0])      # U per mm of U_y

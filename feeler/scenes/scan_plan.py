@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass, field
 
 from feeler.errors import SceneError
+from feeler.models.probe import samples_per_scan    # as the campaign takes them: the simulated probe's rule
 from feeler.scene import SEED_MAX, param
 
 __all__ = ["Scene", "Head", "Plates", "ScanMotion", "Repeats", "Neuron", "Optics", "Virtual",
@@ -115,11 +116,6 @@ class Scene:
         if problem is not None:
             key, text = problem
             raise SceneError(path, key, text + per_minute_hint(s))
-
-
-def samples_per_scan(speed_mm_s: float, traverse_mm: float, sample_period_s: float) -> int:
-    """Samples of one scan: ``floor(traverse / (speed · period)) + 1`` (as the campaign takes them)."""
-    return int(math.floor(traverse_mm / (speed_mm_s * sample_period_s) + 1e-9)) + 1
 
 
 def _scan_problem(speed_mm_s: float, traverse_mm: float, sample_period_s: float) -> tuple[str, str] | None:
