@@ -1,6 +1,6 @@
 """Scans to decode, labelled or not, read from a CSV in long format (one row per sample).
 
-Decoding needs only ``scan_id``, ``t_s`` (s) and ``uy_mm`` (the sensor's tangential
+Decoding needs only ``scan_id``, ``t_s`` (s) and ``uy_mm`` (the sensor's normal (vertical)
 displacement U_y, mm); ``x_mm`` (stage position, mm) lets the stage speed be checked and
 places a decision along the scan; ``step_mm`` (the plate's step, mm) and ``speed_mm_s``
 (commanded speed, mm/s) are labels: when present they add the accuracy and coverage
