@@ -12,8 +12,8 @@ predicts clearly better). The
 window τ is weighted by how well the decoder predicts each left-out label; the decoded
 height is z = a·P − h on the least-squares line through the plates. Backends: grid
 (exact, default, fastest: --chains × --draws), nuts (PyMC: --chains, --draws, --tune),
-emcee (32 walkers run until their chains are 50 autocorrelation times long, or fail at
---emcee-steps); an option the chosen backend would not use is refused before any work
+emcee (32 walkers run until their chains are 50 autocorrelation times long, at most
+200000 steps, or exactly --emcee-steps); an option the chosen backend would not use is refused before any work
 (--chains, --draws or --tune with emcee, say). The fit records the scene of
 DATASET, which `feeler discriminate` then simulates. The verdict fails when the data
 cannot pin the decoder down (one plate, noise-free scans, a window any value of which
@@ -51,8 +51,9 @@ def register(parser) -> None:
                              "mode has few scans), and each mode is read at its own windows; two-mode-growing: "
                              "those sds grow with the step. Grid backend only")
     parser.add_argument("--emcee-steps", type=int, default=None,
-                        help="emcee: cap on steps per walker (default: run until 50 autocorrelation times, "
-                             "at most 200000 steps; 100-200000; needs --backend emcee)")
+                        help="emcee: run exactly this many steps per walker, the first quarter discarded as "
+                             "warm-up (the verdict fails when they are under 50 autocorrelation times); default: run "
+                             "until 50 autocorrelation times, at most 200000 steps; 100-200000; needs --backend emcee")
     from feeler.commands._checks import MAX_CHAINS, MAX_TOTAL_DRAWS, MAX_TUNE
 
     # None unless typed: each is refused with a backend that would not use it (_check_backend_options)
