@@ -41,7 +41,9 @@ def register(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of element 0; element i uses SEED + i")
     parser.add_argument("--scheduler", default=None, metavar="ADDR",
                         help="tcp://HOST:PORT of a dask scheduler, or 'serial' (default: a LocalCluster)")
-    parser.add_argument("--workers", type=int, default=2, help="LocalCluster worker processes (default 2; at most this machine's CPUs)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="LocalCluster worker processes (default 2; at most this machine's CPUs; not with "
+                             "--scheduler, whose workers are its own)")
     parser.add_argument("--progress", action="store_true", default=None, help="always show progress bars")
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="never show progress bars")
     parser.set_defaults(run=run)
@@ -149,6 +151,7 @@ def run(args) -> int:
 
     from feeler.calib.fit import load
     from feeler.calib.runner import map_seeds
+    from feeler.commands._checks import refuse_unused
     from feeler.errors import ArgumentError, OverwriteError
     from feeler.rundir import prepare_out_dir
 
@@ -158,6 +161,10 @@ def run(args) -> int:
     if args.resume and args.force:
         raise ArgumentError("--resume/--force", True, "one of them: --resume keeps the written elements, "
                             "--force refits them")
+    refuse_unused(args, {"workers": 2}, used=args.scheduler is None,
+                  needs=lambda name: "needs a LocalCluster on this machine (no --scheduler): with --scheduler "
+                                     + ("serial the fits run in this process" if args.scheduler == "serial" else
+                                        f"{args.scheduler} the scheduler's own workers run them"))
     _check_datasets(args.datasets)
     written = [i for i, n in enumerate(names) if (Path(args.out) / n / "verdict.json").is_file()] \
         if args.resume else []

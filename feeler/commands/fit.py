@@ -100,7 +100,10 @@ def _add_psychophysics(sub) -> None:
     matrix.add_argument("--comparison-speed-mm-s", type=float, default=None, metavar="V",
                         help="scan speed of the comparison, mm/s (default --speed-mm-s)")
     matrix.add_argument("--subject", default=None, metavar="NAME", help="the subject (default: the file name)")
-    add_fit_arguments(psy, tune=None)            # --tune: nuts only (default 1000)
+    from feeler.commands._checks import MAX_TUNE
+
+    add_fit_arguments(psy, tune=None, helps={"tune": f"NUTS warm-up steps per chain (default {NUTS_ONLY['tune']}, at "
+                                                     f"most {MAX_TUNE}; needs --backend nuts)"})
     psy.set_defaults(run=run_psychophysics)
 
 

@@ -3,7 +3,8 @@ as --eiv with the exact backend is (an outside audit: --nu 7 without --noise stu
 --emcee-steps with the grid backend, --wait-s without --follow, --separate with Laplace and
 --target-accept with the exact grid all ran and exited 0, the option silently ignored; so did
 calibrate neuron --backend emcee with --chains or --draws, calibrate sensor --backend emcee with
---chains, or with --tune but no --draws, and --eiv --model forward)."""
+--chains, or with --tune but no --draws, and --eiv --model forward; calibrate sensors --workers with
+--scheduler)."""
 import pytest
 
 from feeler.cli import main
@@ -37,6 +38,12 @@ CASES = {
                                                   "100"], ["--tune=100", "needs --draws with --backend emcee"]),
     "sensor --model forward with --eiv": (["calibrate", "sensor", "no-data", "--backend", "nuts", "--eiv", "--model",
                                            "forward"], ["--model='forward'", "not used with --eiv"]),
+    "sensors --workers with --scheduler serial": (["calibrate", "sensors", "no-data", "--out", "o", "--scheduler",
+                                                   "serial", "--workers", "1"],
+                                                  ["--workers=1", "needs a LocalCluster", "run in this process"]),
+    "sensors --workers with a scheduler's address": (["calibrate", "sensors", "no-data", "--out", "o", "--scheduler",
+                                                      "tcp://127.0.0.1:1", "--workers", "2"],
+                                                     ["--workers=2", "the scheduler's own workers"]),
     "decode --wait-s without --follow": (["decode", "no-fit", "no-run", "--wait-s", "5"],
                                          ["--wait-s=5.0", "needs --follow"]),
     "decode --poll-s without --follow": (["decode", "no-fit", "no-run", "--poll-s", "1"],
