@@ -15,7 +15,7 @@ import numpy as np
 from feeler.reports.claims import Claim, absent
 from feeler.reports.model import fmt, interval
 
-__all__ = ["claim_faster_felt_higher", "claim_tau", "tau_report", "claim_threshold", "claim_weber", "human_reference_rows"]
+__all__ = ["claim_faster_felt_higher", "claim_tau", "tau_report", "read_tau_report", "claim_threshold", "claim_weber", "human_reference_rows"]
 
 
 def _verdict_ok(inv, part) -> bool | None:
@@ -77,7 +77,34 @@ def tau_report(inv) -> tuple:
     from feeler.reports.readers import run_json
 
     part = inv.first("tau-report", prefer="finger-route")
-    return (None, None) if part is None else (part, run_json(inv, part.path("tau_report.json"), ("tau_median_s",)))
+    return (None, None) if part is None else (part, read_tau_report(inv, part.path("tau_report.json")))
+
+
+def read_tau_report(inv, rel: str) -> dict:
+    """The run's ``rel`` (a tau_report.json, as `feeler fit finger-route` writes it), its
+    fields checked: ``tau_median_s`` a number > 0; ``p_tau_le_300ms`` (if there) 0-1;
+    ``tau_eti95_s`` (if there) two numbers. Else a one-line DataFileError naming the field
+    (a hand-edited "abc" gave a ValueError traceback)."""
+    from feeler.errors import DataFileError
+    from feeler.reports.readers import run_json
+
+    rep = run_json(inv, rel, ("tau_median_s",))
+
+    def number(value) -> bool:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+    def bad(key: str, allowed: str) -> DataFileError:
+        return DataFileError(inv.run_dir / rel, f"{key} = {rep[key]!r:.40} must be {allowed}")
+
+    if not number(rep["tau_median_s"]) or not rep["tau_median_s"] > 0:
+        raise bad("tau_median_s", "> 0 (s)")
+    p = rep.get("p_tau_le_300ms")
+    if p is not None and not (number(p) and 0 <= p <= 1):
+        raise bad("p_tau_le_300ms", "a probability, 0-1")
+    eti = rep.get("tau_eti95_s")
+    if eti is not None and not (isinstance(eti, list) and len(eti) == 2 and all(number(v) for v in eti)):
+        raise bad("tau_eti95_s", "two numbers (s), the 95 % interval")
+    return rep
 
 
 def claim_tau(inv) -> Claim:

@@ -94,7 +94,11 @@ def _curve(inv, part, obj):
 
     raw, rel = obj.get("curve", obj.get("threshold_curve")), part.path("discrimination.json")
     if raw is not None:
-        frame = pd.DataFrame(raw)
+        try:
+            frame = pd.DataFrame(raw)
+        except (ValueError, TypeError) as exc:          # columns of unequal length, scalars without an index
+            raise DataFileError(inv.run_dir / rel, f"curve: not a table of columns delta_mm, pc, lo95, hi95 "
+                                                   f"({exc})") from None
     elif (inv.run_dir / part.path(CURVE_FILE)).is_file():
         rel = part.path(CURVE_FILE)
         frame = read_table(inv.run_dir / rel)
@@ -117,10 +121,69 @@ def _notes(raw) -> tuple[str, ...]:
     return tuple(str(n).strip() for n in items if str(n).strip())
 
 
+def _is_value(raw) -> bool:
+    """A number (NaN and infinities too: JSON's null, NaN, Infinity), or a string that
+    :func:`parse_value` reads as one or as a bound ("> 25")."""
+    if raw is None or (isinstance(raw, (int, float)) and not isinstance(raw, bool)):
+        return True
+    return isinstance(raw, str) and not math.isnan(parse_value(raw).value)
+
+
+def check_shape(path, obj: dict) -> None:
+    """Each field the report reads from a discrimination.json has the shape discriminate
+    writes; else a one-line DataFileError naming the field, what it holds and what is
+    allowed (a hand-edited file gave AttributeError, TypeError and ValueError tracebacks).
+
+    Tolerant as the reader is: absent fields, null and NaN values, and bounds written as
+    text ("> 25") pass."""
+    from feeler.errors import DataFileError
+
+    def bad(key: str, allowed: str, value) -> None:
+        shown = repr(value)
+        raise DataFileError(path, f"{key} holds {shown if len(shown) <= 40 else shown[:37] + '...'}; expected {allowed}")
+
+    def is_estimate_or_value(key: str) -> None:
+        value = obj.get(key)
+        if isinstance(value, dict):
+            for k in ("mean", "mean_mm", "median", "lo95", "hi95"):
+                if not _is_value(value.get(k)):
+                    bad(f"{key}.{k}", "a number or a bound such as \"> 0.025\"", value[k])
+            found = value.get("found")
+            if found is not None and not (_is_value(found) and not isinstance(found, str) and 0 <= found <= 1):
+                bad(f"{key}.found", "the fraction of draws that reach 75 %, 0-1", found)
+        elif not _is_value(value):
+            bad(key, "an object {mean, lo95, hi95} or a number", value)
+
+    for key in ("threshold_mm", "weber"):
+        is_estimate_or_value(key)
+    if isinstance(obj.get("pse"), dict) or obj.get("pse") is None:
+        if obj.get("pse") is not None:
+            is_estimate_or_value("pse")
+    else:
+        bad("pse", "an object {mean_mm, lo95, hi95, speed_ref_mm_s, speed_test_mm_s}", obj["pse"])
+    pairs = obj.get("pairs")
+    if pairs is not None:
+        if not isinstance(pairs, list) or not all(isinstance(p, dict) for p in pairs):
+            bad("pairs", "a list of objects {low_mm, high_mm, pc, lo95, hi95}", pairs)
+        for i, p in enumerate(pairs):
+            for k in ("low_mm", "high_mm", "pc", "lo95", "hi95"):
+                if not _is_value(p.get(k)):
+                    bad(f"pairs[{i}].{k}", "a number", p[k])
+    notes = obj.get("notes")
+    if notes is not None and not isinstance(notes, str) and not (isinstance(notes, list) and
+                                                                  all(isinstance(n, str) for n in notes)):
+        bad("notes", "a list of strings", notes)
+    curve = obj.get("curve", obj.get("threshold_curve"))
+    if curve is not None and not isinstance(curve, (dict, list)):
+        bad("curve", "an object of columns (delta_mm, pc, lo95, hi95) or a list of rows", curve)
+
+
 def _load(inv, part) -> RobotDisc:
     from feeler.reports.readers import read_json
 
-    obj = read_json(inv.run_dir / part.path("discrimination.json"), ("pairs", "threshold_mm", "weber"))
+    path = inv.run_dir / part.path("discrimination.json")
+    obj = read_json(path, ("pairs", "threshold_mm", "weber"))
+    check_shape(path, obj)
     ref_um = parse_value(obj.get("reference_mm", math.nan)).value * 1e3
     pse = obj.get("pse")
     pse_est = estimate(pse, mean_key="mean_mm").scaled(1e3) if isinstance(pse, dict) else None

@@ -15,7 +15,7 @@ import json
 
 import numpy as np
 
-from feeler.reports.model import Figure, Note, make_figure, subplots
+from feeler.reports.model import Figure, Note, error_span, make_figure, subplots
 
 __all__ = ["labels_of", "plots_of", "plot_inputs", "conditions_of", "split_finite", "NO_FINITE", "DENSITY",
            "fixed_and_copies", "even_chunk"]
@@ -186,7 +186,7 @@ def _traces(draws, names, labels, src) -> Figure:
 
 def _forest(ax, labels, mean, lo, hi, *, truth=None, band=None, color="C0") -> None:
     y = np.arange(len(labels))[::-1]
-    ax.errorbar(mean, y, xerr=[np.subtract(mean, lo), np.subtract(hi, mean)], fmt="o", ms=3, capsize=2,
+    ax.errorbar(mean, y, xerr=error_span(mean, lo, hi), fmt="o", ms=3, capsize=2,
                 color=color, label="posterior mean, 95 % interval")
     if truth is not None:
         ax.plot(truth, y, "x", color="k", ms=5, label="true value (simulated)")
@@ -207,9 +207,28 @@ def _true_c(inv):
     part = inv.first("calibration-data", prefer="sensor-calibration")
     if part is None or not inv.has(part.path("truth.json")):
         return None, None
-    truth = run_json(inv, part.path("truth.json"))
-    c = truth.get("scene", {}).get("sensor", {}).get("c_mm_per_n")
-    return (np.asarray(c, float).ravel(), part.path("truth.json")) if c is not None else (None, None)
+    from feeler.errors import DataFileError
+
+    rel = part.path("truth.json")
+    node = run_json(inv, rel)
+    for key in ("scene", "sensor"):                 # the simulated scene's [sensor] table, when recorded
+        node = node.get(key) if isinstance(node, dict) else node
+        if node is None:
+            return None, None
+        if not isinstance(node, dict):
+            raise DataFileError(inv.run_dir / rel, f"{key} holds {type(node).__name__} {node!r:.30}; expected an "
+                                                   f"object (the simulated scene as `feeler simulate` records it)")
+    c = node.get("c_mm_per_n")
+    if c is None:
+        return None, None
+    try:
+        c = np.asarray(c, float).ravel()
+    except (TypeError, ValueError):
+        c = np.array([])
+    if c.size != 9 or not np.all(np.isfinite(c)):
+        raise DataFileError(inv.run_dir / rel, f"scene.sensor.c_mm_per_n holds {node['c_mm_per_n']!r:.40}; expected "
+                                               f"the 3x3 compliance matrix, mm/N")
+    return c, rel
 
 
 def _m1(inv, result, draws, sampler, src) -> list:

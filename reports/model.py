@@ -16,7 +16,7 @@ from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Callable
 
-__all__ = ["Figure", "Gallery", "Table", "Note", "Section", "subplots", "make_figure", "fmt", "fmt_sig", "interval",
+__all__ = ["Figure", "Gallery", "Table", "Note", "Section", "subplots", "make_figure", "error_span", "fmt", "fmt_sig", "interval",
            "log_axis",
            "report_style", "STYLE", "on_figure",
            "table_from_frame", "DPI"]
@@ -139,6 +139,18 @@ def on_figure(callback: Callable[[str], None]):
         yield
     finally:
         _ON_FIGURE.reset(token)
+
+
+def error_span(value, lo, hi):
+    """``xerr``/``yerr`` of ``errorbar`` for estimates ``value`` with intervals [lo, hi]:
+    the distances to each end, never negative. A mean can lie outside its equal-tailed
+    interval (a skewed posterior, a bootstrap interval), and matplotlib then raised
+    "'xerr' must not contain negative values"; the bar then ends at the mean on that side."""
+    import numpy as np
+
+    v, lo, hi = (np.asarray(x, float) for x in (value, lo, hi))
+    with np.errstate(invalid="ignore"):
+        return np.stack([np.clip(v - lo, 0.0, None), np.clip(hi - v, 0.0, None)])
 
 
 def make_figure(title: str, fig, sources, caption: str = "") -> Figure:

@@ -14,7 +14,7 @@ import json
 import numpy as np
 
 from feeler.reports.fit_plots import _UNITS, DENSITY, _density, _finite, _json, _summary_cols, conditions_of
-from feeler.reports.model import log_axis, make_figure, subplots
+from feeler.reports.model import error_span, log_axis, make_figure, subplots
 
 __all__ = ["m4_figures", "route_marginals", "finger_route_fig6", "synthetic_inv", "SYNTHETIC_TITLE",
            "SYNTHETIC_CAPTION"]
@@ -63,7 +63,7 @@ def m4_figures(result, draws, attrs, src, synthetic: bool = False) -> list:
             sel = [n for n in names if n.endswith(f",{c}]")]
             mean, lo, hi = _summary_cols(result, sel)
             y = np.arange(len(sel))[::-1] * len(conds) + (len(conds) - 1 - c)
-            ax.errorbar(mean, y, xerr=[mean - lo, hi - mean], fmt="o", ms=3, capsize=2, color=f"C{c}",
+            ax.errorbar(mean, y, xerr=error_span(mean, lo, hi), fmt="o", ms=3, capsize=2, color=f"C{c}",
                         label=conds[c])
             pooled = f"{var}_all[{c}]"
             if pooled in result.summary["name"].values:

@@ -27,7 +27,7 @@ import numpy as np
 
 from feeler.reports.discdata import pairs_frame, robot_disc
 from feeler.reports.humandata import condition_words, human_data
-from feeler.reports.model import Note, Section, Table, fmt, interval, make_figure, subplots
+from feeler.reports.model import Note, Section, Table, error_span, fmt, interval, make_figure, subplots
 
 __all__ = ["compare_section", "compare_inputs", "Z75", "human_curve", "folded_points", "FAILED_FIT", "Shown"]
 
@@ -115,7 +115,7 @@ def _robot(ax, disc, scale: float) -> None:
     if np.isfinite(th.value):
         lo = th.lo if np.isfinite(th.lo) else th.value
         hi = th.hi if np.isfinite(th.hi) else th.value
-        ax.errorbar([th.value * scale], [0.75], xerr=[[(th.value - lo) * scale], [(hi - th.value) * scale]],
+        ax.errorbar([th.value * scale], [0.75], xerr=error_span([th.value * scale], [lo * scale], [hi * scale]),
                     fmt=">" if th.bound else "v", color="C3", ms=6, capsize=3, label=f"robot DT {th.text(3, 'µm')}")
 
 
@@ -131,7 +131,7 @@ def _human(ax, human, k, r, weber: bool, top_um: float) -> None:
             label=f"human, {words}" + ("" if same else " (Δ from the PSE)"))
     if np.isfinite(lb) and np.isfinite(ub):
         ax.fill_between(grid * scale, human_curve(grid, ub), human_curve(grid, lb), color=color, alpha=0.15, lw=0)
-        ax.errorbar([dt * scale], [0.75], xerr=[[(dt - lb) * scale], [(ub - dt) * scale]], fmt="v", ms=5,
+        ax.errorbar([dt * scale], [0.75], xerr=error_span([dt * scale], [lb * scale], [ub * scale]), fmt="v", ms=5,
                     color=color, capsize=3)
     if same and human.trials is not None:
         d, kk, n = folded_points(human.trials, float(r["standard_speed_mm_s"]), float(r["comparison_speed_mm_s"]))

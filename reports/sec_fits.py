@@ -205,16 +205,11 @@ def fit_section(inv, spec) -> Section:
 
 
 def _tau_report(inv, part) -> tuple[dict, float]:
-    """(tau_report.json, its τ median in s, checked > 0)."""
-    from feeler.errors import DataFileError
-    from feeler.reports.readers import run_json
+    """(tau_report.json, its τ median in s; fields checked: :func:`~feeler.reports.claims_human.read_tau_report`)."""
+    from feeler.reports.claims_human import read_tau_report
 
-    rel = part.path("tau_report.json")
-    rep = run_json(inv, rel, ("tau_median_s",))
-    tau_s = float(rep["tau_median_s"])
-    if not tau_s > 0:
-        raise DataFileError(inv.run_dir / rel, f"tau_median_s = {tau_s!r} must be > 0")
-    return rep, tau_s
+    rep = read_tau_report(inv, part.path("tau_report.json"))
+    return rep, float(rep["tau_median_s"])
 
 
 def _tau_blocks(inv, part) -> list:

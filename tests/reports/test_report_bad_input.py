@@ -167,3 +167,59 @@ def test_a_fit_cut_short_is_named_before_any_figure_is_drawn(tmp_path):
     assert "\n" not in message and "m1/summary.csv: no row for C[0,1]" in message
     assert not [s for s in stages if "figure" in s], stages
     assert not (tmp_path / "out" / "report.html").exists()
+
+
+# a field of a JSON file the report reads, hand-edited to another shape: each gave a traceback
+# (AttributeError, TypeError, ValueError, matplotlib's "'xerr' must not contain negative values")
+@pytest.mark.parametrize("parts, rel, path, value, problem", [
+    (("discriminate",), "discriminate/discrimination.json", ("pairs",), 3, "pairs holds 3; expected a list"),
+    (("discriminate",), "discriminate/discrimination.json", ("pairs", 0, "pc"), "abc", "pairs[0].pc holds 'abc'"),
+    (("discriminate",), "discriminate/discrimination.json", ("threshold_mm",), [1], "threshold_mm holds [1]"),
+    (("discriminate",), "discriminate/discrimination.json", ("threshold_mm", "mean"), "abc",
+     "threshold_mm.mean holds 'abc'; expected a number or a bound"),
+    (("discriminate",), "discriminate/discrimination.json", ("threshold_mm", "found"), "abc",
+     "threshold_mm.found holds 'abc'; expected the fraction of draws"),
+    (("discriminate",), "discriminate/discrimination.json", ("notes",), 3, "notes holds 3; expected a list of strings"),
+    (("discriminate",), "discriminate/discrimination.json", ("curve",), 3, "curve holds 3"),
+    (("discriminate",), "discriminate/discrimination.json", ("curve",), {"delta_mm": [0, 1], "pc": [0.5]},
+     "curve: not a table"),
+    (("m1", "sensor-calibration"), "sensor-calibration/truth.json", ("scene",), 3, "scene holds int 3; expected an object"),
+    (("m1", "sensor-calibration"), "sensor-calibration/truth.json", ("scene", "sensor", "c_mm_per_n"), [1, 2],
+     "scene.sensor.c_mm_per_n holds [1, 2]; expected the 3x3 compliance matrix"),
+    (PSY, "finger-route/tau_report.json", ("tau_median_s",), "abc", "tau_median_s = 'abc' must be > 0"),
+    (PSY, "finger-route/tau_report.json", ("p_tau_le_300ms",), 2, "p_tau_le_300ms = 2 must be a probability"),
+    (PSY, "finger-route/tau_report.json", ("tau_eti95_s",), "abc", "tau_eti95_s = 'abc' must be two numbers"),
+])
+def test_a_json_field_of_another_shape_is_named_in_one_line(part_run, tmp_path, parts, rel, path, value, problem):
+    import json
+
+    run = part_run(*parts)
+    obj = json.loads((run / rel).read_text(encoding="utf-8"))
+    node = obj
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    (run / rel).write_text(json.dumps(obj), encoding="utf-8")
+    stages = []
+    with pytest.raises(DataFileError) as info:
+        build_report(run, tmp_path / "out", pdf=False, progress=stages.append)
+    message = str(info.value)
+    assert "\n" not in message and rel.split("/")[-1] in message and problem in message, message
+    assert not [s for s in stages if "figure" in s], stages
+
+
+def test_an_estimate_outside_its_interval_is_drawn(part_run, tmp_path):
+    """A mean may lie outside its equal-tailed or bootstrap interval; the error bar then ends
+    at the mean on that side (matplotlib raised "'xerr' must not contain negative values")."""
+    import json
+
+    from feeler.reports.model import error_span
+
+    assert error_span([2.0, 1.0], [1.0, 1.5], [3.0, 2.0]).tolist() == [[1.0, 0.0], [1.0, 1.0]]
+    run = part_run("discriminate")
+    path = run / "discriminate" / "discrimination.json"
+    obj = json.loads(path.read_text(encoding="utf-8"))
+    obj["threshold_mm"]["lo95"] = obj["threshold_mm"]["mean"] * 1.1
+    path.write_text(json.dumps(obj), encoding="utf-8")
+    build_report(run, tmp_path / "out", pdf=False)
+    assert (tmp_path / "out" / "report.html").is_file()
