@@ -104,6 +104,7 @@ def run_campaign(setup: Setup, stage, camera, store: RunStore, extra: dict) -> d
     extra = {**extra, "scans_planned": len(scans), "late_fraction": setup.late_fraction}
     seen: Counter = Counter()                    # driver recoveries already journalled
     store.notify("started", len(scans), len(store.done), len(sample_times_s(setup.plan)))
+    _journal_recovered(stage, store, seen, None, None)   # replies recovered while opening the stage
     try:
         for scan in scans:
             if scan.scan_id in store.done:

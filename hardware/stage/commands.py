@@ -2,21 +2,43 @@
 
 ``!`` feed hold, ``~`` cycle start, 0x85 jog cancel, Ctrl-X soft reset (outlasting the
 0.5 s after a hard or soft limit alarm during which Grbl ignores it), ``$X``, ``$$``,
-``$I``, and the resynchronisation after a lost reply. A mixin: it uses the protocol's
-transport, reply reader and state.
+``$I``, the resynchronisation after a lost reply, and :meth:`GrblCommands.ask`: a line that
+is safe to repeat (:func:`idempotent`) sent again when its reply is lost or damaged. A
+mixin: it uses the protocol's transport, reply reader and state.
 """
 from __future__ import annotations
 
 import logging
+import re
 import time
 
-from feeler.hardware.stage.errors import ProtocolError, StageTimeout
+from feeler.errors import ArgumentError
+from feeler.hardware.stage.errors import ProtocolError, StageError, StageTimeout
 from feeler.hardware.stage.replies import Alarm, Banner, Message, Reply, Setting, Status, parse_reply
 
-__all__ = ["GrblCommands", "JOG_CANCEL"]
+__all__ = ["GrblCommands", "JOG_CANCEL", "idempotent", "ASK_TRIES"]
 
 log = logging.getLogger("feeler.hardware.stage")
 JOG_CANCEL = b"\x85"
+#: how often :meth:`GrblCommands.ask` sends a line whose reply keeps being lost
+ASK_TRIES = 3
+#: Grbl's read-only ``$`` queries (settings, build info, parser state, offsets) and ``$X``,
+#: which has no effect outside the alarm lock (gnea/grbl system.c: "Otherwise, no effect")
+_REPEATABLE_SYSTEM = ("$$", "$I", "$G", "$#", "$X")
+#: G-code words that only set a modal state (plane, units, distance mode, feed mode): the
+#: same state however often the line runs
+_MODAL_WORD = re.compile(r"G(17|18|19|20|21|90|91|94)(?!\d|\.)")
+
+
+def idempotent(line: str) -> bool:
+    """Whether ``line`` leaves the controller in the same state however often it runs: a
+    read-only ``$`` query, ``$X``, or a line of modal G-code words only (``G21 G90``); never a
+    move, a dwell, a setting (``$N=v``) or homing."""
+    text = line.strip().upper()
+    if text in _REPEATABLE_SYSTEM:
+        return True
+    words = text.split()
+    return bool(words) and all(_MODAL_WORD.fullmatch(w) for w in words)
 
 
 class GrblCommands:
@@ -119,17 +141,49 @@ class GrblCommands:
             elif isinstance(reply, Message):
                 self.messages.append(reply)
 
+    def ask(self, line: str, tries: int = ASK_TRIES) -> list[Reply]:
+        """Send a line that is safe to repeat (:func:`idempotent`) and return its replies; when
+        its reply is lost or damaged (no ``ok`` before the deadline, with the controller idle; a
+        garbled or cut line), resynchronise and send it again, ``tries`` times in all. Each
+        retry is logged and counted in :attr:`recovered` as the lost reply to a move is.
+
+        A lost reply is not a lost line: the controller may well have run it. Sending again
+        is therefore only for lines whose second run changes nothing (``$$``, ``$I``, ``G21
+        G90``); a move's lost reply is the device layer's business (it looks where the stage
+        stands). A real answer (``error:N``, ``ALARM:N``) is raised at once.
+
+        Raises:
+            ArgumentError: ``line`` is not safe to repeat.
+            StageTimeout, ProtocolError: still lost or damaged at the last try; an ``error:N``.
+        """
+        if not idempotent(line):
+            raise ArgumentError("line", line, "a line that is safe to send twice ($$, $I, $G, $#, $X, or modal "
+                                "G20/G21/G90/G91/G17-19/G94 words only)")
+        from feeler.hardware.stage.protocol import damage_of
+
+        for attempt in range(1, tries + 1):
+            try:
+                return self.send(line)
+            except StageError as exc:
+                if damage_of(exc) is None or attempt == tries:
+                    raise
+                log.warning("%s: %s; %r is safe to repeat: sending it again (try %d of %d)",
+                            self.transport.name, exc, line, attempt + 1, tries)
+                self.count_recovered("ok", exc)
+                self.resync()
+        raise AssertionError("unreachable")
+
     def unlock(self) -> list[Reply]:
-        """``$X``: leave the alarm state."""
-        return self.send("$X")
+        """``$X``: leave the alarm state (sent again if its reply is lost: see :meth:`ask`)."""
+        return self.ask("$X")
 
     def settings(self) -> dict[int, float]:
-        """``$$``: the controller's settings, number → value."""
-        return {r.number: r.value for r in self.send("$$") if isinstance(r, Setting)}
+        """``$$``: the controller's settings, number → value (asked again after a lost reply)."""
+        return {r.number: r.value for r in self.ask("$$") if isinstance(r, Setting)}
 
     def build_info(self) -> dict[str, str]:
-        """``$I``: ``{"VER": "1.1h.20190830:", "OPT": "V,15,128"}``."""
-        return {r.kind: r.text for r in self.send("$I") if isinstance(r, Message)}
+        """``$I``: ``{"VER": "1.1h.20190830:", "OPT": "V,15,128"}`` (asked again after a lost reply)."""
+        return {r.kind: r.text for r in self.ask("$I") if isinstance(r, Message)}
 
     def resync(self, quiet_s: float = 0.05) -> Status:
         """After a lost or damaged acknowledgement: forget lines in flight, drop stale

@@ -9,8 +9,9 @@ are machine positions, from ``MPos`` or from ``WPos + WCO`` when ``$10`` reports
 positions. Targets beyond the soft limits (on the axes that move) and feeds above what
 the moving axes allow are refused before anything is sent.
 
-A lost or damaged acknowledgement of a move is never answered by sending the move again
-blindly: the stage is left to finish whatever it received, and the move is sent again
+A lost or damaged reply to a set-up line that is safe to repeat (``$$``, ``$I``, ``$X``,
+``G21 G90``) is answered by asking again (:meth:`GrblProtocol.ask`). A lost or damaged
+acknowledgement of a move is never answered by sending the move again blindly: the stage is left to finish whatever it received, and the move is sent again
 only when the stage stands idle where it was before it, with nothing pending — the one
 case where the controller certainly did not receive it.
 
@@ -109,7 +110,7 @@ class Stage(StageTracking):
             elif stage.locked and not allow_locked:
                 raise StageLocked(port, protocol.last_alarm)
             if not stage.locked:
-                protocol.send("G21 G90")
+                protocol.ask("G21 G90")
             return stage
         except BaseException:
             transport.close()
@@ -229,7 +230,7 @@ class Stage(StageTracking):
         p.transport.discard_input(0.05)
         if self.status().state == "Alarm":
             self.unlock()
-        p.send("G21 G90")
+        p.ask("G21 G90")
         status = self.status()
         self.target_mm, self.locked = status.mpos_mm, False
         return status

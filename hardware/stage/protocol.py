@@ -12,9 +12,10 @@ once it is planned, so with the planner full an ``ok`` waits for the moves ahead
 dwell is answered after it. The deadline for the oldest line is the reply timeout plus
 ``slack`` times the work the driver knows to be ahead of it (moves acknowledged and not
 yet due to be done, its own dwell or homing); when it passes, a status query asks whether
-the controller is still moving, and the wait goes on while it is. Lines are never sent
-twice here; a lost reply is an error for the caller (the device layer decides, from the
-stage's position, whether a move arrived).
+the controller is still moving, and the wait goes on while it is. :meth:`send` never sends
+a line twice; a lost reply is an error for the caller (the device layer decides, from the
+stage's position, whether a move arrived). Only :meth:`~.commands.GrblCommands.ask` sends
+again, and only a line that is safe to repeat (``$$``, ``$I``, ``G21 G90``).
 
 Damaged or lost replies that the driver recovers from are counted in
 :attr:`GrblProtocol.recovered`, keyed ``"<reply>_<damage>"`` (:func:`damage_of`).

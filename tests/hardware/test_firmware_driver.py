@@ -20,6 +20,7 @@ from feeler.errors import ArgumentError
 from feeler.hardware.stage import ProtocolError, Stage, StageAlarm, StageLimits, StageLocked
 from feeler.hardware.stage.errors import StageTimeout
 from feeler.hardware.stage.replies import Ok, Status
+from feeler.hardware.stage.transport import Transport
 
 DATA = Path(__file__).parent / "data"
 
@@ -184,6 +185,51 @@ def test_a_board_that_boots_locked(firmware, tmp_path, capsys):
     assert info.value.code == 8
     with open_stage(firmware, unlock=True) as stage:                        # still locked after ALARM:8
         assert stage.status().state == "Idle" and not stage.locked
+
+
+class OkLost(Transport):
+    """The real port, but the ``nth`` ``ok`` the firmware sends never reaches the driver (a
+    reply lost on a serial line): read past, as if it had not come."""
+
+    nth = 1
+
+    def __init__(self, port, name):
+        super().__init__(port, name)
+        self.oks, self.dropped = 0, 0
+
+    def read_line(self, timeout_s, what="reply"):
+        deadline = time.monotonic() + timeout_s
+        while True:
+            line = super().read_line(max(deadline - time.monotonic(), 0.001), what)
+            if line == b"ok":
+                self.oks += 1
+                if self.oks == self.nth:
+                    self.dropped += 1
+                    continue
+            return line
+
+
+@pytest.mark.parametrize("nth, line", [(1, "$$"), (3, "G21 G90")])
+def test_a_lost_reply_to_a_set_up_line_is_asked_again_on_the_firmware(firmware, monkeypatch, caplog, nth, line):
+    """Real Grbl answers $$ (ok #1), $I (#2) and G21 G90 (#3) as the stage opens; the reply
+    to one of them lost on the line failed the open. The driver asks again (each is safe to
+    repeat on Grbl: read-only, or modal), and the board's settings and modes are right."""
+    import logging
+
+    from feeler.hardware.stage import device
+
+    settings(firmware, **FAST)
+    monkeypatch.setattr(device, "Transport", type("OkLostHere", (OkLost,), {"nth": nth}))
+    with caplog.at_level(logging.WARNING, logger="feeler.hardware.stage"), \
+            open_stage(firmware, reply_timeout_s=2.0) as stage:
+        assert stage.protocol.transport.dropped == 1
+        assert f"{line!r} is safe to repeat: sending it again" in caplog.text
+        assert stage.recovered.get("ok_lost", 0) >= 1         # more only if grbl-sim was slower than 2 s
+        assert stage.limits.max_rate_mm_min == (3000.0,) * 3 and stage.settings[120] == 1000.0
+        modes = next(r.text for r in stage.protocol.send("$G") if not isinstance(r, Ok)).split()
+        assert "G21" in modes and "G90" in modes
+        stage.move_to(x_mm=-2.0, feed_mm_min=3000.0)
+        assert stage.wait_idle().mpos_mm == (-2.0, 0.0, 0.0)
 
 
 def campaign_plan(speed_mm_s: float = 2.0, move_feed: float = 500.0) -> str:
