@@ -69,7 +69,8 @@ def register(parser) -> None:
                         help="progress on stderr (default: live on a terminal, a line per scan otherwise)")
     parser.add_argument("--decode", metavar="FIT_DIR", default=None,
                         help="decode every scan while acquiring with this neuron fit (feeler calibrate neuron "
-                             "--out): RUN/decisions.csv, as `feeler decode`, and a line per decision")
+                             "--out, on scans of this set-up; with --emulate, on an emulated run: README, 'Which "
+                             "fit to decode with'): RUN/decisions.csv, as `feeler decode`, and a line per decision")
     parser.add_argument("--accept-failed", action="store_true",
                         help="use a --calibration or --decode fit that failed its diagnostics")
     parser.add_argument("--realtime", action="store_true",

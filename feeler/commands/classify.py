@@ -44,7 +44,7 @@ def run(args) -> int:
     import pandas as pd
 
     from feeler.calib.neuron.classify import chance_mode_notes, classify
-    from feeler.calib.neuron.live.envelope import Envelope, readout_noise_mm
+    from feeler.calib.neuron.live.envelope import Envelope, readout_noise_mm, with_batch
     from feeler.calib.neuron.live.scan_csv import read_scan_records
     from feeler.calib.neuron.live.table import (claims_check, copies_note, coverage_note, labelled_summary,
                                                 off_plate_note, plate_column, unit_mistake)
@@ -65,12 +65,12 @@ def run(args) -> int:
     c = classify(result, [r.uy_mm / length for r in records], [r.t_s for r in records],
                  rng=np.random.default_rng(args.seed), n_draws=args.n_draws, progress=args.progress)
     env = Envelope.of_fit(result, c.tau_s)
-    batch = env.batch_noise([readout_noise_mm(r.uy_mm) for r in records])    # a noisier set-up: every scan
-    flags = [env.problems(r.t_s, c.p_at_tau[:, k], x_mm=r.x_mm, speed_mm_s=r.speed_mm_s, uy_mm=r.uy_mm,
-                          noise=not batch)
-             + ([batch] if batch else [])
-             + [f for f in [env.plates(c.plate_sds[k], c.nearest_mm[k], c.height_mm[k]),
-                            env.falling(r.uy_mm, c.plates_mm, c.height_mm[k])] if f]
+    noise = [readout_noise_mm(r.uy_mm) for r in records]
+    batch = env.batch_noise(noise)                  # a noisier (or far quieter) set-up: every scan, as decode
+    flags = [with_batch(env.problems(r.t_s, c.p_at_tau[:, k], x_mm=r.x_mm, speed_mm_s=r.speed_mm_s, uy_mm=r.uy_mm)
+                        + [f for f in [env.plates(c.plate_sds[k], c.nearest_mm[k], c.height_mm[k]),
+                                       env.falling(r.uy_mm, c.plates_mm, c.height_mm[k])] if f],
+                        env.noise(noise[k]), batch)
              for k, r in enumerate(records)]
     unit_mistake(path, [f"scan file {r.file}" if r.file else f"scan_id {r.scan_id if r.name is None else repr(r.name)}"
                         for r in records], flags, result.verdict.problems)

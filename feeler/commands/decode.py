@@ -13,12 +13,19 @@ stands off both neighbours by half the scan's rise (a possible glitch, too early
 judge). Writes RUN/decisions.csv (or into --out DIR; next to a CSV given as RUN): per
 scan the probability of every plate and the decoded height with its 90 % interval at the
 scan's end (equal to `feeler classify`), the decision (plate, probability, time and stage
-position; empty if none), and whether the scan was flagged, with the reason. With
+position; empty if none), and whether the scan was flagged, with the reason. The batch's
+read-out noise is judged as classify judges it, after every scan over the scans so far:
+once they show a noisier (or far quieter) set-up than training, every scan is flagged with
+that reason and the later ones are not decided; at the end the flags equal classify's. With
 labels, a warning when the decisions were right less often than the probabilities they
 were taken at promised, or the intervals held for too few labels (README, "Scan CSV
 format"); as classify, a note on scans of a mode the fit reads no better than its plates'
-shares, and on a batch a fifth or more of whose scans (of 20 or more) read far from every
-trained plate (another scale, or steps the fit was not trained on).
+shares, on a batch a fifth or more of whose scans (of 20 or more) read far from every
+trained plate (another scale, or steps the fit was not trained on), on scans that copy
+another's U_y, and on intervals wider than they claim.
+
+A fit decodes scans of the set-up it was calibrated on: for an emulated run (`feeler
+acquire --emulate`) calibrate on an emulated run (README, "Which fit to decode with").
 
 --follow decodes a run another process is still acquiring: it tails RUN/samples.csv
 (a partial last line waits for its end) and stops when the acquisition lets go of the
@@ -110,10 +117,6 @@ def run(args) -> int:
         from feeler.calib.neuron.live.follow import writer_active
         if path.is_dir() and writer_active(path):
             print(f"{path} is still being acquired: decoding the scans written so far (--follow keeps up)")
-        from feeler.calib.neuron.live.envelope import readout_noise_mm
-        batch = decoder.live.env.batch_noise([readout_noise_mm(r.uy_mm) for r in records])
-        if batch:                    # decisions are made scan by scan, each on its own noise (classify flags all)
-            print(f"note: {batch}; decisions.csv's decisions are made on each scan's own noise and may not hold")
         for r in records:
             for k in range(r.t_s.size):
                 decoder.sample({"scan_id": r.scan_id, "t_s": r.t_s[k], "uy_mm": r.uy_mm[k],
@@ -195,9 +198,7 @@ def _drop_cut_scan(decoder, path) -> None:
     if done is None or sid is None or sid in done:
         return
     decoder.discard()
-    decoder.rows.pop(sid, None)                         # an earlier attempt of it, cut too
-    decoder.snapped.pop(sid, None)
-    decoder.off_plate.pop(sid, None)
+    decoder.forget(sid)                                 # an earlier attempt of it, cut too
     print(f"scan {sid} was cut short when the acquisition stopped: it gets no row in decisions.csv (as `feeler "
           f"decode` of the run leaves it out); `feeler acquire --resume` scans it again")
 
@@ -205,7 +206,7 @@ def _drop_cut_scan(decoder, path) -> None:
 def _summary(decoder) -> None:
     import numpy as np
 
-    from feeler.calib.neuron.live.table import claims_check, off_plate_note, on_a_plate
+    from feeler.calib.neuron.live.table import claims_check, copies_note, coverage_note, off_plate_note, on_a_plate
     from feeler.calib.neuron.classify import chance_mode_notes
 
     t = decoder.table()
@@ -220,10 +221,15 @@ def _summary(decoder) -> None:
         line += f"; median decision at {np.median(t['decided_at_t_s'].to_numpy(float)[decided]):.3g} s"
     flagged = int(t["flagged"].sum())
     print(line + (f"; {flagged} flagged as unlike the fit's training scans" if flagged else ""))
+    if decoder.batch:                                   # as classify: every scan, with the batch's reason
+        print(f"note: every scan is flagged: {decoder.batch}")
     late = int(np.sum(decided & t["flagged"].to_numpy(bool)))
     if late:
-        print(f"note: {late} decided scan{'s were' if late > 1 else ' was'} flagged later in the scan (the rest of "
-              f"it showed what its first samples had not; see the flag column): those decisions do not hold")
+        why = ("later in the scan (the rest of it showed what its first samples had not)" if not decoder.batch else
+               "after the decision (later in the scan, or with the batch's read-out noise once enough scans were "
+               "in to tell)")
+        print(f"note: {late} decided scan{'s were' if late > 1 else ' was'} flagged {why}; see the flag column: "
+              f"those decisions do not hold")
     off = off_plate_note(sum(decoder.off_plate[k] for k in decoder.rows), len(t), decoder.live.env.plate_sds,
                          "probabilities and decisions")
     if off:
@@ -236,9 +242,16 @@ def _summary(decoder) -> None:
             print(f"note: {int(new.sum())} of {len(t)} scans are labelled with steps the fit has no plate for "
                   f"({', '.join(f'{v:g}' for v in np.unique(step[new]))} mm; its plates: "
                   f"{', '.join(f'{v:g}' for v in plates)} mm): none of them can be decided as its label")
+    keys = [decoder.uy_key[k] for k in sorted(decoder.rows) if k in decoder.uy_key]
+    copies = copies_note([f"scan_id {k}" for k in sorted(decoder.rows) if k in decoder.uy_key], keys)
+    if copies:
+        print(copies)
     snapped = [decoder.snapped[k] for k in sorted(decoder.rows)]
     modes = None if None in snapped else np.array(snapped, bool)
     for said in chance_mode_notes(decoder.live.fit.posterior["posterior"].attrs, modes):
         print(f"note: {said}")
     for said in claims_check(t, decoder.live.plates_mm, decided="decided_mm", promised="p_decided"):
         print(f"warning: {said}")
+    wide = coverage_note(t, decoder.live.plates_mm)
+    if wide:
+        print(f"note: {wide}")

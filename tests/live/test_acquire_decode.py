@@ -53,3 +53,34 @@ def test_a_failed_fit_is_refused_and_the_option_it_names_exists(fit_dir, tmp_pat
     assert "pass --accept-failed to use it anyway" in err and not (run / "samples.csv").exists()
     assert main([*argv, "--accept-failed"]) == 0
     assert (run / "decisions.csv").is_file()
+
+
+def test_acquire_decode_flags_the_batch_as_classify_does(fit_dir, scans_frame, tmp_path, capsys):
+    """`acquire --decode` (its campaign observer, fed as a campaign feeds it) judges the
+    batch's read-out noise as classify does, as soon as its scans tell: scans with 2 um
+    more noise end flagged with classify's reason, the scans after the 5th are not decided,
+    and it says so at the end. It decided such scans unflagged (an outside walk-through:
+    emulated scans, far quieter than the shipped four-plates fit's, decided at p 0.999)."""
+    from feeler.calib.neuron.live.observer import decode_observer
+
+    noisy = scans_frame.assign(uy_mm=scans_frame.uy_mm + 0.002 * np.random.default_rng(3).standard_normal(
+        len(scans_frame)))
+    run = tmp_path / "run"
+    run.mkdir()
+    observer = decode_observer(fit_dir, run, n_draws=40)
+    groups = list(noisy.groupby("scan_id", sort=False))
+    observer.started(len(groups), 0, 41)
+    for sid, rows in groups:
+        observer.event("scan_start", {"scan_id": int(sid), "attempt": 0})
+        for row in rows.assign(attempt=0).to_dict("records"):
+            observer.sample(row)
+        observer.event("scan_done", {"scan_id": int(sid), "n_samples": len(rows)})
+    observer.finished({})
+    live = pd.read_csv(run / "decisions.csv")
+    assert len(live) == len(groups) and live.flagged.all() and live.decided_mm[5:].isna().all()
+    noisy.to_csv(tmp_path / "noisy.csv", index=False)
+    assert main(["classify", str(fit_dir), str(tmp_path / "noisy.csv"), "--n-draws", "40",
+                 "--out", str(tmp_path / "c")]) == 0
+    cls = pd.read_csv(tmp_path / "c" / "classification.csv")
+    assert live.flag.tolist() == cls.flag.tolist()
+    assert f"note: every scan is flagged: these {len(groups)} scans' read-out noise" in capsys.readouterr().err

@@ -173,11 +173,14 @@ def test_follow_without_a_run_fails_in_one_line(fit_dir, tmp_path, capsys):
     assert len(said) == 3 and all(ln.startswith("feeler: error: ") for ln in said) and "Traceback" not in err
 
 
-def test_decode_notes_a_batch_noisier_than_training_and_names_scans_by_number(fit_dir, scans_frame, tmp_path,
-                                                                               capsys):
-    """Scans named S1-T.. with 2 um more noise: decode says how the names became numbers and
-    that the batch is noisier than the training scans (decisions are per scan; classify
-    flags them all)."""
+def test_decode_flags_a_batch_noisier_than_training_as_classify_does(fit_dir, scans_frame, tmp_path, capsys):
+    """Scans named S1-T.. with 2 um more noise: decode says how the names became numbers, and
+    judges the batch's read-out noise as classify does: every row is flagged with classify's
+    reason. It only printed a note before, and `decode --follow` or `acquire --decode` not
+    even that (an outside walk-through: 6 of 8 emulated scans decided at p 0.999, unflagged,
+    where classify flagged all 8 as a quieter set-up). The batch is judged once 5 scans are
+    in: the scans after that are not decided, and the decisions taken before it are said
+    not to hold."""
     import numpy as np
 
     run = tmp_path / "run"
@@ -189,8 +192,72 @@ def test_decode_notes_a_batch_noisier_than_training_and_names_scans_by_number(fi
     assert main(["decode", str(fit_dir), str(run), "--n-draws", "40", "--no-live"]) == 0
     said = capsys.readouterr().out
     assert "scan ids are names (S1-T00 ... S1-T88), read as scan_id 0 ... 11 in order of appearance" in said
-    assert "note: these 12 scans' read-out noise (median" in said and "may not hold" in said
-    assert len(pd.read_csv(run / "decisions.csv")) == 12
+    assert "note: every scan is flagged: these 12 scans' read-out noise (median" in said
+    dec = pd.read_csv(run / "decisions.csv")
+    assert len(dec) == 12 and dec.flagged.all()
+    assert dec.decided_mm[5:].isna().all()                  # judged at the 5th scan's end: none decided after
+    early = int(dec.decided_mm.notna().sum())
+    if early:
+        assert f"note: {early} decided scan{'s were' if early > 1 else ' was'} flagged after the decision" in said
+    assert main(["classify", str(fit_dir), str(run), "--n-draws", "40", "--out", str(tmp_path / "c")]) == 0
+    cls = pd.read_csv(tmp_path / "c" / "classification.csv")
+    assert cls.flagged.all() and dec.flag.tolist() == cls.flag.tolist()
+
+
+def test_a_follower_flags_the_batch_as_soon_as_its_scans_tell(fit_dir, scans_frame, tmp_path, capsys):
+    """`decode --follow` (and `acquire --decode`, the same RunDecoder) judges the batch's
+    noise after every scan: from the 5th scan on every row so far is flagged, the next scans
+    are flagged from their first sample and not decided, and at the end decisions.csv's
+    flags are classify's for the same run."""
+    noisy = scans_frame.assign(uy_mm=scans_frame.uy_mm + 0.002 * np.random.default_rng(3).standard_normal(
+        len(scans_frame)))
+    run = tmp_path / "run"
+    th = threading.Thread(target=_scan_by_scan_writer, args=(run, noisy))
+    th.start()
+    try:
+        assert main(["decode", str(fit_dir), str(run), "--follow", "--poll-s", "0.02", "--wait-s", "10",
+                     "--n-draws", "40", "--no-live"]) == 0
+    finally:
+        th.join()
+    assert "note: every scan is flagged: these 12 scans' read-out noise" in capsys.readouterr().out
+    live = pd.read_csv(run / "decisions.csv")
+    assert live.flagged.all() and live.decided_mm[5:].isna().all()
+    noisy.to_csv(tmp_path / "noisy.csv", index=False)
+    assert main(["classify", str(fit_dir), str(tmp_path / "noisy.csv"), "--n-draws", "40",
+                 "--out", str(tmp_path / "c")]) == 0
+    assert live.flag.tolist() == pd.read_csv(tmp_path / "c" / "classification.csv").flag.tolist()
+
+
+def _scan_by_scan_writer(run, frame):
+    """Make RUN and write its samples scan by scan under the writer lock, as `acquire` does."""
+    import json
+
+    time.sleep(0.2)
+    run.mkdir()
+    fd = lock_run_dir(run)
+    try:
+        first = True
+        for sid, rows in frame.groupby("scan_id", sort=False):
+            rows.assign(attempt=0).to_csv(run / "samples.csv", index=False, header=first, mode="w" if first else "a")
+            first = False
+            with open(run / "journal.jsonl", "a") as f:
+                f.write(json.dumps({"event": "scan_done", "scan_id": int(sid)}) + "\n")
+            time.sleep(0.05)
+    finally:
+        release_run_dir(fd)
+
+
+def test_a_run_with_no_batch_reason_is_decided_as_before(small_fit, scans_frame):
+    """The fit's own scans: no batch reason, and each row's flags are the scan's own."""
+    from feeler.calib.neuron.live import LiveDecoder
+    from feeler.calib.neuron.live.run import RunDecoder
+
+    decoder = RunDecoder(LiveDecoder(small_fit[1], seed=0, n_draws=40))
+    for row in scans_frame.to_dict("records"):
+        decoder.sample(row)
+    decoder.end_scan()
+    assert decoder.batch is None and decoder.live.batch is None
+    assert not decoder.table().flagged.any() and decoder.table().decided_mm.notna().any()
 
 
 def test_decisions_that_contradict_the_labels_are_a_warning(fit_dir, fresh_frame, tmp_path, capsys):
@@ -323,3 +390,16 @@ def test_decode_counts_decided_scans_that_the_rest_of_the_scan_flags(fit_dir, sc
     assert table.flag[table.flagged].str.contains(r"^U_y jumps \+\d+\.\d+ um at t = 18 s", regex=True).all()
     assert f"note: {both} decided scan{'s were' if both > 1 else ' was'} flagged later in the scan" in said
     assert "those decisions do not hold" in said
+
+
+def test_decode_notes_copied_scans_as_classify_does(fit_dir, scans_frame, tmp_path, capsys):
+    """classify notes scans that repeat another's U_y at every sample; decode said nothing."""
+    ids = scans_frame.scan_id.unique()
+    copy = scans_frame[scans_frame.scan_id == ids[0]].assign(scan_id=int(ids.max()) + 1)
+    pd.concat([scans_frame, copy]).to_csv(tmp_path / "copies.csv", index=False)
+    assert main(["decode", str(fit_dir), str(tmp_path / "copies.csv"), "--n-draws", "40", "--no-progress"]) == 0
+    said = [ln for ln in capsys.readouterr().out.splitlines() if "repeat an earlier scan's U_y" in ln]
+    assert said == [f"note: 1 of {len(ids) + 1} scans repeat an earlier scan's U_y at every sample (e.g. scan_id "
+                    f"{int(ids.max()) + 1} = scan_id {ids[0]}): a scan copied under new ids, or a read-out that did "
+                    f"not change between touches? Each copy is classified as that one scan, so they are not "
+                    f"{len(ids) + 1} independent readings"]

@@ -35,6 +35,11 @@ scan is decided at the first sample where
    by half the scan's rise without it (:func:`.envelope.early_spike`): it may be a glitch
    that alone sets the peak.
 
+A batch's read-out noise is judged over its scans (:meth:`.envelope.Envelope.batch_noise`),
+not by one scan: :class:`~.run.RunDecoder` sets :attr:`LiveDecoder.batch` once the scans
+so far show a set-up noisier or far quieter than training, and every scan is then flagged
+with that reason from its first sample (:func:`.envelope.with_batch`), so not decided.
+
 A scan that ends below the threshold stays undecided (its final probabilities are still
 given).
 """
@@ -169,6 +174,14 @@ class LiveDecoder:
         self.threshold, self.drop = float(threshold), float(drop)
         self._floor = float(np.median(self.env.p_lo)) * self.drop
         self.camera = camera
+        #: the batch's read-out noise reason (Envelope.batch_noise of the scans so far), set by
+        #: the caller that sees the batch (RunDecoder); every scan is flagged with it while set
+        self.batch: str | None = None
+        #: after finish(): the scan's own flags (without the batch's), the one about its noise
+        #: alone (or None), and its read-out noise (mm), for RunDecoder's batch judgement
+        self.own_flags: tuple[str, ...] = ()
+        self.own_noise: str | None = None
+        self.noise_mm = float("nan")
         self.reset()
 
     @property
@@ -223,6 +236,11 @@ class LiveDecoder:
         distance, nearest = self.dec.plate_distance(col)
         return (prob, _Height(self.dec, p, mode), median_of(self.dec.decoded(col)), (float(distance[0]), int(nearest[0])),
                 mode)
+
+    @property
+    def uy_mm(self) -> np.ndarray:
+        """The scan's U_y so far (mm)."""
+        return np.asarray(self._uy, float)
 
     @property
     def p_at_tau(self) -> np.ndarray:
@@ -294,6 +312,10 @@ class LiveDecoder:
         return self.camera
 
     def _flags(self, t: float, *, final: bool, peaked: bool = False, fresh: bool = False) -> list[str]:
+        """The scan's flags so far, judged with :attr:`batch` (:func:`.envelope.with_batch`);
+        at the end (``final``) its own flags and noise are kept for the batch's judgement."""
+        from feeler.calib.neuron.live.envelope import with_batch
+
         moved = np.isfinite(self._x0) and np.isfinite(self._x1) and self._x1 != self._x0
         ends = (self._x0, self._x1) if (moved or final) and np.isfinite(self._x0) else None
         noise, spike, fall = (self._quality_of(final or fresh, whole=final) if (peaked or final)
@@ -308,7 +330,11 @@ class LiveDecoder:
                 out.append(self.env.plates(distance, float(self.plates_mm[k]), height.get()[0]))
             if fall:
                 out.append(fall)
-        return out
+        own_noise = None if noise is None else self.env.noise(noise)
+        if final:
+            self.own_flags, self.own_noise = tuple(out), own_noise
+            self.noise_mm = float("nan") if noise is None else float(noise)
+        return with_batch(out, own_noise, self.batch)
 
     def _quality_of(self, refresh: bool, *, whole: bool = False):
         """(read-out noise, spike line, falling line) of the scan so far. They read the whole

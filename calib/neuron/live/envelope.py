@@ -23,8 +23,10 @@ training envelope and flagged with the reason:
   put 50 % of labels inside their 90 % intervals (one scan of 96 flagged by the other
   checks), with 4× 28 % and half the plates wrong. One scan's estimate scatters by about
   ±50 % over 41 samples, so :meth:`Envelope.batch_noise` compares a batch's median with
-  the training scans' (classify flags every scan of a batch that is noisier). Less noise
-  than in training is not flagged: intervals then over-cover (0.5×: 95 % inside);
+  the training scans' and :func:`with_batch` flags every scan of a batch that is noisier
+  (or far quieter) with that reason, in place of its own noise reason (``classify``; ``decode``
+  and ``acquire --decode`` as soon as the batch's scans tell). Less noise than in training
+  is not flagged scan by scan: intervals then over-cover (0.5×: 95 % inside);
 - the plates: the decoded reading against every training plate's predictive, in that
   plate's sds (:meth:`~feeler.calib.neuron.decoder.DecoderDraws.plate_distance`); more
   than ``plate_sds`` (default 5) from the nearest is a step the fit was not trained on
@@ -48,7 +50,7 @@ import numpy as np
 from feeler.errors import ArgumentError
 
 __all__ = ["Envelope", "UNIT_FACTOR", "stage_units", "training_speed_mm_s", "median_of", "readout_noise_mm",
-           "spike_of", "spike_problem", "SPIKE_SDS", "SPIKE_SDS_STREAM"]
+           "spike_of", "spike_problem", "SPIKE_SDS", "SPIKE_SDS_STREAM", "with_batch"]
 
 
 def median_of(x: np.ndarray) -> float:
@@ -178,6 +180,19 @@ BATCH_MIN_SCANS = 5
 BATCH_QUIET_FACTOR = 3.0
 
 UNIT_FACTOR = 30.0     # a scale further off than this is a unit mistake, not physics (M2's verdict uses it too)
+
+
+def with_batch(flags, own_noise: str | None, batch: str | None) -> list[str]:
+    """A scan's flags judged with its batch, as ``classify``, ``decode`` and ``acquire
+    --decode`` judge them: ``flags`` are the scan's own reasons (:meth:`Envelope.problems`
+    and the others), ``own_noise`` the one of them about its read-out noise alone
+    (:meth:`Envelope.noise`, or None), ``batch`` the batch's reason
+    (:meth:`Envelope.batch_noise`, or None). A batch reason replaces the scan's own noise
+    reason (the batch's median says more than one scan's estimate, which scatters by ±50 %)
+    and comes last; without one, the flags are the scan's own."""
+    if not batch:
+        return list(flags)
+    return [f for f in flags if f != own_noise] + [batch]
 
 
 def stage_units(ratio: float) -> str:

@@ -20,10 +20,12 @@ class DecodeObserver(CampaignObserver):
     """Args:
         decoder (RunDecoder): the run decoder (its ``on_state``/``on_scan`` print, if set).
         out (Path): ``decisions.csv`` to keep written.
+        say (callable | None): prints a note at the end (the batch's read-out noise reason,
+            with which every scan is flagged, as ``feeler decode`` notes it); None: silent.
     """
 
-    def __init__(self, decoder, out):
-        self.decoder, self.out = decoder, Path(out)
+    def __init__(self, decoder, out, say=None):
+        self.decoder, self.out, self.say = decoder, Path(out), say
 
     def started(self, scans_planned: int, scans_done: int, samples_per_scan: int) -> None:
         if scans_done and self.out.exists():
@@ -46,6 +48,8 @@ class DecodeObserver(CampaignObserver):
     def finished(self, summary: dict) -> None:
         self.decoder.discard()
         self.decoder.write(self.out)
+        if self.decoder.batch and self.say is not None:
+            self.say(f"note: every scan is flagged: {self.decoder.batch}")
 
 
 def decode_observer(fit_dir, run_dir, others=(), *, force: bool = False, seed: int = 0, n_draws: int = 400,
@@ -75,4 +79,4 @@ def decode_observer(fit_dir, run_dir, others=(), *, force: bool = False, seed: i
                 o.clear()
 
     view = LiveView(live.plates_mm, live=False, before_line=wipe)
-    return DecodeObserver(RunDecoder(live, on_state=view.on_state, on_scan=view.on_scan), out)
+    return DecodeObserver(RunDecoder(live, on_state=view.on_state, on_scan=view.on_scan), out, say=view.line)

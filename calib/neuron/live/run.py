@@ -13,6 +13,15 @@ Columns of ``decisions.csv`` (:data:`COLUMNS`, with one ``p_<plate>mm`` per plat
 ``decided_mm``, ``p_decided``, ``decided_at_t_s``, ``decided_at_x_mm`` of the decision
 (empty when the scan ended undecided); ``n_samples``; ``flagged`` and ``flag`` (why the scan
 lies outside the fit's training envelope).
+
+The batch's read-out noise is judged as ``feeler classify`` judges it
+(:meth:`~.envelope.Envelope.batch_noise` over every scan closed so far, then
+:func:`~.envelope.with_batch`), again after every scan: once the scans so far show a
+set-up noisier or far quieter than the training scans, every row so far is flagged with
+that reason (a decision taken before does not hold) and the scans after it are flagged
+from their first sample (so not decided); should later scans bring the batch back inside,
+the rows lose that flag again. At the end of a run the flags are those classify gives
+the same scans.
 """
 from __future__ import annotations
 
@@ -22,7 +31,14 @@ import numpy as np
 
 from feeler.calib.neuron.live.table import plate_column
 
-__all__ = ["RunDecoder", "decision_columns"]
+__all__ = ["RunDecoder", "decision_columns", "scan_key"]
+
+
+def scan_key(uy_mm) -> bytes:
+    """A scan's U_y at every sample, as :func:`~.table.copies_note` compares scans."""
+    import hashlib
+
+    return hashlib.blake2b(np.ascontiguousarray(np.asarray(uy_mm, float)).tobytes(), digest_size=16).digest()
 
 
 def decision_columns(plates_mm, *, labelled: bool) -> list[str]:
@@ -54,6 +70,12 @@ class RunDecoder:
         self.rows: dict[int, dict] = {}
         self.snapped: dict[int, bool | None] = {}      # each scan's mode as read at its end (None: one-mode fit)
         self.off_plate: dict[int, bool] = {}             # each scan read off every trained plate at its end
+        self.own: dict[int, tuple] = {}                  # each scan's own flags and its noise reason
+        self.uy_key: dict[int, bytes] = {}               # each scan's U_y, as copies_note compares them
+        self.batch: str | None = None                    # the batch's read-out noise reason, if any
+        self._noise = np.full(64, np.nan)                # each closed scan's read-out noise (mm), in a slot
+        self._slot: dict[int, int] = {}                  # of its own (a run of 20 000 scans: no list rebuilt)
+        self._used = 0
         self._key = None
         self._labels: dict = {}
         self.labelled = False
@@ -96,9 +118,50 @@ class RunDecoder:
         self.rows[sid] = row
         self.snapped[sid] = self.live.snapped
         self.off_plate[sid] = self.live.off_plate
+        self.own[sid] = (self.live.own_flags, self.live.own_noise)
+        self.uy_key[sid] = scan_key(self.live.uy_mm)
+        self._keep_noise(sid, self.live.noise_mm)
+        self.judge_batch()
+        self._flag(sid)
         if self.on_scan is not None:
             self.on_scan(row)
         return row
+
+    def _keep_noise(self, sid: int, noise_mm: float) -> None:
+        i = self._slot.get(sid)
+        if i is None:                                   # a new scan (a later attempt reuses its slot)
+            if self._used == self._noise.size:
+                self._noise = np.concatenate([self._noise, np.full(self._noise.size, np.nan)])
+            i = self._slot[sid] = self._used
+            self._used += 1
+        self._noise[i] = noise_mm
+
+    def judge_batch(self) -> str | None:
+        """Judge the read-out noise of the scans closed so far as a batch, as classify does
+        (:meth:`~.envelope.Envelope.batch_noise`); the live decoder flags the next scans with
+        the reason, and every row gets it when the table is made (:meth:`table`). Returns the
+        reason, or None."""
+        self.batch = self.live.env.batch_noise(self._noise[:self._used])
+        self.live.batch = self.batch
+        return self.batch
+
+    def _flag(self, sid: int) -> None:
+        """Scan ``sid``'s row flagged as judged with the batch (:func:`~.envelope.with_batch`);
+        a row read back from an earlier decisions.csv (its own flags unknown) keeps its flags."""
+        from feeler.calib.neuron.live.envelope import with_batch
+
+        if sid in self.own:
+            flags = with_batch(*self.own[sid], self.batch)
+            self.rows[sid]["flagged"], self.rows[sid]["flag"] = bool(flags), "; ".join(flags)
+
+    def forget(self, sid: int) -> None:
+        """Drop scan ``sid``'s row and what is kept of it (cut short: it gets no row)."""
+        for kept in (self.rows, self.snapped, self.off_plate, self.own, self.uy_key):
+            kept.pop(sid, None)
+        i = self._slot.pop(sid, None)
+        if i is not None:
+            self._noise[i] = np.nan                     # not in the batch (batch_noise drops NaN)
+        self.judge_batch()
 
     @property
     def in_progress(self) -> int | None:
@@ -114,6 +177,8 @@ class RunDecoder:
         import pandas as pd
 
         cols = decision_columns(self.live.plates_mm, labelled=self.labelled)
+        for k in self.rows:                             # every row with the batch as judged now
+            self._flag(k)
         rows = [self.rows[k] for k in sorted(self.rows)]
         return pd.DataFrame(rows, columns=list(rows[0]) if rows else cols)[cols]
 

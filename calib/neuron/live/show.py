@@ -42,7 +42,7 @@ class LiveView:
         d = state.decision
         if not self.live:
             if state.new_decision:
-                self._line(f"scan {scan_id}: decided {d.plate_mm:g} mm (p {d.p:.3f}) at t {d.t_s:.3f} s"
+                self.line(f"scan {scan_id}: decided {d.plate_mm:g} mm (p {d.p:.3f}) at t {d.t_s:.3f} s"
                            + ("" if math.isnan(d.x_mm) else f", x {d.x_mm:.3f} mm") + f", sample {d.index}")
             return
         now = self.clock()
@@ -67,11 +67,12 @@ class LiveView:
             self.stream.write("\r" + " " * self._width + "\r")
             self._width = 0
             self._last = -math.inf
-            self._line(end)
+            self.line(end)
         elif row["flagged"] or math.isnan(row["decided_mm"]):
-            self._line(end)
+            self.line(end)
 
-    def _line(self, text: str) -> None:
+    def line(self, text: str) -> None:
+        """Print one line of its own (wiping a progress line first, if asked to)."""
         if self.before_line is not None:
             self.before_line()
         self.stream.write(text + "\n")

@@ -53,11 +53,14 @@ def copies_note(names, uy_mm) -> str | None:
     sample (``uy_mm``: one array per scan, ``names``: how each is named). No two touches
     of a real read-out agree to the last digit; a scan copied under new ids, or a read-out
     that did not change between touches, does (an outside audit: 96 copies of one scan
-    were each classified at p = 0.999, without a word). None when no two are equal."""
+    were each classified at p = 0.999, without a word). None when no two are equal. A scan
+    may come as its :func:`~.run.scan_key` (bytes), as ``decode`` keeps them."""
+    from feeler.calib.neuron.live.run import scan_key
+
     first: dict[bytes, int] = {}
     copies = []
     for k, u in enumerate(uy_mm):
-        key = np.ascontiguousarray(np.asarray(u, float)).tobytes()
+        key = u if isinstance(u, bytes) else scan_key(u)
         if key in first:
             copies.append((k, first[key]))
         else:
