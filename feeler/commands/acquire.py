@@ -70,7 +70,9 @@ def register(parser) -> None:
     parser.add_argument("--decode", metavar="FIT_DIR", default=None,
                         help="decode every scan while acquiring with this neuron fit (feeler calibrate neuron "
                              "--out, on scans of this set-up; with --emulate, on an emulated run: README, 'Which "
-                             "fit to decode with'): RUN/decisions.csv, as `feeler decode`, and a line per decision")
+                             "fit to decode with'): RUN/decisions.csv, as `feeler decode`, and a line per decision "
+                             "on stderr (none with --no-progress); with --resume the scans acquired before are "
+                             "decoded first, so decisions.csv holds every scan of the run")
     parser.add_argument("--accept-failed", action="store_true",
                         help="use a --calibration or --decode fit that failed its diagnostics")
     parser.add_argument("--realtime", action="store_true",
@@ -102,7 +104,7 @@ def run(args) -> int:
     if args.decode:                                # the fit is checked before anything moves
         from feeler.calib.neuron.live.observer import decode_observer
         decoding = (decode_observer(args.decode, args.out, observers, force=args.force or args.resume,
-                                    accept_failed=args.accept_failed),)
+                                    accept_failed=args.accept_failed, progress=args.progress is not False),)
     with contextlib.ExitStack() as stack:          # undone in reverse: priority first, then the log filters
         for progress in observers:
             for handler in logging.getLogger().handlers:

@@ -83,4 +83,38 @@ def test_acquire_decode_flags_the_batch_as_classify_does(fit_dir, scans_frame, t
                  "--out", str(tmp_path / "c")]) == 0
     cls = pd.read_csv(tmp_path / "c" / "classification.csv")
     assert live.flag.tolist() == cls.flag.tolist()
-    assert f"note: every scan is flagged: these {len(groups)} scans' read-out noise" in capsys.readouterr().err
+    assert f"note: every scan is flagged: these {len(groups)} scans' read-out noise" in capsys.readouterr().out
+
+
+def test_resume_with_decode_decodes_the_scans_acquired_before(fit_dir, tmp_path, capsys):
+    """A run stopped after 2 of 4 scans, acquired without --decode, then resumed with
+    --decode: decisions.csv held only the 2 scans of the resumed part (an outside
+    walk-through), while --help says every scan is decoded "as `feeler decode`". Now the
+    scans done before are decoded first: decisions.csv equals `feeler decode` of the run,
+    and one line says so."""
+    run = tmp_path / "run"
+    argv = ["acquire", "--emulate", "--plan", str(TINY), "--out", str(run)]
+    assert main(argv + ["--no-progress", "--fault", "vanish:reply=ok,nth=17"]) == 1   # ok 17: scan 2's first move
+    assert pd.read_csv(run / "scans.csv").scan_id.unique().tolist() == [0, 1]
+    capsys.readouterr()
+    assert main(argv + ["--resume", "--decode", str(fit_dir)]) == 0
+    err = capsys.readouterr().err
+    assert f"feeler acquire: decoded the 2 scans acquired before this resume into {run / 'decisions.csv'}" in err
+    live = pd.read_csv(run / "decisions.csv")
+    assert live.scan_id.tolist() == [0, 1, 2, 3]
+    assert main(["decode", str(fit_dir), str(run), "--out", str(tmp_path / "off"), "--no-live"]) == 0
+    pd.testing.assert_frame_equal(live, pd.read_csv(tmp_path / "off" / "decisions.csv"), rtol=1e-12)
+
+
+def test_decode_with_no_progress_prints_no_decision_lines(fit_dir, tmp_path, capsys):
+    """`acquire --decode --no-progress` printed a line per decision (and per flagged scan)
+    on stderr, where `decode --no-progress` prints none: now neither does."""
+    run = tmp_path / "run"
+    assert main(["acquire", "--emulate", "--plan", str(TINY), "--out", str(run), "--no-progress",
+                 "--decode", str(fit_dir)]) == 0
+    err = capsys.readouterr().err
+    assert not [ln for ln in err.splitlines() if ln.startswith("scan ")], err
+    assert len(pd.read_csv(run / "decisions.csv")) == 4
+    assert main(["acquire", "--emulate", "--plan", str(TINY), "--out", str(run), "--force",
+                 "--decode", str(fit_dir)]) == 0
+    assert [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("scan ")]   # without it: the lines

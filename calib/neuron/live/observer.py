@@ -3,9 +3,10 @@ and keeps ``RUN/decisions.csv`` up to date (``feeler acquire --decode FIT``).
 
 A scan's row is written when its ``scan_done`` event arrives — the moment it enters
 ``scans.csv`` — so ``decisions.csv`` always holds exactly the complete scans, like
-``feeler decode RUN`` afterwards. An aborted attempt is dropped when the next begins, a
-scan cut by the end of the run is not written, and on ``--resume`` the rows of the scans
-done before are kept.
+``feeler decode RUN`` afterwards. An aborted attempt is dropped when the next begins, and
+a scan cut by the end of the run is not written. On ``--resume`` the scans done before
+(``RUN/scans.csv``, acquired with or without ``--decode``) are decoded first, as ``feeler
+decode`` decodes them, so decisions.csv holds every complete scan of the run.
 """
 from __future__ import annotations
 
@@ -24,18 +25,29 @@ class DecodeObserver(CampaignObserver):
             with which every scan is flagged, as ``feeler decode`` notes it); None: silent.
     """
 
-    def __init__(self, decoder, out, say=None):
-        self.decoder, self.out, self.say = decoder, Path(out), say
+    def __init__(self, decoder, out, say=None, tell=None):
+        self.decoder, self.out, self.say, self.tell = decoder, Path(out), say, tell
 
     def started(self, scans_planned: int, scans_done: int, samples_per_scan: int) -> None:
-        if scans_done and self.out.exists():
-            import pandas as pd
+        """On ``--resume``: decode the scans an earlier run completed (its ``scans.csv``),
+        without a line per decision (``tell`` says how many in one line)."""
+        if not scans_done:
+            return
+        import csv
 
-            earlier = pd.read_csv(self.out, keep_default_na=True)
-            earlier["flag"] = earlier["flag"].fillna("")
-            for row in earlier.to_dict("records"):
-                self.decoder.rows[int(row["scan_id"])] = row
-            self.decoder.labelled |= "step_mm" in earlier.columns
+        d = self.decoder
+        callbacks, (d.on_state, d.on_scan) = (d.on_state, d.on_scan), (None, None)
+        try:
+            with open(self.out.parent / "scans.csv", newline="", encoding="utf-8") as f:
+                for row in csv.DictReader(f):
+                    d.sample(row)
+            d.end_scan()
+        finally:
+            d.on_state, d.on_scan = callbacks
+        d.write(self.out)
+        if self.tell is not None:
+            self.tell(f"decoded the {len(d.rows)} scan{'s' if len(d.rows) != 1 else ''} acquired before this resume "
+                      f"into {self.out}; decoding the rest as they are acquired")
 
     def sample(self, row: dict) -> None:
         self.decoder.sample(row)
@@ -53,10 +65,12 @@ class DecodeObserver(CampaignObserver):
 
 
 def decode_observer(fit_dir, run_dir, others=(), *, force: bool = False, seed: int = 0, n_draws: int = 400,
-                    threshold: float = 0.9, accept_failed: bool = False) -> DecodeObserver:
+                    threshold: float = 0.9, accept_failed: bool = False, progress: bool = True) -> DecodeObserver:
     """The observer of ``acquire --decode``: loads and checks the fit (a failed fit is
-    refused unless ``accept_failed``), prints a line per decision (wiping the progress
-    line of ``others`` first).
+    refused unless ``accept_failed``); with ``progress``, prints a line per decision on
+    stderr (wiping the progress line of ``others`` first), as ``feeler decode`` does, and
+    without it none (``--no-progress``, as ``feeler decode --no-progress``). The batch's
+    note at the end is a result: on stdout either way.
 
     Raises:
         InputError: an unreadable or failed fit; an earlier decisions.csv without ``force``.
@@ -78,5 +92,8 @@ def decode_observer(fit_dir, run_dir, others=(), *, force: bool = False, seed: i
             if hasattr(o, "clear"):
                 o.clear()
 
+    if not progress:
+        return DecodeObserver(RunDecoder(live), out, say=print)
     view = LiveView(live.plates_mm, live=False, before_line=wipe)
-    return DecodeObserver(RunDecoder(live, on_state=view.on_state, on_scan=view.on_scan), out, say=view.line)
+    return DecodeObserver(RunDecoder(live, on_state=view.on_state, on_scan=view.on_scan), out, say=print,
+                          tell=lambda text: view.line(f"feeler acquire: {text}"))
