@@ -122,11 +122,27 @@ def run(args) -> int:
                           emulator_faults=tuple(parse_fault(spec) for spec in args.fault),
                           unlock=args.unlock, home=args.home, late_fraction=args.late_fraction,
                           observers=observers + decoding)
-    state = "complete" if summary["complete"] else "incomplete"
-    print(f"{args.out}: {summary['scans_done']} of {summary['scans_planned']} scans ({state}), "
-          f"{summary['samples_written']} samples, {summary['bad_frames']} bad frames, "
-          f"{summary['bad_lines']} bad lines, {summary['late_samples']} late samples, "
-          f"{summary['partial_lines_dropped']} partial lines dropped"
-          + (f"; {summary['slow_scans']} scans where the stage moved slower than planned (see the log)"
-             if summary.get("slow_scans") else ""))
+    print(summary_line(args.out, summary))
     return 0 if summary["complete"] else 1
+
+
+def counted(n: int, noun: str, plural: str | None = None) -> str:
+    """``1 bad line``, ``2 bad lines``."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
+
+
+def summary_line(out, summary: dict) -> str:
+    """acquire's last line: the counts of ``summary.json``, singular or plural as they come,
+    and where a slow scan is told of (it read "1 scans ... (see the log)", naming no log)."""
+    from pathlib import Path
+
+    state = "complete" if summary["complete"] else "incomplete"
+    line = (f"{out}: {summary['scans_done']} of {summary['scans_planned']} scans ({state}), "
+            f"{counted(summary['samples_written'], 'sample')}, {counted(summary['bad_frames'], 'bad frame')}, "
+            f"{counted(summary['bad_lines'], 'bad line')}, {counted(summary['late_samples'], 'late sample')}, "
+            f"{counted(summary['partial_lines_dropped'], 'partial line', 'partial lines')} dropped")
+    slow = summary.get("slow_scans")
+    if slow:
+        line += (f"; {counted(slow, 'scan')} where the stage moved slower than planned (the warning"
+                 f"{'s' if slow != 1 else ''} above, and slow_scan events in {Path(out) / 'journal.jsonl'})")
+    return line

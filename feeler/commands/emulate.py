@@ -3,6 +3,7 @@
   feeler emulate stage                       # a Grbl 1.1h stage; prints e.g. /dev/pts/7
   feeler emulate stage --fault drop:reply=ok,nth=3 --fault alarm:code=1,x_mm=-50
   feeler emulate stage --setting 22=1 --setting 20=1   # homing and soft limits: boots locked
+  feeler emulate firmware runs/grbl/grbl/grbl-sim/grbl_sim.exe   # the real Grbl 1.1h (grbl-sim)
 
 Open the printed path with any serial program (or `feeler acquire --stage PATH`) exactly
 as a real /dev/ttyUSB0. It starts with Grbl 1.1h's default settings (500 mm/min, 10 mm/s²,
@@ -13,6 +14,12 @@ KIND[:key=value,...] with KIND one of delay, drop, garble, truncate, alarm, vani
 from the host lost on the way) and keys
 reply (any, ok, error, status, alarm, banner, msg, setting), nth (1-based or none),
 p (probability when nth=none), delay_s, code, x_mm, y_mm, z_mm, after_s.
+
+`feeler emulate firmware EXE` serves the real Grbl 1.1h firmware instead: EXE is the
+grbl_sim.exe that `bash ../shared/grbl-sim/build.sh DIR` builds (and prints), run on one CPU
+in a working directory of its own (--workdir keeps its settings, $$, in EEPROM.DAT there;
+default: a fresh one, Grbl's defaults). The path is printed once the firmware has booted and
+answered a status query. It moves in about real time (slower on a loaded machine).
 """
 from __future__ import annotations
 
@@ -20,8 +27,8 @@ import signal
 import sys
 
 NAME = "emulate"
-HELP = "run a device emulator (Grbl stage) on a pseudo-terminal"
-__all__ = ["NAME", "HELP", "register", "run_stage"]
+HELP = "run a device emulator (Grbl stage), or the real Grbl firmware (grbl-sim), on a pseudo-terminal"
+__all__ = ["NAME", "HELP", "register", "run_stage", "run_firmware"]
 
 
 def register(parser) -> None:
@@ -42,6 +49,15 @@ def register(parser) -> None:
     stage.add_argument("--setting", action="append", default=[], metavar="N=VALUE",
                        help="any other Grbl setting at power-up, e.g. 22=1 (repeatable)")
     stage.set_defaults(run=run_stage)
+    firmware = sub.add_parser("firmware", help="the real Grbl 1.1h firmware (grbl-sim) on a pty",
+                              description="Serve grbl-sim's grbl_sim.exe (the unchanged Grbl 1.1h firmware as a host "
+                                          "program; build it with `bash ../shared/grbl-sim/build.sh DIR`) on a pty; "
+                                          "prints its path once the firmware answers.")
+    firmware.add_argument("exe", metavar="EXE", help="grbl_sim.exe, as build.sh prints it")
+    firmware.add_argument("--workdir", metavar="DIR", default=None,
+                          help="the firmware's working directory, where it keeps its settings (EEPROM.DAT); "
+                               "default: a fresh temporary one (Grbl's default settings), removed at the end")
+    firmware.set_defaults(run=run_firmware)
     parser.set_defaults(run=lambda args: parser.print_help() or 2)
 
 
@@ -85,3 +101,24 @@ def run_stage(args) -> int:
     except KeyboardInterrupt:
         pass
     return 0
+
+
+def run_firmware(args) -> int:
+    import contextlib
+    import tempfile
+
+    from feeler.hardware.emulators.firmware import serve_firmware
+
+    stop: list[int] = []
+    signal.signal(signal.SIGTERM, lambda signum, _: stop.append(signum))
+
+    def announce(path: str) -> None:
+        print(path, flush=True)
+        print(f"feeler: Grbl 1.1h firmware (grbl-sim) on {path}; Ctrl-C to stop", file=sys.stderr, flush=True)
+
+    with contextlib.ExitStack() as stack:
+        workdir = args.workdir or stack.enter_context(tempfile.TemporaryDirectory(prefix="grbl-sim-"))
+        try:
+            return serve_firmware(args.exe, workdir, announce, lambda: bool(stop))
+        except KeyboardInterrupt:
+            return 0

@@ -137,3 +137,25 @@ def test_live_eta_counts_down_through_a_scan():
     clock.now += 30                                    # a slow scan: never below 0
     assert progress.eta_s() == 0.0
     assert out.getvalue().split("\r")[-1].startswith("scan 3 of 4 (id 2), sample 4 of 4; 8 samples, 1 bad, 0 late; ETA 10s")
+
+
+def test_the_summary_line_counts_in_the_singular_and_names_the_journal(tmp_path):
+    """acquire's last line said "1 scans where the stage moved slower than planned (see the
+    log)" (an outside walk-through): no log was named (the event is in RUN/journal.jsonl, the
+    warning went to stderr), and one scan was "1 scans", one bad line "1 bad lines"."""
+    from feeler.commands.acquire import summary_line
+
+    base = {"complete": True, "scans_done": 1, "scans_planned": 1, "samples_written": 41, "bad_frames": 0,
+            "bad_lines": 1, "late_samples": 1, "partial_lines_dropped": 1, "slow_scans": 1}
+    run = tmp_path / "run"
+    assert summary_line(run, base) == (
+        f"{run}: 1 of 1 scans (complete), 41 samples, 0 bad frames, 1 bad line, 1 late sample, 1 partial line "
+        f"dropped; 1 scan where the stage moved slower than planned (the warning above, and slow_scan events in "
+        f"{run / 'journal.jsonl'})")
+    more = {**base, "scans_done": 3, "scans_planned": 4, "complete": False, "bad_lines": 2, "late_samples": 0,
+            "partial_lines_dropped": 0, "slow_scans": 2}
+    assert summary_line(run, more) == (
+        f"{run}: 3 of 4 scans (incomplete), 41 samples, 0 bad frames, 2 bad lines, 0 late samples, 0 partial lines "
+        f"dropped; 2 scans where the stage moved slower than planned (the warnings above, and slow_scan events in "
+        f"{run / 'journal.jsonl'})")
+    assert "slower" not in summary_line(run, {**base, "slow_scans": 0})

@@ -302,7 +302,8 @@ def test_acquire_on_the_real_firmware_with_a_replayed_camera(firmware, tmp_path,
     journal = [json.loads(line) for line in (run / "journal.jsonl").read_text().splitlines()]
     slow = [e["reason"] for e in journal if e["event"] == "bad_line"]
     assert set(slow) <= {"recovered by the driver: status_lost"}
-    assert f"1 of 1 scans (complete), 4 samples, 0 bad frames, {len(slow)} bad lines" in capsys.readouterr().out
+    assert (f"1 of 1 scans (complete), 4 samples, 0 bad frames, {len(slow)} bad line{'' if len(slow) == 1 else 's'}"
+            in capsys.readouterr().out)
     summary = json.loads((run / "summary.json").read_text())
     assert summary["complete"] and summary["stage"] == firmware.path
     import pandas as pd
