@@ -17,7 +17,8 @@ This is what `make demo` runs. Stages, each with its progress line:
        versions of what they do not cover (skin ladder, calibration backends, sensor
        fidelities), labelled as measured during the demo;
   13   write OUT/report.html, OUT/report.pdf and OUT/report-manifest.json.
-Every stage's full output is kept in OUT/logs/. A closing table lists each stage's wall
+Results go to stdout; each stage's progress to stderr (--no-progress: none). Every
+stage's full output is kept in OUT/logs/. A closing table lists each stage's wall
 and CPU time and verdict. A stage that fails (a fit whose verdict fails, with --scene a
 scene the fits cannot pin down) is named with its log; the stages that need its results
 are skipped, the others still run and the report shows them all with the failed verdict;
@@ -41,7 +42,8 @@ def register(parser) -> None:
     parser.add_argument("--scene", default=None, metavar="SCENE",
                         help="robot-scan scene to use instead of the shipped four-plates")
     parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                        help="a line before each stage with the time so far (default; --no-progress: none)")
+                        help="on stderr, a line before each stage with the time so far and the stage's own "
+                             "progress (default; --no-progress: none, stdout keeps the results)")
     parser.set_defaults(run=run)
 
 

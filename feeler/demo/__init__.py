@@ -163,16 +163,19 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
     """Run the demo stages into ``out``; returns the context (scene, scans, features, table...).
 
     Args:
-        echo: prints the stages' results (tables, verdicts).
-        stage_echo: prints the line before each stage and a stage's failure (default ``echo``;
-            the command gives stderr, where progress goes).
+        echo: prints the stages' results (tables, verdicts): the commands' stdout lines
+            that matter.
+        stage_echo: prints the line before each stage, a stage's failure and the stderr
+            of the commands the stages run (their progress, warnings and errors; only errors
+            when ``progress`` is False) (default ``echo``; the command gives stderr, where
+            progress goes).
         scene_path: the robot-scan scene (default the shipped four-plates).
         scenes: other scene files by name ("sensor-calibration", "psychophysics-2afc",
             "finger-steps") instead of the shipped ones (smaller runs, e.g. in tests).
         discriminate_scans: touches per height for the discrimination (default the command's).
         progress: False drops the ``[i/n] stage ... (time so far)`` line before each stage
-            and the stages' own progress (simulation, report); None: as `feeler --progress` off
-            a terminal or on one.
+            and the stages' own progress (simulation, report, and that of the commands they
+            run, which get --no-progress); None: as `feeler --progress` off a terminal or on one.
 
     Raises:
         DemoIncomplete: after the last stage, when some failed (the stages needing them
@@ -193,11 +196,11 @@ def run_demo(out: str | Path, *, force: bool = False, scene_path: str | Path | N
     lock = lock_run_dir(out, then="")
     try:
         out = prepare_out_dir(out, _results(scene_path), force=force)
-        ctx = {"out": out, "force": force, "scene_path": scene_path, "print": echo,
+        say = stage_echo or echo
+        ctx = {"out": out, "force": force, "scene_path": scene_path, "print": echo, "say": say,
                "seconds": {}, "cpu_seconds": {}, "scenes": dict(scenes or {}),
                "discriminate_scans": discriminate_scans, "progress": progress}
         todo = STAGES if stages is None else stages
-        say = stage_echo or echo
         start = time.perf_counter()
         failed, skipped, running = {}, [], None
         try:

@@ -4,7 +4,8 @@
 Each stage runs the same sub-command a user would type (through :func:`feeler.cli.main`,
 in-process), so the demo and the CLI cannot drift apart. A stage's full output goes to
 ``OUT/logs/<stage>.txt``; the terminal gets the lines that matter (summary tables,
-verdicts, the discrimination table). A stage whose command exits non-zero is named and
+verdicts, the discrimination table) on stdout, and the command's progress on stderr (none
+with --no-progress). A stage whose command exits non-zero is named and
 the demo goes on with the stages that do not need its results (:data:`NEEDS`), so the
 report still shows what the others found and the failed fit's verdict; the demo then
 ends with :class:`DemoIncomplete`. Earlier results stay on disk.
@@ -28,6 +29,7 @@ from __future__ import annotations
 import contextlib
 import io
 import re
+import sys
 from pathlib import Path
 
 from feeler.errors import FeelerError
@@ -89,8 +91,48 @@ class DemoInterrupted(KeyboardInterrupt):
                 f"run `feeler demo --out {self.out} --force` to run every stage again")
 
 
+class _Capture(io.StringIO):
+    """One of a command's two streams: kept apart (``getvalue``) and written, in order,
+    into the stage's shared log; ``forward`` (if given) gets each whole line as it comes,
+    called with sys.stdout and sys.stderr as they were outside the capture (a ``forward``
+    that prints to sys.stderr would otherwise write into this stream again)."""
+
+    def __init__(self, log: io.StringIO, forward=None):
+        super().__init__()
+        self._log, self._forward, self._partial = log, forward, ""
+        self._outside = (sys.stdout, sys.stderr)
+
+    def write(self, text: str) -> int:
+        self._log.write(text)
+        if self._forward is not None:
+            *lines, self._partial = (self._partial + text).split("\n")
+            for line in lines:
+                self._say(line)
+        return super().write(text)
+
+    def _say(self, line: str) -> None:
+        inside = (sys.stdout, sys.stderr)
+        sys.stdout, sys.stderr = self._outside
+        try:
+            self._forward(line)
+        finally:
+            sys.stdout, sys.stderr = inside
+
+    def flush_partial(self) -> None:
+        if self._forward is not None and self._partial:
+            self._say(self._partial)
+        self._partial = ""
+
+
 def _run(ctx: dict, stage: str, argv: list[str], keep) -> None:
     """Run ``feeler argv`` in-process, log everything, echo the lines ``keep`` selects.
+
+    ``keep`` selects from the command's stdout (its results), echoed with ``ctx["print"]``.
+    Its stderr (the first line, progress, warnings) goes to the log, and to ``ctx["say"]``
+    (the demo's stage lines: stderr) line by line as it comes, unless the demo runs with
+    ``progress`` False: then the command runs with --no-progress too and only a failed
+    command's stderr (its error) is echoed. Progress lines within the results (the
+    discrimination's "2AFC pairs: 3/6 done") reached stdout, even with --no-progress.
 
     Raises:
         StageFailed: the command exited non-zero.
@@ -101,17 +143,27 @@ def _run(ctx: dict, stage: str, argv: list[str], keep) -> None:
 
     logs = ctx["out"] / "logs"
     logs.mkdir(exist_ok=True)
-    buf = io.StringIO()
-    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
-        code = main(argv)
-    text = buf.getvalue()
-    (logs / f"{stage}.txt").write_text(f"$ feeler {' '.join(argv)}\n{text}", encoding="utf-8")
+    say = ctx.get("say", ctx["print"])
+    quiet = ctx.get("progress") is False
+    if quiet and "--no-progress" not in argv:
+        argv = [*argv, "--no-progress"]
+    log = io.StringIO()
+    out, err = _Capture(log), _Capture(log, forward=None if quiet else say)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(argv)
+    finally:
+        err.flush_partial()
+        (logs / f"{stage}.txt").write_text(f"$ feeler {' '.join(argv)}\n{log.getvalue()}", encoding="utf-8")
     if code == 130:                       # Ctrl-C: `main` caught it and said "interrupted" in the log
         raise KeyboardInterrupt(stage)
     if code != 0:
-        ctx["print"](text.rstrip())
+        if out.getvalue().strip():
+            ctx["print"](out.getvalue().rstrip())
+        if quiet and err.getvalue().strip():           # otherwise it was said as it came
+            say(err.getvalue().rstrip())
         raise StageFailed(stage, code, logs / f"{stage}.txt")
-    shown = keep(text.splitlines())
+    shown = keep(out.getvalue().splitlines())
     if shown:
         ctx["print"]("\n".join(shown))
 

@@ -118,3 +118,71 @@ def test_the_demo_says_its_stages_apart_from_its_results(tmp_path):
     assert [ln.split(" ...")[0] for ln in stages] == ["[1/3] simulate", "[2/3] features", "[3/3] table"]
     assert results and not any(ln.startswith("[") for ln in results)
     assert any("step_mm" in ln for ln in results)                   # the table stage's table
+
+
+def test_the_demo_stages_progress_goes_to_stderr_and_no_progress_drops_it(tmp_path):
+    """`feeler demo` echoed the campaign commands' output by markers in one stream that held
+    stdout and stderr: the progress after a marker (calibrate sensor's "writing DIR ...",
+    the discrimination's "2AFC pairs: 1/6 done, ... left") landed on stdout among the
+    results, with --no-progress too. Now results come from the command's stdout only, its
+    progress goes to the stage lines (stderr) as it comes, and --no-progress passes on."""
+    from feeler.demo import STAGES, run_demo
+
+    stage = [s for s in STAGES if s[0] == "calibrate sensor"]
+    results, said = [], []
+    run_demo(tmp_path / "a", stages=stage, echo=results.append, stage_echo=said.append)
+    shown = "\n".join(results)
+    assert "C[0,0]" in shown and "verdict: ok" in shown and f"wrote {tmp_path / 'a' / 'm1'}" in shown
+    assert "writing" not in shown and not any(ln.endswith("...") for ln in shown.splitlines())
+    assert f"writing {tmp_path / 'a' / 'm1'} ..." in said                  # the progress, on the stage lines
+    assert "writing" in (tmp_path / "a" / "logs" / "calibrate-sensor.txt").read_text()    # and in the log
+    results.clear(), said.clear()
+    run_demo(tmp_path / "b", stages=stage, echo=results.append, stage_echo=said.append, progress=False)
+    assert said == []
+    assert _untimed("\n".join(results).replace(str(tmp_path / "b"), "")) == _untimed(shown.replace(str(tmp_path / "a"), ""))
+    log = (tmp_path / "b" / "logs" / "calibrate-sensor.txt").read_text()
+    assert "--no-progress" in log.splitlines()[0] and "writing" not in log
+
+
+@pytest.mark.parametrize("progress", [None, False])
+def test_the_demo_discrimination_table_holds_no_progress_lines(neuron, tmp_path, progress):
+    """The reported case: the discrimination stage's "2AFC pairs: 1/6 done, 0.3 s, about
+    1.5 s left" lines stood between its table's rows on stdout."""
+    from feeler.demo.campaign import _discriminate
+
+    fit, _ = neuron
+    (tmp_path / "m2").symlink_to(fit, target_is_directory=True)
+    results, said = [], []
+    ctx = {"out": tmp_path, "print": results.append, "say": said.append, "force": False, "progress": progress,
+           "discriminate_scans": 40}
+    _discriminate(ctx)
+    shown = "\n".join(results)
+    assert "low mm" in shown and "threshold at 75 %" in shown and "PSE of" in shown
+    assert "2AFC pairs" not in shown and "done" not in shown and not any(ln.endswith("...") for ln in results)
+    if progress is False:
+        assert said == []
+    else:
+        assert any(ln.startswith("2AFC pairs: 1/") and "left" in ln for ln in said)
+
+
+@pytest.mark.parametrize("progress", [None, False])
+def test_feeler_demo_prints_results_on_stdout_and_progress_on_stderr(tmp_path, capsys, monkeypatch, progress):
+    """The command itself: its stage lines go to sys.stderr, which a stage's command has
+    redirected into its capture while it runs (the first version of this recursed)."""
+    import argparse
+
+    import feeler.demo
+    from feeler.commands import demo as demo_command
+    from feeler.demo import STAGES, run_demo
+
+    stage = [s for s in STAGES if s[0] == "calibrate sensor"]
+    monkeypatch.setattr(feeler.demo, "run_demo", lambda out, **k: run_demo(out, stages=stage, **k))
+    capsys.readouterr()
+    code = demo_command.run(argparse.Namespace(out=str(tmp_path / "demo"), force=False, scene=None, progress=progress))
+    out, err = capsys.readouterr()
+    assert code == 0 and "C[0,0]" in out and "verdict: ok" in out and "writing" not in out
+    if progress is False:
+        assert err == ""
+    else:
+        assert f"writing {tmp_path / 'demo' / 'm1'} ...\n" in err and "[1/1] calibrate sensor ..." in err
+        assert "C[0,0]" not in err
