@@ -21,7 +21,10 @@ def caldata_inputs(inv, spec) -> None:
 
 
 def caldata_section(inv, spec) -> Section:
+    from feeler.reports.discover import hint_paths, new_output, shown_path
+
     part = spec.parts[0]
+    base, _ = hint_paths(inv.run_dir, list(inv.parts))
     rel = part.path("calibration.csv")
     data = _calibration(inv, part)
     fig, axes = subplots(3, width_in=7.0 / 3, height_in=2.2)
@@ -33,7 +36,7 @@ def caldata_section(inv, spec) -> Section:
         ax.legend(fontsize=6)
     axes[0].set_ylabel("imposed U (mm)")
     return Section(spec.key, spec.title, (
-        Note(f"{len(data.u_mm)} calibration points; fit them with `feeler calibrate sensor {inv.run_dir / part.rel} "
-             f"--out {inv.run_dir / 'm1'}`.", sources=(rel,)),
+        Note(f"{len(data.u_mm)} calibration points; fit them with `feeler calibrate sensor "
+             f"{shown_path(inv.run_dir / part.rel)} --out {shown_path(new_output(base, 'm1'))}`.", sources=(rel,)),
         make_figure("Imposed displacement against measured force", fig, (rel,),
                     "Each point: one imposed tip displacement and the three-axis force read back.")))

@@ -99,4 +99,6 @@ def front_section(inv) -> Section:
     if inv.missing:
         rows = tuple((m.title, m.needs) for m in inv.missing)
         blocks.append(Table("Not in this run, and what each would need", ("section", "would need"), rows, ()))
+        if inv.missing_note:
+            blocks.append(Note(inv.missing_note[0].upper() + inv.missing_note[1:] + "."))
     return Section("front", "Did it reproduce the paper, and what did it find?", tuple(blocks))

@@ -5,7 +5,10 @@ acquisition, a skin study), the whole of `feeler demo`, or a mix under any names
 report recognises each part by its files. The first page answers "did it reproduce the
 paper, and what did it find": the paper's claims checked one by one against the run
 (number, 95 % interval, mark), every fit's verdict (a failed one first), and what each
-missing part would need. Then one section per part, failed calibrations first.
+missing part would need: commands that read the run's own fit, scans or trials and write
+into new directories (beside RUN_DIR when it is one command's output, such as a fit or a
+simulation, which holds that output only). Then one section per part, failed
+calibrations first.
 
 Writes report.html (self-contained: figures inlined, opens offline), report.pdf (the same
 HTML laid out by WeasyPrint) and report-manifest.json (every figure with the files it
@@ -109,6 +112,8 @@ def run(args) -> int:
           + "".join(f"\n  {s.title}" for s in inv.present))
     for m in inv.missing:
         print(f"not in this run: {m.title} — needs {m.needs}")
+    if inv.missing_note:
+        print(f"note: {inv.missing_note}")
     problems = [f for f in report.figures if f["layout_problems"]]
     if problems:
         print(f"warning: {len(problems)} figure(s) with layout problems (see {report.manifest.name})")

@@ -27,8 +27,83 @@ def test_a_single_fit_directory(run_dir, tmp_path):
     html = report.html.read_text(encoding="utf-8")
     assert "M1: sensor force→displacement matrix (./)" in html and "Source: posterior.nc" in html
     needs = {m.title: m.needs for m in report.inventory.missing}
-    assert f"`feeler calibrate neuron SCANS_DIR --out {fit}/m2`" in needs["M2: neuron (a, τ, h) and decoder noise"]
+    assert (f"`feeler calibrate neuron {tmp_path}/four-plates --out {tmp_path}/m2`"        # beside the fit
+            in needs["M2: neuron (a, τ, h) and decoder noise"])
     assert all(f["layout_problems"] == [] for f in report.figures) and len(report.figures) == 3
+
+
+def _commands(needs: str) -> list[list[str]]:
+    """The `feeler ...` commands of a hint, split as a shell would."""
+    import re
+    import shlex
+
+    return [shlex.split(c) for c in re.findall(r"`(feeler [^`]*)`", needs)]
+
+
+def _outs(inv) -> dict[str, str]:
+    """{title: the --out of its first command} of the missing sections."""
+    found = {}
+    for m in inv.missing:
+        for argv in _commands(m.needs):
+            if "--out" in argv:
+                found.setdefault(m.title, argv[argv.index("--out") + 1])
+    return found
+
+
+def test_hints_on_a_fit_directory_name_the_fit_and_write_beside_it(run_dir, tmp_path, capsys):
+    """`feeler report out/m2` said `feeler classify out/m2/m2 SCANS_DIR --out out/m2/classify`:
+    the fit is out/m2 itself (the command as printed failed: out/m2/m2/posterior.nc
+    missing), and every hint wrote into the fit's directory."""
+    fit = shutil.copytree(run_dir / "m2", tmp_path / "runs" / "m2")
+    (tmp_path / "runs" / "discriminate").mkdir()                     # taken: the hint picks a free name
+    inv = discover(fit)
+    needs = {m.title: m.needs for m in inv.missing}
+    assert _commands(needs["Classification of held-out scans"])[0][:3] == ["feeler", "classify", str(fit)]
+    assert _commands(needs["The robot's difference threshold"])[0] == [
+        "feeler", "discriminate", str(fit), "--out", str(tmp_path / "runs" / "discriminate-2")]
+    outs = _outs(inv)
+    assert len(outs) == 9 and all(os.path.dirname(o) == str(tmp_path / "runs") for o in outs.values()), outs
+    assert not any(os.path.exists(o) for o in outs.values())
+    assert inv.missing_note == (f"these commands write beside {fit} (it holds one command's output), in "
+                                f"{tmp_path / 'runs'}; `feeler report {tmp_path / 'runs'}` shows them with it")
+    # as printed: the robot's threshold from the fit (small, to be quick)
+    argv = _commands(needs["The robot's difference threshold"])[0][1:]
+    assert main([*argv, "--n-scans", "20", "--no-progress"]) == 0
+    assert (tmp_path / "runs" / "discriminate-2" / "discrimination.json").is_file()
+    capsys.readouterr()
+    assert main(["report", str(fit), "--no-pdf", "--no-progress"]) == 0          # the command and the first page
+    out = capsys.readouterr().out
+    assert f"needs `feeler classify {fit} SCANS_DIR --out {tmp_path / 'runs' / 'classify'}`" in out
+    assert f"note: {inv.missing_note}" in out
+    html = (fit / "report.html").read_text(encoding="utf-8")
+    assert f"feeler classify {fit} SCANS_DIR" in html and "These commands write beside" in html
+    assert f"{fit}/" not in html.split("Not in this run")[1].split("</table>")[0]
+
+
+def test_hints_on_a_simulation_chain_through_the_fit_they_suggest(run_dir, tmp_path):
+    sim = shutil.copytree(run_dir / "four-plates", tmp_path / "runs" / "sim")
+    needs = {m.title: m.needs for m in discover(sim).missing}
+    m2 = str(tmp_path / "runs" / "m2")
+    assert _commands(needs["M2: neuron (a, τ, h) and decoder noise"]) == [
+        ["feeler", "calibrate", "neuron", str(sim), "--out", m2]]
+    assert _commands(needs["The robot's difference threshold"])[0][2] == m2
+    assert _commands(needs["Classification of held-out scans"])[0][2] == m2
+    trials = str(tmp_path / "runs" / "psychophysics" / "trials.csv")
+    assert _commands(needs["Human 2AFC trials"])[0][-1] == str(tmp_path / "runs" / "psychophysics")
+    assert _commands(needs["M4: human psychometric functions"])[0][3] == trials
+    m1 = _commands(needs["M1: sensor force→displacement matrix"])
+    assert m1[0][-1] == m1[1][3] == str(tmp_path / "runs" / "sensor-calibration")   # simulate, then fit it
+
+
+def test_hints_on_a_run_of_several_parts_write_inside_it(part_run, run_dir):
+    run = part_run("m2", "four-plates", "psychophysics")
+    inv = discover(run)
+    needs = {m.title: m.needs for m in inv.missing}
+    assert _commands(needs["The robot's difference threshold"])[0] == [
+        "feeler", "discriminate", str(run / "m2"), "--out", str(run / "discriminate")]
+    assert _commands(needs["M4: human psychometric functions"])[0][3] == str(run / "psychophysics" / "trials.csv")
+    assert inv.missing_note == "" and all(os.path.dirname(o) == str(run) for o in _outs(inv).values())
+    assert discover(run_dir).missing == ()                                   # the whole demo: nothing
 
 
 def test_a_single_simulation_directory(run_dir, tmp_path, capsys):
@@ -36,7 +111,8 @@ def test_a_single_simulation_directory(run_dir, tmp_path, capsys):
     assert main(["report", str(sim), "--no-pdf", "--no-progress"]) == 0
     out = capsys.readouterr().out
     assert "holds: 1 part(s) in 1 section(s)\n  Robot scans (simulated, ./)" in out
-    assert "not in this run: M1: sensor force→displacement matrix — needs `feeler calibrate sensor" in out
+    assert "not in this run: M1: sensor force→displacement matrix — needs `feeler simulate " in out
+    assert f"`feeler calibrate sensor {tmp_path / 'sensor-calibration'} --out {tmp_path / 'm1'}`" in out
     manifest = json.loads((sim / "report-manifest.json").read_text(encoding="utf-8"))
     assert [f["sources"] for f in manifest["figures"]] == [["scans.csv", "scene.toml"]] * 2
 
@@ -46,6 +122,9 @@ def test_an_acquisition(acquired, tmp_path):
     assert _sections(report) == ["robot:"] and report.inventory.parts[0].kind == "acquisition"
     html = report.html.read_text(encoding="utf-8")
     assert "Robot scans (acquired, ./)" in html and "Acquisition counts" in html
+    needs = {m.title: m.needs for m in report.inventory.missing}              # new outputs beside the run
+    assert (f"`feeler calibrate neuron {acquired} --out {acquired.parent / 'm2'}`"
+            in needs["M2: neuron (a, τ, h) and decoder noise"])
     assert "the plan (scene.toml) sets the length; a, τ, h are the paper&#39;s (§5.2)" in html
     assert "Sample timing of the acquisition" in [f["title"] for f in report.figures]
     assert all(f["layout_problems"] == [] for f in report.figures)
@@ -273,3 +352,11 @@ def test_an_acquisition_killed_mid_run_says_so_in_words(acquired, tmp_path):
     (run / "summary.json").write_text(json.dumps(summary))
     html = build_report(run, tmp_path / "out2", pdf=False).html.read_text(encoding="utf-8")
     assert "scans (interrupted (Ctrl-C)); resume with" in html and "()" not in html.split("Incomplete")[1][:200]
+
+
+def test_a_calibration_campaign_alone_says_how_to_fit_it_beside_it(run_dir, tmp_path):
+    """Its section said `--out DIR/m1`, inside the simulation's directory."""
+    data = shutil.copytree(run_dir / "sensor-calibration", tmp_path / "runs" / "cal")
+    report = build_report(data, tmp_path / "out", pdf=False)
+    html = report.html.read_text(encoding="utf-8")
+    assert f"fit them with `feeler calibrate sensor {data} --out {tmp_path / 'runs' / 'm1'}`" in html
