@@ -88,3 +88,56 @@ def test_outputs_of_is_what_each_kind_writes(tmp_path, kind):
         kind, lambda: ROOT / f"{kind}.toml")()
     assert _simulate(scene, tmp_path / "run") == 0
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == sorted(outputs_of(load_scene(scene)))
+
+
+def test_decode_and_classify_results_on_the_earlier_scans_go_with_them(tmp_path, capsys):
+    """decode's decisions.csv of the earlier scans stayed beside the new scans.csv, and the
+    "wrote" line said simulate wrote it (an outside walk-through)."""
+    run = tmp_path / "run"
+    assert _simulate(_small_robot(tmp_path), run, "--seed", "1") == 0
+    (run / "decisions.csv").write_text("scan_id,decision\n0,0.1\n")
+    (run / "classification.csv").write_text("scan_id,p\n0,0.9\n")
+    capsys.readouterr()
+    assert main(["simulate", str(_small_robot(tmp_path)), "--out", str(run), "--force"]) == 0
+    out, err = capsys.readouterr()
+    assert sorted(p.name for p in run.iterdir()) == ["scans.csv", "scene.toml", "truth.json"]
+    assert out == f"wrote {run}: scans.csv, scene.toml, truth.json\n"
+    assert (f"--force: removed decode's decisions (decisions.csv) and classify's classification "
+            f"(classification.csv) on the earlier run's scans from {run}") in err
+
+
+@pytest.mark.parametrize("name", ["decisions.csv", "classification.csv", "thresholds.csv", "discrimination.json"])
+def test_results_of_other_data_are_refused_like_a_fit(tmp_path, capsys, name):
+    """Another command's results where no earlier robot simulation accounts for them: feeler
+    cannot tell they are of the old data, so --force refuses them, as a fit's files."""
+    run = tmp_path / "run"
+    assert _simulate(ROOT / "sensor-calibration.toml", run) == 0
+    (run / name).write_text("a result")
+    capsys.readouterr()
+    assert _simulate(_small_robot(tmp_path), run, "--force") == 2
+    err = capsys.readouterr().err
+    assert f"feeler: error: {run / name}: already exists; this robot-scan simulation does not write it" in err
+    assert "the earlier sensor-calibration simulation there did not" in err
+    assert (run / name).read_text() == "a result" and (run / "calibration.csv").is_file()
+
+
+@pytest.mark.parametrize("force", [True, False])
+def test_a_users_own_file_stays_and_is_not_claimed(tmp_path, capsys, force):
+    run = tmp_path / "run"
+    if force:
+        assert _simulate(_small_robot(tmp_path), run) == 0
+    else:
+        run.mkdir()
+    (run / "mynotes.txt").write_text("mine")
+    (run / "plots").mkdir()
+    capsys.readouterr()
+    flags = ["--force"] if force else []
+    assert main(["simulate", str(ROOT / "sensor-calibration.toml"), "--out", str(run), *flags]) == 0
+    out, err = capsys.readouterr()
+    assert out == f"wrote {run}: calibration.csv, scene.toml, truth.json\n"             # not mynotes.txt
+    assert (run / "mynotes.txt").read_text() == "mine"
+    assert (f"{'--force: ' if force else ''}left mynotes.txt, plots/ in {run} as they were: not written by this "
+            "simulation, so not part of its run") in err
+    assert _simulate(ROOT / "sensor-calibration.toml", run, "--force") == 0        # --no-progress: the wrote line only
+    out, err = capsys.readouterr()
+    assert out == f"wrote {run}: calibration.csv, scene.toml, truth.json\n" and err == ""

@@ -20,9 +20,9 @@ from feeler.errors import ArgumentError, SceneError
 from feeler.rundir import prepare_out_dir
 from feeler.scene import load_scene
 from feeler.simulate.robot import CSV_COLUMNS, features_of, plate_profile, simulate_robot_scan, simulate_scans
-from feeler.simulate.stale import remove, stale_outputs
+from feeler.simulate.stale import not_this_run, outputs_of, remove, removed_line, stale_outputs
 
-__all__ = ["SIMULATORS", "run_simulation", "with_seed", "CSV_COLUMNS", "features_of", "plate_profile", "simulate_scans",
+__all__ = ["SIMULATORS", "run_simulation", "written_files", "with_seed", "CSV_COLUMNS", "features_of", "plate_profile", "simulate_scans",
            "simulate_robot_scan"]
 
 
@@ -76,9 +76,18 @@ def run_simulation(scene_path: str | Path, out: str | Path, *, force: bool = Fal
     if stale:                    # the earlier run's files this one did not overwrite: one run per directory
         remove(stale)
         if progress is not False:
-            print(f"--force: removed the earlier run's {', '.join(p.name for p in stale)} from {out}",
-                  file=sys.stderr, flush=True)
+            print(removed_line(stale, Path(out)), file=sys.stderr, flush=True)
+    others = not_this_run(Path(out), written_files(out, scene))
+    if others and progress is not False:          # a user's own files: left alone, and not this run's
+        print(f"{'--force: ' if force else ''}left {', '.join(others)} in {out} as {'they were' if len(others) > 1 else 'it was'}: "
+              f"not written by this simulation, so not part of its run", file=sys.stderr, flush=True)
     return Path(out)
+
+
+def written_files(out: str | Path, scene) -> list[str]:
+    """The names of the files a simulation of ``scene`` wrote into ``out``, sorted
+    (:func:`~feeler.simulate.stale.outputs_of`; other files there are not its own)."""
+    return sorted(n for n in outputs_of(scene) if (Path(out) / n).is_file())
 
 
 def with_seed(text: str, seed: int) -> str:
