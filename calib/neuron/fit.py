@@ -235,9 +235,11 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
     if backend != "grid":                   # the two-mode models: exact draws only
         usable = tuple(m for m in usable if not within_noise(m))
     scores: dict[str, float] = {}
+    passed_over = None
     if noise == "auto":
         if usable:
-            noise, scores, elpd = choose_noise(table, plates, growth_max=pri.growth_max, candidates=usable)
+            noise, scores, elpd, passed_over = choose_noise(table, plates, growth_max=pri.growth_max,
+                                                            candidates=usable, explain=True)
         else:
             noise, elpd = "constant", np.zeros((table.log_tau.size, 1))
     else:
@@ -272,7 +274,8 @@ def fit_neuron(data: NeuronData, *, backend: str = "grid", noise: str = "auto", 
     info["window_edge"] = window_edge_notes(post["tau_s"], pri)
     cells = Cells(plates, plates.snap)
     attrs = {"model": "neuron", "length_mm": data.length_mm, "kernel": data.kernel, "noise": noise,
-             "noise_scores": json.dumps(scores), "checks": json.dumps(info),
+             "noise_scores": json.dumps(scores), "noise_passed_over": json.dumps(passed_over),
+             "checks": json.dumps(info),
              "touch_modes": json.dumps({"snaps": cells.snaps, "rides": cells.rides}),
              "prob_sharpness": sharpness, "prob_floor": FLOOR}
     if loo_lp is not None and np.all(np.isfinite(loo_lp)):     # as classify reads them: by mode when it can

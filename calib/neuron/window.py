@@ -333,9 +333,12 @@ def tau_log_weights(pointwise: np.ndarray, rng: np.random.Generator, n_boot: int
 
 
 def choose_noise(table: PeakTable, plates: Plates, *, growth_max: float = 3.0,
-                 candidates: tuple[str, ...] | None = None) -> tuple[str, dict[str, float], np.ndarray]:
+                 candidates: tuple[str, ...] | None = None, explain: bool = False):
     """(chosen model, total log score per model, pointwise LOO densities of the chosen
-    one, ndarray[n_grid, n_scans]).
+    one, ndarray[n_grid, n_scans]); with ``explain``, a fourth item: why the model of the
+    top score was not chosen (a dict: ``top``, ``chosen``, ``lead`` and ``two_se``, totals
+    over the scans, and ``rule``: "per-plate" or "one-mode"), or None when the top score's
+    model is the choice.
 
     The better of the two-mode models when the touches show both modes, unless the better
     of the one-mode pooled models (constant, growing) beats it by more than two standard
@@ -375,8 +378,26 @@ def choose_noise(table: PeakTable, plates: Plates, *, growth_max: float = 3.0,
     elif one:
         best = max(one, key=scores.get)
     else:
-        return "per-plate", scores, curves["per-plate"]
+        return ("per-plate", scores, curves["per-plate"]) + ((None,) if explain else ())
     if beats("per-plate", best):
         best = "per-plate"
-    return best, scores, curves[best]
+    if not explain:
+        return best, scores, curves[best]
+    return best, scores, curves[best], _passed_over(best, scores, points)
+
+
+def _passed_over(best: str, scores: dict, points: dict) -> dict | None:
+    """Why :func:`choose_noise` did not choose the model of the top score: it leads the
+    choice by no more than two standard errors of the difference (the rule for per-plate,
+    and for a one-mode model against a two-mode one)."""
+    finite = {m: v for m, v in scores.items() if np.isfinite(v)}
+    if not finite:
+        return None
+    top = max(finite, key=finite.get)
+    if top == best or not finite[top] > scores[best]:
+        return None
+    diff = points[top] - points[best]
+    se = float(np.sqrt(diff.size) * np.std(diff)) if np.all(np.isfinite(diff)) else float("inf")
+    return {"top": top, "chosen": best, "lead": float(finite[top] - scores[best]), "two_se": 2 * se,
+            "rule": "per-plate" if top == "per-plate" else "one-mode"}
 

@@ -8,7 +8,8 @@ free per plate; or per plate and mode (two-mode, two-mode-growing): a touch snap
 the upper level or rides over the edge, read from its scan, and each has its own mean,
 each mode its own spread and windows (--noise; auto picks by leave-one-out prediction of
 the labels, a two-mode model when the touches show both modes unless a one-mode one
-predicts clearly better). The
+predicts clearly better, per-plate only when it wins by more than two standard errors;
+the "decoder noise" line says so when the best score is not the choice). The
 window τ is weighted by how well the decoder predicts each left-out label; the decoded
 height is z = a·P − h on the least-squares line through the plates. Backends: grid
 (exact, default, fastest: --chains × --draws), nuts (PyMC: --chains, --draws, --tune),
@@ -45,7 +46,9 @@ def register(parser) -> None:
                              "scene's)")
     parser.add_argument("--noise", choices=("auto", "constant", "growing", "per-plate", "two-mode", "two-mode-growing"),
                         default="auto",
-                        help="decoder noise model (default auto: chosen by leave-one-out prediction). two-mode: "
+                        help="decoder noise model (default auto: chosen by leave-one-out prediction; a one-mode "
+                             "model over a two-mode one, or per-plate, only when it wins by more than two "
+                             "standard errors). two-mode: "
                              "touches that snap onto the upper level and touches that ride over the edge (read "
                              "from each scan) get their own mean and each mode its own sd (one for both when a "
                              "mode has few scans), and each mode is read at its own windows; two-mode-growing: "
@@ -113,6 +116,19 @@ def _scores(scores: dict, n_scans: int) -> str:
         shown.append(f"{', '.join(lost)} none: some scan has probability 0 given the others")
     return ", ".join(shown)
 
+
+def _passed_over(passed: dict | None, n_scans: int) -> str:
+    """Why the model of the best score is not the one chosen (calib.neuron.window.choose_noise):
+    its lead is within two standard errors of the difference; "" when it is the choice."""
+    if not passed:
+        return ""
+    lead, two_se = passed["lead"] / n_scans, passed["two_se"] / n_scans
+    rule = ("per-plate is chosen only when it wins by more" if passed["rule"] == "per-plate" else
+            "a one-mode model replaces a two-mode one only when it wins by more")
+    return (f"; {passed['top']} not chosen: its lead over {passed['chosen']}, {lead:+.3f} per scan, is within two "
+            f"standard errors of the difference ({two_se:.3f} per scan); {rule}")
+
+
 def run(args) -> int:
     import warnings
 
@@ -164,8 +180,9 @@ def run(args) -> int:
         why = (f"; {modes['snaps']} of {modes['snaps'] + modes['rides']} touches of plates with a riser snapped onto "
                f"the upper level, the others rode over the edge, and each is read by its mode (chosen unless a "
                f"one-mode model scores better by two standard errors: left out, a touch takes its cell's mean with it)")
-    print(f"decoder noise: {attrs['noise']}" + (f" (leave-one-out log score per scan: {_scores(scores, scans.step_mm.size)})"
-                                                 if scores else "") + why)
+    passed = json.loads(attrs.get("noise_passed_over", "null"))
+    print(f"decoder noise: {attrs['noise']}" + (f" (leave-one-out log score per scan: {_scores(scores, scans.step_mm.size)}"
+                                                 f"{_passed_over(passed, scans.step_mm.size)})" if scores else "") + why)
     reading = json.loads(attrs.get("loo_reading", "null"))
     if reading:
         print(f"leave-one-out reading: {reading_text(reading)}")

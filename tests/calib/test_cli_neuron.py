@@ -278,3 +278,36 @@ def test_a_two_plate_fit_says_its_line_is_untested(run_and_fit, tmp_path, capsys
     assert "steps other than 0 and 0.1 mm" in out and "e-1" not in out
     assert main(["calibrate", "neuron", str(run), "--draws", "300", "--no-progress"]) == 0
     assert "two plates" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("backend", [["--backend", "nuts", "--chains", "2", "--draws", "200", "--tune", "100"],
+                                     ["--backend", "emcee", "--emcee-steps", "100"]])
+def test_the_noise_line_says_why_the_best_score_is_not_the_choice(run_and_fit, capsys, backend):
+    """On the shipped four-plates (an outside walk-through, --backend nuts): "decoder noise:
+    growing (leave-one-out log score per scan: constant +4.095, growing +4.097, per-plate
+    +4.116)", with no word on why per-plate, the best score, was not chosen."""
+    run, _ = run_and_fit
+    main(["calibrate", "neuron", str(run), *backend, "--no-progress"])
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("decoder noise:"))
+    assert line.startswith("decoder noise: growing (leave-one-out log score per scan: "), line
+    assert re.search(r"per-plate \+4\.116; per-plate not chosen: its lead over growing, \+0\.0\d\d per scan, is within "
+                     r"two standard errors of the difference \(0\.0\d\d per scan\); per-plate is chosen only when it "
+                     r"wins by more\)$", line), line
+
+
+def test_choose_noise_explains_a_top_score_it_passes_over():
+    import numpy as np
+
+    from feeler.calib.neuron.model import PeakTable, Plates
+    from feeler.calib.neuron.synth import Truth, simulate_peaks
+    from feeler.calib.neuron.window import choose_noise
+
+    plates = Plates.of(np.repeat([0.0, 0.05, 0.1, 0.2], 12))
+    p = simulate_peaks(plates, Truth(mu=np.array([1.0, 2.0, 3.0, 4.0]), sigma=np.full(4, 0.1)), np.random.default_rng(1))
+    table = PeakTable(log_tau=np.array([0.0, 1e-6]), peak=np.repeat(p[:, None], 2, 1))
+    one_mode = ("constant", "growing", "per-plate")
+    best, scores, _, passed = choose_noise(table, plates, candidates=one_mode, explain=True)
+    assert best == "growing" and max(scores, key=scores.get) == "per-plate"
+    assert passed["top"] == "per-plate" and passed["chosen"] == "growing" and passed["rule"] == "per-plate"
+    assert passed["lead"] == pytest.approx(scores["per-plate"] - scores["growing"]) and passed["two_se"] > passed["lead"]
+    assert len(choose_noise(table, plates, candidates=one_mode)) == 3             # as before without explain
