@@ -12,6 +12,7 @@ import importlib
 import logging
 import pkgutil
 import sys
+import textwrap
 import warnings
 from pathlib import Path
 
@@ -20,10 +21,37 @@ from feeler.errors import ArgumentError, FeelerError, InputError
 __all__ = ["main", "build_parser"]
 
 
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """--help wrapped at spaces only. argparse's formatter also broke lines after a hyphen,
+    so a path, an option or an example command copied from --help came in two pieces
+    ("feeler skin figures datasets-" / "synthetic/finger-steps.toml", "--no-" /
+    "progress"). A description written in lines (a command's docstring) is printed as
+    written; a one-line description is filled, with its "Example: COMMAND" on lines of
+    its own, the command never wrapped."""
+
+    def _split_lines(self, text, width):
+        text = self._whitespace_matcher.sub(" ", text).strip()
+        return textwrap.wrap(text, width, break_on_hyphens=False, break_long_words=False)
+
+    def _fill_text(self, text, width, indent):
+        if "\n" in text.strip():
+            return super()._fill_text(text, width, indent)
+        prose, _, example = text.partition("Example: ")
+        prose = self._whitespace_matcher.sub(" ", prose).strip()
+        filled = textwrap.fill(prose, width, initial_indent=indent, subsequent_indent=indent,
+                               break_on_hyphens=False, break_long_words=False)
+        return filled + (f"\n\n{indent}Example:\n{indent}    {example.strip()}" if example.strip() else "")
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse with the suite's one-line errors: ``feeler: error: <what> (see PROG --help)``
     instead of the usage block and ``PROG: error:`` (a value of the wrong type, an unknown
-    option); exit status 2 as before. Sub-commands' parsers are of this class too."""
+    option); exit status 2 as before. Sub-commands' parsers are of this class too, and
+    all of them format their help with :class:`HelpFormatter`."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):
         self.exit(2, f"feeler: error: {message} (see `{self.prog} --help`)\n")
@@ -47,8 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
         if info.name.startswith("_"):
             continue
         module = importlib.import_module(f"feeler.commands.{info.name}")
-        cmd = sub.add_parser(module.NAME, help=module.HELP, description=module.__doc__,
-                             formatter_class=argparse.RawDescriptionHelpFormatter)
+        cmd = sub.add_parser(module.NAME, help=module.HELP, description=module.__doc__)
         module.register(cmd)
         _name_commands(cmd, module.NAME)
     return parser

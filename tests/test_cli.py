@@ -37,6 +37,25 @@ def test_every_subcommand_has_help(path, capsys):
     assert len(out.splitlines()) > 2
 
 
+@pytest.mark.parametrize("columns", ["60", "80", "100"])
+@pytest.mark.parametrize("path", [(), *ALL], ids=["feeler", *(" ".join(p) for p in ALL)])
+def test_help_never_breaks_a_line_at_a_hyphen(path, columns, capsys, monkeypatch):
+    """argparse's formatter wrapped after hyphens: `feeler skin figures --help` gave its
+    example as "feeler skin figures datasets-" / "synthetic/finger-steps.toml ...", and
+    options read "--no-" / "progress", "four-" / "plates" (an outside walk-through)."""
+    import re
+
+    monkeypatch.setenv("COLUMNS", columns)
+    with pytest.raises(SystemExit):
+        main([*path, "--help"])
+    lines = capsys.readouterr().out.splitlines()
+    assert not [ln for ln in lines if re.search(r"\w-$", ln)]
+    for ln in (ln for ln in lines if "Example:" in ln or ln.strip().startswith("feeler ")):
+        assert not ln.rstrip().endswith(("feeler", "--out")), ln
+    if path == ("skin", "figures"):
+        assert "    feeler skin figures datasets-synthetic/finger-steps.toml --out runs/finger-figs" in lines
+
+
 @pytest.mark.parametrize("argv, words", [
     (["validate", "sbc", "--model", "matrix", "--n", "abc"], "argument --n: invalid int value: 'abc' (see "
                                                             "`feeler validate sbc --help`)"),

@@ -15,7 +15,6 @@ Example:
 """
 from __future__ import annotations
 
-import argparse
 import importlib
 
 __all__ = ["NAME", "HELP", "register", "SUBCOMMANDS"]
@@ -36,8 +35,7 @@ def register(parser) -> None:
     sub = parser.add_subparsers(title="what to calibrate", metavar="WHAT")
     for name, module_name in SUBCOMMANDS:
         module = importlib.import_module(module_name)
-        cmd = sub.add_parser(name, help=module.HELP, description=module.__doc__,
-                             formatter_class=argparse.RawDescriptionHelpFormatter)
+        cmd = sub.add_parser(name, help=module.HELP, description=module.__doc__)
         module.register(cmd)
 
     def no_target(args) -> int:

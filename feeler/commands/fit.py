@@ -27,8 +27,6 @@ data that cannot pin the function down.
 """
 from __future__ import annotations
 
-import argparse
-
 from feeler.commands._fit_output import add_fit_arguments, print_summary
 
 __all__ = ["NAME", "HELP", "register", "run_psychophysics", "run_finger_route"]
@@ -59,7 +57,7 @@ def _add_psychophysics(sub) -> None:
                              "them reads as one subject per file, named after it. psignifit's \"equal asymptote\" is\n"
                              "the comparison design, its \"2AFC\" --nafc 2.",
                              "feeler simulate datasets-synthetic/psychophysics-2afc.toml --out runs/humans\n"
-                             "    feeler fit psychophysics runs/humans/trials.csv --out runs/m4"), formatter_class=argparse.RawDescriptionHelpFormatter)
+                             "    feeler fit psychophysics runs/humans/trials.csv --out runs/m4"))
     psy.add_argument("data", metavar="DATA.csv", help="trial table (counts or one row per trial), a run "
                                                      "directory holding trials.csv, a psignifit data matrix, or "
                                                      "a directory of them (one per subject)")
@@ -111,7 +109,7 @@ def register(parser) -> None:
     sub = parser.add_subparsers(title="what to fit", metavar="WHAT")
     _add_psychophysics(sub)
     route = sub.add_parser("finger-route", help="posterior of τ and σ_d through skin → neuron → observer",
-                           description=ROUTE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+                           description=ROUTE_HELP)
     route.add_argument("data", metavar="DATA.csv", help="2AFC trial table (comparison design), or a run "
                                                        "directory holding trials.csv")
     route.add_argument("--level", choices=("l0", "l1", "l2"), default="l0", help="skin fidelity (default l0)")

@@ -39,7 +39,7 @@ _SBC_DOC = ("Simulation-based calibration:" + __doc__.split("simulation-based ca
 def register(parser) -> None:
     sub = parser.add_subparsers(title="validations", metavar="WHAT")
     sbc = sub.add_parser("sbc", help="simulation-based calibration of one model",
-                         description=_SBC_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
+                         description=_SBC_DOC)
     sbc.add_argument("--model", choices=sorted(SBC_MODELS), required=True, help="which model")
     sbc.add_argument("--n", type=int, default=200, help="simulated datasets (default 200, at most 10000)")
     sbc.add_argument("--draws", type=int, default=99, help="posterior draws per dataset for the ranks, 9-999 (default 99)")
