@@ -82,12 +82,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _name_commands(parser: argparse.ArgumentParser, path: str) -> None:
-    """``args.command`` = the full sub-command path ("calibrate sensor"), at every depth."""
-    parser.set_defaults(command=path)
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            for name, sub in action.choices.items():
-                _name_commands(sub, f"{path} {name}")
+    """``args.command`` = the full sub-command path ("calibrate sensor"), at every depth;
+    ``args.group_of`` = the sub-commands of a group given none of them ("calibrate" alone:
+    ("sensor", "neuron", "sensors")), None once one is given."""
+    groups = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    parser.set_defaults(command=path, group_of=tuple(n for a in groups for n in a.choices) or None)
+    for action in groups:
+        for name, sub in action.choices.items():
+            _name_commands(sub, f"{path} {name}")
+
+
+def _no_sub_command(command: str, choices: tuple[str, ...]) -> int:
+    """``feeler calibrate`` alone: one line naming its sub-commands, exit 2 (it said
+    "fitting (loading libraries) ..." and then printed its whole help)."""
+    names = ", ".join(choices[:-1]) + f" or {choices[-1]}" if len(choices) > 1 else choices[0]
+    print(f"feeler: error: `feeler {command}` needs one of its commands: {names} "
+          f"(see `feeler {command} --help`)", file=sys.stderr)
+    return 2
 
 
 # what the first line says while the heavy libraries load (default: "loading ...")
@@ -211,6 +222,8 @@ def main(argv: list[str] | None = None) -> int:
                          _UserFormatter())
     logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
                         handlers=[handler])
+    if getattr(args, "group_of", None):                 # a group without its sub-command: no work line
+        return _no_sub_command(args.command, args.group_of)
     run = getattr(args, "run", None)
     if run is None:
         parser.print_help()

@@ -77,6 +77,22 @@ def test_argument_errors_are_one_line(argv, words, capsys):
     assert not any(ln.startswith("usage:") for ln in err)
 
 
+GROUPS = sorted({p[:-1] for p in ALL if len(p) > 1})
+
+
+@pytest.mark.parametrize("group", GROUPS, ids=[" ".join(g) for g in GROUPS])
+def test_a_group_without_its_command_names_them_in_one_line(group, capsys):
+    """`feeler calibrate` alone said "feeler calibrate: fitting (loading libraries) ..." and
+    then printed its whole help (an outside walk-through)."""
+    choices = [p[-1] for p in _commands(build_parser()) if p[:-1] == group]        # in the parser's order
+    assert main(list(group)) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.splitlines()) == 1 and "loading libraries" not in err
+    names = ", ".join(choices[:-1]) + f" or {choices[-1]}" if len(choices) > 1 else choices[0]
+    assert err == (f"feeler: error: `feeler {' '.join(group)}` needs one of its commands: {names} "
+                   f"(see `feeler {' '.join(group)} --help`)\n")
+
+
 def test_no_command_prints_help_and_exits_2(capsys):
     assert main([]) == 2
     assert "commands" in capsys.readouterr().out

@@ -37,8 +37,3 @@ def register(parser) -> None:
         module = importlib.import_module(module_name)
         cmd = sub.add_parser(name, help=module.HELP, description=module.__doc__)
         module.register(cmd)
-
-    def no_target(args) -> int:
-        parser.print_help()
-        return 2
-    parser.set_defaults(run=no_target)

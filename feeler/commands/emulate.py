@@ -58,7 +58,6 @@ def register(parser) -> None:
                           help="the firmware's working directory, where it keeps its settings (EEPROM.DAT); "
                                "default: a fresh temporary one (Grbl's default settings), removed at the end")
     firmware.set_defaults(run=run_firmware)
-    parser.set_defaults(run=lambda args: parser.print_help() or 2)
 
 
 def _setting(spec: str) -> tuple[int, float]:

@@ -119,11 +119,6 @@ def register(parser) -> None:
     _add_route_output(route)
     route.set_defaults(run=run_finger_route)
 
-    def no_target(args) -> int:
-        parser.print_help()
-        return 2
-    parser.set_defaults(run=no_target)
-
 
 ROUTE_HELP = """\
 The neuron's window τ and the decision noise σ_d from 2AFC trials, through the finger

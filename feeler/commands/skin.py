@@ -51,7 +51,6 @@ def register(parser) -> None:
     fig.add_argument("--force", action="store_true", help="overwrite existing results in DIR")
     _progress_flag(fig)
     fig.set_defaults(run=run_figures)
-    parser.set_defaults(run=lambda args: (parser.print_help(), 2)[1])
 
 
 def _progress_flag(parser) -> None:

@@ -54,11 +54,6 @@ def register(parser) -> None:
                           "time left otherwise; --no-progress: none)")
     sbc.set_defaults(run=run_sbc_command)
 
-    def no_target(args) -> int:
-        parser.print_help()
-        return 2
-    parser.set_defaults(run=no_target)
-
 
 #: independent draws each SBC fit returns (``fit_matrix_draws``, ``fit_neuron_draws``); --draws thins them
 FIT_DRAWS = 999
