@@ -132,3 +132,17 @@ def test_a_ctrl_c_while_the_interpreter_shuts_down_is_ignored(tmp_path):
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert done.returncode == 2, done.stderr
     assert "shut down quietly" in done.stdout and "KeyboardInterrupt" not in done.stderr, done.stderr
+
+
+def test_validate_sbc_help_states_the_range_of_n_it_takes(capsys):
+    """--help said "(default 200, at most 10000)" while --n below 10 was refused."""
+    import re
+
+    with pytest.raises(SystemExit):
+        main(["validate", "sbc", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    lo, hi = map(int, re.search(r"--n N simulated datasets, (\d+)-(\d+) \(default 200", help_text).groups())
+    assert (lo, hi) == (10, 10000)
+    for n in (lo - 1, hi + 1):
+        assert main(["validate", "sbc", "--model", "matrix", "--n", str(n), "--no-progress"]) == 2
+        assert f"--n={n}: " in capsys.readouterr().err

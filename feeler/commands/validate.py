@@ -37,11 +37,15 @@ _SBC_DOC = ("Simulation-based calibration:" + __doc__.split("simulation-based ca
 
 
 def register(parser) -> None:
+    from feeler.commands._checks import MAX_SBC_N
+
     sub = parser.add_subparsers(title="validations", metavar="WHAT")
     sbc = sub.add_parser("sbc", help="simulation-based calibration of one model",
                          description=_SBC_DOC)
     sbc.add_argument("--model", choices=sorted(SBC_MODELS), required=True, help="which model")
-    sbc.add_argument("--n", type=int, default=200, help="simulated datasets (default 200, at most 10000)")
+    sbc.add_argument("--n", type=int, default=200,
+                     help=f"simulated datasets, {MIN_SBC_N}-{MAX_SBC_N} (default 200; below {LOW_POWER_N} only a "
+                          f"gross miscalibration shows)")
     sbc.add_argument("--draws", type=int, default=99, help="posterior draws per dataset for the ranks, 9-999 (default 99)")
     sbc.add_argument("--scheduler", default=None, metavar="ADDR",
                      help="tcp://HOST:PORT of a dask scheduler, or 'serial' (default: a LocalCluster)")
@@ -58,6 +62,9 @@ def register(parser) -> None:
 #: independent draws each SBC fit returns (``fit_matrix_draws``, ``fit_neuron_draws``); --draws thins them
 FIT_DRAWS = 999
 
+#: the fewest datasets a run takes (the help states the range: 10 to _checks.MAX_SBC_N)
+MIN_SBC_N = 10
+
 #: below this many datasets an "ok" says how little it covers: a uniformity test over 10-20
 #: datasets has little power (SBC of 10 datasets printed "every parameter's ranks are uniform")
 LOW_POWER_N = 100
@@ -66,8 +73,10 @@ LOW_POWER_N = 100
 def run_sbc_command(args) -> int:
     from feeler.errors import ArgumentError
 
-    if args.n < 10:                                  # before the heavy imports (issue 16 item 3)
-        raise ArgumentError("--n", args.n, "at least 10 simulated datasets")
+    from feeler.commands._checks import MAX_SBC_N
+
+    if args.n < MIN_SBC_N:                           # before the heavy imports (issue 16 item 3)
+        raise ArgumentError("--n", args.n, f"{MIN_SBC_N} to {MAX_SBC_N} simulated datasets")
     if not 9 <= args.draws <= FIT_DRAWS:
         raise ArgumentError("--draws", args.draws, f"9 to {FIT_DRAWS} posterior draws per dataset (ranks 0..draws; "
                             f"each fit draws {FIT_DRAWS}, evenly thinned to --draws)")
