@@ -281,3 +281,28 @@ def test_a_likely_missing_nafc_is_said_on_stderr_before_the_table(tmp_path, caps
     verdict = out.splitlines()[out.splitlines().index(next(ln for ln in out.splitlines()
                                                              if ln.startswith("verdict: FAILED"))) + 1]
     assert verdict.startswith("  likely a missing --nafc 2: ") and "fit with --nafc 2" in verdict
+
+
+def test_curve_numbers_and_legend_hide_no_data(data, tmp_path, monkeypatch):
+    """The curves' box of numbers (PSE, threshold, deviance) stood in the axes' upper left
+    and covered data points near the threshold and notched the band (report page 12 of an
+    outside walk-through); now it and the legend are under the axes, apart."""
+    import matplotlib.figure
+
+    seen = []
+    save = matplotlib.figure.Figure.savefig
+
+    def record(fig, *args, **kwargs):
+        save(fig, *args, **kwargs)                      # drawn: the extents are the image's
+        ax = fig.axes[0]
+        inside = ax.get_window_extent()
+        numbers = [t for t in [*fig.texts, *ax.texts] if "deviance" in t.get_text() or "no deviance" in t.get_text()]
+        legends = [*fig.legends, *([ax.get_legend()] if ax.get_legend() else [])]
+        assert len(numbers) == 1 and len(legends) == 1
+        boxes = [numbers[0].get_window_extent(), legends[0].get_window_extent()]
+        seen.append([b.overlaps(inside) for b in boxes] + [boxes[0].overlaps(boxes[1])]
+                    + [fig.bbox.contains(b.x0, b.y0) and fig.bbox.contains(b.x1, b.y1) for b in boxes])
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", record)
+    assert main(["fit", "psychophysics", str(data), "--out", str(tmp_path / "fit"), "--no-progress"]) == 0
+    assert len(seen) == 6 and all(s == [False, False, False, True, True] for s in seen), seen

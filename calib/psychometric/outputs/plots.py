@@ -22,7 +22,7 @@ from feeler.calib.psychometric.outputs.display import threshold_cells
 from feeler.calib.psychometric.outputs.table import threshold_table
 from feeler.calib.psychometric.model.task import Task
 
-__all__ = ["write_curves", "curve_name", "INDEX_COLUMNS"]
+__all__ = ["write_curves", "curve_name", "curve_figure", "INDEX_COLUMNS"]
 
 INDEX_COLUMNS = ("subject", "standard_um", "standard_speed_mm_s", "comparison_speed_mm_s", "file")
 MAX_DRAWS = 400
@@ -60,6 +60,19 @@ def _row_draws(post, o: int, c: int):
 
 
 def _plot(path: Path, task: Task, row, data, draws, synthetic: bool) -> None:
+    import matplotlib.pyplot as plt
+
+    fig = curve_figure(task, row, data, draws, synthetic)
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def curve_figure(task: Task, row, data, draws, synthetic: bool):
+    """The figure of one row (matplotlib Figure, Agg): the curve, its band and the data in
+    the axes; the PSE, threshold and fit numbers in a block under them, where they hide
+    nothing (drawn over the upper left of the axes, they covered the data points near the
+    threshold and notched the band: an outside walk-through), beside the legend
+    (:func:`_below_the_axes`)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -74,8 +87,9 @@ def _plot(path: Path, task: Task, row, data, draws, synthetic: bool) -> None:
     p = task.p(grid[None, :], pse[:, None], sig[:, None], lam[:, None])
     band = np.quantile(p, [0.025, 0.5, 0.975], axis=0)
     # drawn at about the size the report's gallery shows it (two a row, ~3.2 in): at 4.6 in with
-    # 6.5 pt text, four a row, the annotations printed at 3-4 pt (an outside reader of the report)
-    fig, ax = plt.subplots(figsize=(3.3, 2.6), dpi=170)
+    # 6.5 pt text, four a row, the annotations printed at 3-4 pt (an outside reader of the report);
+    # 0.5 in taller than the axes need, for the block of numbers and legend under them
+    fig, ax = plt.subplots(figsize=(3.3, 3.1), dpi=170)
     ax.fill_between(grid, band[0], band[2], color="C0", alpha=0.25, lw=0, label="95 % band")
     ax.plot(grid, band[1], color="C0", lw=1.5, label="posterior median")
     with np.errstate(invalid="ignore"):
@@ -96,18 +110,31 @@ def _plot(path: Path, task: Task, row, data, draws, synthetic: bool) -> None:
     th = threshold_cells(row)                  # a bound or "—" where draws never reach pc, never NaN
     fit = (f"deviance {row.deviance:.3g}, GOF p {row.gof_p:.3g}" if np.isfinite(row.gof_p)
            else "population mean: no deviance")
-    text = (f"{what} {row.pse_um:.3g} [{row.pse_lb_um:.3g}, {row.pse_ub_um:.3g}] µm\n"
-            f"threshold@{row.pc:g} {th['threshold_um']} µm, slope {th['slope_per_um']}/µm\n{fit}")
-    ax.text(0.02, 0.98, text, transform=ax.transAxes, va="top", fontsize=6.5,
-            bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8, "pad": 1.0})   # over the lines it names
-    ax.legend(fontsize=6, loc="lower right", framealpha=0.8)
+    text = (f"{what} {row.pse_um:.3g} [{row.pse_lb_um:.3g}, {row.pse_ub_um:.3g}] µm (dotted)\n"
+            f"threshold@{row.pc:g} {th['threshold_um']} µm (dashed)\nslope {th['slope_per_um']}/µm\n{fit}")
     ax.title.set_fontsize(7.5)
     ax.xaxis.label.set_fontsize(7.5)
     ax.yaxis.label.set_fontsize(7.5)
     ax.tick_params(labelsize=6.5)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    _below_the_axes(fig, ax, text)
+    return fig
+
+
+def _below_the_axes(fig, ax, text: str) -> None:
+    """The numbers (left) and the legend (right) in a block under the axes, the axes laid
+    out above it: neither hides any of the data. Where the two would meet (long numbers),
+    the numbers go above the legend."""
+    pad = 0.015
+    block = fig.text(0.03, pad, text, va="bottom", ha="left", fontsize=6.5)
+    legend = fig.legend(*ax.get_legend_handles_labels(), fontsize=6, loc="lower right",
+                        bbox_to_anchor=(1 - pad, pad), framealpha=0.8)
+    fig.canvas.draw()
+    to_fig = fig.transFigure.inverted()
+    words, key = (a.get_window_extent().transformed(to_fig) for a in (block, legend))
+    if words.x1 + pad > key.x0:                          # side by side they would meet: stack them
+        block.set_y(key.y1 + pad)
+        words = block.get_window_extent(fig.canvas.get_renderer()).transformed(to_fig)
+    fig.tight_layout(rect=(0, max(words.y1, key.y1) + pad, 1, 1))
 
 
 def write_curves(result, out_dir: str | Path, *, synthetic: bool = False) -> Path:
