@@ -246,10 +246,11 @@ def interval(mean, lo, hi, digits: int = 3, unit: str = "") -> str:
 
 
 def table_from_frame(frame, *, title: str, sources: tuple[str, ...], caption: str = "",
-                     max_rows: int = 60, digits: int = 4) -> Table:
-    """A :class:`Table` from a pandas DataFrame (at most ``max_rows`` rows, noted if cut)."""
+                     max_rows: int = 60, digits: int = 4, marks: tuple[str, ...] = ()) -> Table:
+    """A :class:`Table` from a pandas DataFrame (at most ``max_rows`` rows, noted if cut);
+    ``marks``: one CSS class a row of the frame, as :class:`Table`'s."""
     rows = tuple(tuple(fmt(v, digits) for v in row) for row in frame.head(max_rows).itertuples(index=False))
     if len(frame) > max_rows:
         caption = (caption + " " if caption else "") + f"First {max_rows} of {len(frame)} rows."
     return Table(title=title, columns=tuple(str(c) for c in frame.columns), rows=rows,
-                 sources=sources, caption=caption)
+                 sources=sources, caption=caption, marks=tuple(marks[:len(rows)]) if any(marks) else ())

@@ -17,7 +17,8 @@ import numpy as np
 from feeler.reports.model import Note, Section, Table, fmt, log_axis, make_figure, subplots, table_from_frame
 from feeler.reports.readers import run_json, run_table
 
-__all__ = ["speed_section", "speed_inputs", "trade_columns", "table_columns", "TIME_COLS", "ERROR_COLS", "ACCURACY_COLS", "times"]
+__all__ = ["speed_section", "speed_inputs", "trade_columns", "table_columns", "failed_rows", "TIME_COLS", "ERROR_COLS",
+           "ACCURACY_COLS", "times"]
 
 TIME_COLS = ("latency_s", "decision_latency_s", "seconds_per_slide", "seconds", "fit_s", "median_s", "min_s")
 ERROR_COLS = ("error_ref_sd", "error_sd", "error", "rate_error", "max_abs_mean_err_sd", "max_error")
@@ -67,22 +68,41 @@ def _shared_label(labels: list[str]) -> str:
     return head + ",\n".join(lines)
 
 
+#: a table's column holding each row's fit verdict (True: passed)
+OK_COLS = ("ok", "verdict_ok")
+#: what a failed fit's point and row are labelled with (README: "a failed fit's numbers are
+#: marked wherever they appear")
+FAILED_MARK = "failed its verdict"
+
+
+def failed_rows(frame) -> np.ndarray:
+    """One bool a row: the fit of that row failed its verdict (its ``ok`` column is false)."""
+    col = next((c for c in OK_COLS if c in frame.columns), None)
+    if col is None:
+        return np.zeros(len(frame), bool)
+    return np.array([str(v).strip().lower() in ("false", "0", "0.0", "no") for v in frame[col]], bool)
+
+
 def _trade_figure(name, frame, x, y, rel, provenance):
     t = frame.copy()
     for c in (x, y):
         t[c] = np.asarray(t[c].map(lambda v: float(v) if str(v).strip() not in ("", "nan") else np.nan), float)
     labels = _option(frame)
+    failed = failed_rows(frame)
     fig, ax = subplots(width_in=5.6, height_in=2.3)
     # options at the same point share one marker named by all of them: four decoder thresholds
     # at (3.36 s, 1.00) were drawn on top of each other and showed as one or two (an outside reader)
     groups: dict = {}
-    for lab, xs, ys in zip(labels, t[x], t[y]):
+    for lab, xs, ys, bad in zip(labels, t[x], t[y], failed):
         if np.isfinite(xs) and np.isfinite(ys):
-            groups.setdefault((float(f"{xs:.3g}"), float(f"{ys:.3g}")), []).append((lab, xs, ys))
-    for k, members in enumerate(groups.values()):
+            groups.setdefault((float(f"{xs:.3g}"), float(f"{ys:.3g}"), bool(bad)), []).append((lab, xs, ys))
+    for k, ((_, _, bad), members) in enumerate(groups.items()):
         _, xs, ys = members[0]
+        label = _shared_label([m[0] for m in members]) + (f" ({FAILED_MARK})" if bad else "")
+        # a failed fit's point hollow, named so: drawn like a passing one, emcee's point of a fit
+        # whose verdict failed read as a result (an outside walk-through)
         ax.plot(xs, max(ys, 1e-6) if y in ERROR_COLS else ys, "os^vD<>"[k % 7], color=f"C{k % 10}", ms=6,
-                label=_shared_label([m[0] for m in members]))
+                label=label, **({"markerfacecolor": "none", "markeredgewidth": 1.3} if bad else {}))
     shared = sum(len(m) > 1 for m in groups.values())
     log_axis(ax, "x")
     ys = t[y].to_numpy(float)
@@ -94,7 +114,9 @@ def _trade_figure(name, frame, x, y, rel, provenance):
     fig.legend(handles, names, loc="outside right upper", fontsize=6, frameon=False,
                ncols=-(-len(names) // LEGEND_ROWS))
     same = " Options at the same point (to 3 significant figures) share a marker, named by all of them." if shared else ""
-    return make_figure(_TITLES.get(name, name), fig, (rel,), f"One point per option; {provenance}.{same}")
+    bad = (" Hollow markers: fits that failed their verdict (ok False in the table): their numbers are not results."
+           if any(bad for _, _, bad in groups) else "")
+    return make_figure(_TITLES.get(name, name), fig, (rel,), f"One point per option; {provenance}.{same}{bad}")
 
 
 #: a benchmark's spread columns, the same number as its median when every row ran one round
@@ -110,6 +132,9 @@ def table_columns(frame) -> list[str]:
 
 
 def _tables(inv, part, names, provenance) -> list:
+    """Each table's trade figure (when it has one) and the table. ``provenance``: the words
+    of the figures' captions, or a function of a table's time column giving them (the demo's:
+    its latency is scan time, its other times wall seconds)."""
     blocks = []
     for name in names:
         rel = part.path(name)
@@ -120,10 +145,24 @@ def _tables(inv, part, names, provenance) -> list:
             continue
         x, y = trade_columns(frame)
         if x and y and len(frame) > 1:
-            blocks.append(_trade_figure(stem, frame, x, y, rel, provenance))
+            blocks.append(_trade_figure(stem, frame, x, y, rel, provenance(x) if callable(provenance) else provenance))
+        failed = failed_rows(frame)
         blocks.append(table_from_frame(frame[table_columns(frame)], title=_TITLES.get(stem, stem), sources=(rel,),
-                                       digits=3))
+                                       digits=3, marks=tuple("failed" if f else "" for f in failed),
+                                       caption=("Rows marked (ok False): fits that failed their verdict; their numbers are not results."
+                                                if failed.any() else "")))
     return blocks
+
+
+#: time columns that are not wall seconds of a computation: the live decoder's latency is the
+#: scan's own time since the stage passed the step
+SCAN_TIME_COLS = ("latency_s", "decision_latency_s")
+
+
+def _demo_times(x: str) -> str:
+    """What a demo table's time column measures, for its figure's caption."""
+    return ("latency in scan time since the stage passed the step (not wall time)" if x in SCAN_TIME_COLS
+            else "times in wall seconds on this machine")
 
 
 def _bench_blocks(inv, part) -> list:
@@ -172,7 +211,11 @@ def _demo_blocks(inv, part) -> list:
     for name, what in dict(index["tables"]).items():
         if what:
             blocks.append(Note(f"{name}: {what}", sources=(part.path(f"{name}.csv"),)))
-    return blocks + _tables(inv, part, names, provenance)
+    # each figure's caption says what its own times are: the calibration backends' and the sensor
+    # fidelities' said "... but the live decoder's latency, which is scan time since the step"
+    # (speed.json's "times", which is of the whole set: an outside walk-through)
+    short = f"measured {index['measured']}: a small version, `make bench` measures the full one"
+    return blocks + _tables(inv, part, names, lambda x: f"{short}; {_demo_times(x)}")
 
 
 def times(ratio: float) -> str:

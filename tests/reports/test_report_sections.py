@@ -265,6 +265,44 @@ def test_speed_section_says_where_its_numbers_come_from(report):
     assert "The skin fidelity ladder: seconds per slide against error" in finger and "Trade table" in finger
 
 
+def test_speed_captions_say_their_own_times_and_mark_a_failed_fit(part_run, tmp_path, monkeypatch):
+    """The captions of Calibration backends and Sensor fidelity carried "... but the live
+    decoder's latency, which is scan time since the step", which is Figure R40's; and the
+    backends figure drew emcee's point of a fit whose verdict failed (ok False) like the
+    exact fit's (an outside walk-through; README: a failed fit's numbers are marked
+    wherever they appear)."""
+    import feeler.reports.sec_speed as speed
+
+    run = part_run("speed")
+    backends = pd.read_csv(run / "speed" / "backends.csv")
+    backends["ok"] = [True] + [False] * (len(backends) - 1)          # as the emcee row of the walk-through's demo
+    backends.to_csv(run / "speed" / "backends.csv", index=False)
+    legends, captions, real = {}, {}, speed.make_figure
+
+    def keep_legend(title, fig, sources, caption=""):
+        legends[title] = [(t.get_text(), h.get_markerfacecolor()) for leg in fig.legends
+                          for t, h in zip(leg.get_texts(), leg.legend_handles)]
+        captions[title] = caption
+        return real(title, fig, sources, caption)
+
+    monkeypatch.setattr(speed, "make_figure", keep_legend)
+    report = build_report(run, tmp_path / "out", pdf=False)
+    for title in ("Calibration backends", "Sensor fidelity (M1 on each level)"):
+        assert "decoder" not in captions[title] and "times in wall seconds on this machine" in captions[title]
+    decoder = captions["Live decoder: decision latency against accuracy"]
+    assert "latency in scan time since the stage passed the step (not wall time)" in decoder
+    assert "wall seconds" not in decoder
+    entries = legends["Calibration backends"]
+    assert entries[0][0] == backends.option[0] and entries[0][1] != "none"          # a passing fit: filled
+    assert all(t.endswith("(failed its verdict)") and face == "none" for t, face in entries[1:])
+    assert "Hollow markers: fits that failed their verdict" in captions["Calibration backends"]
+    assert "Hollow markers" not in captions["Sensor fidelity (M1 on each level)"]
+    html = report.html.read_text(encoding="utf-8")
+    table = html[html.index("<h3>Calibration backends"):]
+    table = table[:table.index("</table>")]
+    assert table.count('<tr class="failed">') == len(backends) - 1 and "Rows marked (ok False)" in html
+
+
 @pytest.mark.parametrize("options", [3, 20, 40])
 def test_a_trade_plot_of_many_options_names_every_one_at_its_median(options):
     """The open-world benchmark's 20 scenes in one legend column lost the last four below
