@@ -17,7 +17,7 @@ import numpy as np
 
 from feeler.reports.model import Figure, Note, error_span, make_figure, subplots
 
-__all__ = ["labels_of", "plots_of", "plot_inputs", "conditions_of", "split_finite", "NO_FINITE", "DENSITY",
+__all__ = ["labels_of", "plate_steps", "plots_of", "plot_inputs", "conditions_of", "split_finite", "NO_FINITE", "DENSITY",
            "fixed_and_copies", "even_chunk"]
 
 _UNITS = {"a": "a (mm per unit strain)", "tau_s": "τ (s)", "h": "h (mm)", "sigma_mm": "σ (mm)",
@@ -110,6 +110,28 @@ def conditions_of(attrs) -> list[str]:
     return out
 
 
+def plate_steps(result):
+    """An M2 fit's plate heights (mm) in the order of its per-plate entries (``plate_mean_mm[i]``
+    is the plate of ``steps[i]``), or None when the fit does not record them."""
+    try:
+        obs = result.posterior["observed_data"]
+    except (KeyError, AttributeError, TypeError):
+        return None
+    if "plate_steps_mm" not in obs:
+        return None
+    return [float(v) for v in np.ravel(obs["plate_steps_mm"].values)]
+
+
+def _m2_label(name: str, steps) -> str:
+    """``plate_mean_mm[1] · plate 0.05 mm``: which plate an index is (the report named the
+    entries plate_mean_mm[0..3] and never said which height each was: an outside walk-through)."""
+    base, _, idx = name.partition("[")
+    i = idx.rstrip("]")
+    if base.startswith("plate_") and i.isdigit() and int(i) < len(steps):
+        return f"{name} · plate {steps[int(i)]:g} mm"
+    return _UNITS.get(name, name)
+
+
 def _m1_label(name: str) -> str:
     base, _, idx = name.partition("[")
     ij = [int(i) for i in idx.rstrip("]").split(",") if i.strip().isdigit()]
@@ -122,11 +144,14 @@ def _m1_label(name: str) -> str:
     return _UNITS.get(name, name)
 
 
-def labels_of(model: str, attrs, names) -> dict:
+def labels_of(model: str, attrs, names, steps=None) -> dict:
     """Readable names of summary entries (M1 entries by axis, M4 indices as subjects and
-    conditions, units where the model states them)."""
+    conditions, M2's per-plate entries by their plate's height when ``steps`` gives the
+    heights in index order, units where the model states them)."""
     if model == "m1":
         return {n: _m1_label(n) for n in names}
+    if model == "m2" and steps is not None:
+        return {n: _m2_label(n, steps) for n in names}
     if model != "m4":
         return {n: _UNITS.get(n, n) for n in names}
     subjects, conds = _json(attrs.get("subjects"), []), conditions_of(attrs)
@@ -269,7 +294,7 @@ def plots_of(inv, part, result, attrs, *, sampler: bool) -> list:
 
     draws, empty = split_finite(result.draws())
     src = (part.path("posterior.nc"),)
-    labels = labels_of(part.model, attrs, list(draws) + empty)
+    labels = labels_of(part.model, attrs, list(draws) + empty, plate_steps(result))
     if part.model == "m1" and all(f"C[{i},{j}]" in draws for i in range(3) for j in range(3)):
         out = _m1(inv, result, draws, sampler, src)
         key = ["C[0,0]", "C[1,1]", "C[2,2]", "sigma_n[0]", "sigma_n[1]", "sigma_n[2]"]

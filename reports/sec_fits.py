@@ -117,7 +117,8 @@ def _decoder_names_note(model: str, attrs, src) -> list:
         match = re.search(r"^tau_s\s*=\s*([0-9.eE+-]+)", str(scene), flags=re.M)
         if match:
             true_tau = f" (the scene's neuron: τ = {fmt(float(match.group(1)), 4)} s)"
-    return [Note("a and h are the line from the peak window sum to the step, z = a·P − h (mm), not the paper's gain "
+    return [Note("a and h are the line from the peak window sum P (a strain) to the step, z = a·P − h (mm; a in mm "
+                 "per unit strain), not the paper's gain "
                  "(V s) and threshold (V); τ is the window that best tells the plates apart (each window weighted by "
                  f"how well it predicts the left-out labels), not an estimate of the neuron's time constant{true_tau}.",
                  sources=(src,))]
@@ -160,7 +161,7 @@ def fit_inputs(inv, spec) -> None:
 
 def fit_section(inv, spec) -> Section:
     """Verdict, posterior plots chosen for the model, the diagnostics and the priors."""
-    from feeler.reports.fit_plots import labels_of, plots_of
+    from feeler.reports.fit_plots import labels_of, plate_steps, plots_of
 
     part = spec.parts[0]
     result = load_fit(inv.run_dir / part.rel, inv)
@@ -182,8 +183,8 @@ def fit_section(inv, spec) -> Section:
                                sources=(human.trials_rel or human.thresholds_rel,)))
     blocks += plots_of(inv, part, result, attrs, sampler=_is_sampler(result.backend))
     blocks += _ppc_note(attrs, post_rel) + _reading_note(attrs, post_rel) + _decoder_names_note(part.model, attrs, post_rel)
-    table = summary_table(result, labels_of(part.model, attrs, result.summary["name"]), part.path("summary.csv"),
-                          part.model)
+    table = summary_table(result, labels_of(part.model, attrs, result.summary["name"], plate_steps(result)),
+                          part.path("summary.csv"), part.model)
     if inv.has(part.path("thresholds.csv")):        # the same quantities integrated on the grid (M4)
         table = dataclasses.replace(table, caption=table.caption + (
             f" From the {_n_draws(result)} draws: the thresholds table below integrates the posterior itself, so the "

@@ -193,7 +193,8 @@ def run(args) -> int:
             f"{s + 0.0:g} mm " + (f"{100 * c:.0f} %" if c == c else "- (one scan)")
             for s, c in zip(steps, checks["loo_coverage90"])))
     print("note: a, tau_s and h are the decoder's (z = a·P_tau − h fitted to the labels, tau_s the window "
-          "that predicts them best), not the neuron parameters of a scene; a is in mm per unit of window sum")
+          "that predicts them best), not the neuron parameters of a scene; a is in mm per unit strain (P, the peak "
+          "window sum of |strain changes|, is a strain), as the report labels it")
     for line in checks.get("window_edge", []):
         print(f"note: {line}")
     if steps.size == 2:

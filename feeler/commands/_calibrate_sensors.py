@@ -212,7 +212,7 @@ def run(args) -> int:
             more = f"and {len(problems) - 1} more: " if len(problems) > 1 else ""
             print(f"{name}: {problems[0]} ({more}{out / name / 'verdict.json'})")
     kept_too = f" ({len(kept)} kept from the earlier run)" if kept else ""
-    print(f"wrote {len(saved)} posteriors under {out}{kept_too}")
+    print(f"wrote {len(saved)} posterior{'' if len(saved) == 1 else 's'} under {out}{kept_too}")
     for name, err in errors:                            # one line each, as the CLI prints an error
         kind = "error" if err.bad_input else "failed"
         print(f"feeler: {kind}: element {name}: {err.message} (not fitted; nothing written for it)",

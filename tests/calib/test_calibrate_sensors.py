@@ -241,7 +241,7 @@ def test_resume_after_a_ctrl_c_fits_only_what_is_missing(elements, tmp_path, cap
                  "--resume"]) == 0
     std = capsys.readouterr()
     assert "--resume: 1 of 2 element(s) already written" in std.err
-    assert f"wrote 1 posteriors under {out} (1 kept from the earlier run)" in std.out       # not "wrote 2"
+    assert f"wrote 1 posterior under {out} (1 kept from the earlier run)" in std.out       # not "wrote 2", nor "1 posteriors"
     assert re.search(r"(?m)^elem1 +ok ", std.out) and re.search(r"(?m)^elem2 +ok ", std.out)
     assert (out / "elem1" / "posterior.nc").stat().st_mtime_ns == before                  # kept, not refitted
     assert main(["calibrate", "sensors", *elements, "--out", str(tmp_path / "ref"), "--scheduler", "serial",

@@ -25,6 +25,8 @@ def test_calibrate_prints_the_checks_and_records_the_scene(run_and_fit, capsys):
     assert main(["calibrate", "neuron", str(run), "--draws", "300", "--no-progress"]) == 0
     out = capsys.readouterr().out
     assert "decoder noise:" in out and "labels inside their 90 % interval per plate" in out and "verdict: ok" in out
+    # a's unit as the report labels it (it said "mm per unit of window sum", the report "mm per unit strain")
+    assert "a is in mm per unit strain (P, the peak window sum of |strain changes|, is a strain)" in out
 
 
 def test_a_directory_of_one_file_per_scan_fits_as_its_scans_csv(run_and_fit, tmp_path, capsys):

@@ -36,10 +36,11 @@ def test_a_fixed_parameter_gets_no_diagnostics_and_no_panel(run_dir):
     rows = {r[0]: r for r in _table(section, "Posterior summary and diagnostics").rows}
     fixed = [r for r in rows.values() if r[1].endswith("(fixed)")]
     assert fixed and all(r[3:] == ("—", "—", "—") for r in fixed)
-    assert "plate_snap_mm[0]" in [r[0] for r in fixed]
+    assert "plate_snap_mm[0] · plate 0 mm" in [r[0] for r in fixed]            # named by its plate's height
     note = next(b for b in section.blocks if b.kind == "note" and b.text.startswith("Not drawn: "))
-    assert "plate_snap_mm[0] = 0 at every draw (fixed)" in note.text
-    assert re.search(r"plate_\w+_sd_mm\[0\] equals plate_\w*sd_mm\[0\] draw for draw", note.text), note.text
+    assert "plate_snap_mm[0] · plate 0 mm = 0 at every draw (fixed)" in note.text
+    assert re.search(r"plate_\w+_sd_mm\[0\] · plate 0 mm equals plate_\w*sd_mm\[0\] · plate 0 mm draw for draw",
+                     note.text), note.text
 
 
 def test_priors_show_matrices_as_rows():

@@ -265,6 +265,43 @@ def test_speed_section_says_where_its_numbers_come_from(report):
     assert "The skin fidelity ladder: seconds per slide against error" in finger and "Trade table" in finger
 
 
+def test_m2_per_plate_entries_name_their_plate_and_a_its_unit(report, run_dir):
+    """The posterior panels and the summary table said plate_mean_mm[0..3] and never which
+    plate (height) each index is (an outside walk-through)."""
+    import html as html_lib
+
+    from feeler.calib.fit import load
+
+    steps = load(run_dir / "m2").posterior["observed_data"]["plate_steps_mm"].values
+    m2 = html_lib.unescape(_section_html((report / "report.html").read_text(encoding="utf-8"), "sec-fit-m2"))
+    for i, step in enumerate(steps):
+        assert f"<td>plate_mean_mm[{i}] · plate {step:g} mm</td>" in m2
+        assert f"<td>plate_sd_mm[{i}] · plate {step:g} mm</td>" in m2
+    assert "<td>a (mm per unit strain)</td>" in m2 and "a in mm per unit strain" in m2
+
+    import feeler.reports.fit_plots as fit_plots
+    from feeler.reports.readers import load_fit
+
+    panels, real = [], fit_plots._marginals
+
+    def keep(draws, names, labels, **kw):                     # the panels' titles
+        panels.extend(labels[n] for n in names)
+        return real(draws, names, labels, **kw)
+
+    inv = discover(run_dir)
+    part = next(p for p in inv.parts if p.kind == "fit" and p.model == "m2")
+    result = load_fit(run_dir / part.rel)
+    mp = pytest.MonkeyPatch()
+    try:
+        mp.setattr(fit_plots, "_marginals", keep)
+        fit_plots.plots_of(inv, part, result, dict(result.posterior["posterior"].attrs), sampler=False)
+    finally:
+        mp.undo()
+    assert "a (mm per unit strain)" in panels
+    assert [p for p in panels if p.startswith("plate_mean_mm")] == [
+        f"plate_mean_mm[{i}] · plate {step:g} mm" for i, step in enumerate(steps)]
+
+
 def test_speed_captions_say_their_own_times_and_mark_a_failed_fit(part_run, tmp_path, monkeypatch):
     """The captions of Calibration backends and Sensor fidelity carried "... but the live
     decoder's latency, which is scan time since the step", which is Figure R40's; and the
@@ -425,7 +462,7 @@ def test_m2_says_its_parameters_are_the_decoders_and_m4_why_its_two_tables_diffe
     html = html_lib.unescape((report / "report.html").read_text(encoding="utf-8"))
     m2 = _section_html(html, "sec-fit-m2")
     assert "not an estimate of the neuron's time constant (the scene's neuron: τ = 3 s)" in m2
-    assert "z = a·P − h (mm), not the paper's gain" in m2
+    assert "z = a·P − h (mm; a in mm per unit strain), not the paper's gain" in m2
     m4 = _section_html(html, "sec-fit-m4")
     assert "the thresholds table below integrates the posterior itself" in m4 and "Monte Carlo error" in m4
     assert "integrates the posterior itself" not in _section_html(html, "sec-fit-m1")
