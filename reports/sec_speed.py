@@ -181,8 +181,19 @@ def _bench_blocks(inv, part) -> list:
 
 def _demo_index(inv, part) -> tuple[dict, list[str]]:
     """(speed.json, the names of its tables present beside it)."""
-    index = run_json(inv, part.path("speed.json"), ("measured", "tables"))
-    return index, [f"{n}.csv" for n in index["tables"] if inv.has(part.path(f"{n}.csv"))]
+    from feeler.errors import DataFileError
+
+    rel = part.path("speed.json")
+    index = run_json(inv, rel, ("measured", "tables"))
+    tables = index["tables"]
+    if not isinstance(tables, dict) or not all(isinstance(k, str) and (v is None or isinstance(v, str))
+                                               for k, v in tables.items()):
+        raise DataFileError(inv.run_dir / rel, f"tables holds {tables!r:.40}; expected an object of table name -> "
+                                               f"what it measured (text), as `feeler demo` writes it")
+    for key in ("measured", "times"):
+        if index.get(key) is not None and not isinstance(index[key], str):
+            raise DataFileError(inv.run_dir / rel, f"{key} holds {index[key]!r:.40}; expected text")
+    return index, [f"{n}.csv" for n in tables if inv.has(part.path(f"{n}.csv"))]
 
 
 def speed_inputs(inv, spec) -> None:
