@@ -178,11 +178,12 @@ def test_fit_refuses_pc_at_the_guess_rate_before_fitting(tmp_path):
 
 
 def test_curve_text_shows_the_bound_not_nan(tmp_path, capsys, monkeypatch):
-    import matplotlib.axes
+    import matplotlib.figure
 
-    texts, text = [], matplotlib.axes.Axes.text
-    monkeypatch.setattr(matplotlib.axes.Axes, "text", lambda self, x, y, s, *a, **k: (texts.append(s),
-                                                                                      text(self, x, y, s, *a, **k))[1])
+    # the numbers stand in a block under the axes (Figure.text), where they hide no data
+    texts, text = [], matplotlib.figure.Figure.text
+    monkeypatch.setattr(matplotlib.figure.Figure, "text", lambda self, x, y, s, *a, **k: (texts.append(s),
+                                                                                          text(self, x, y, s, *a, **k))[1])
     path = _write(tmp_path, "p_nafc_ok.csv", NAFC_OK)
     assert main(["fit", "psychophysics", path, "--nafc", "2", "--pc", "0.99", "--out", str(tmp_path / "o")]) == 0
     capsys.readouterr()
