@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import functools
 import os
 import select
 import signal
@@ -29,12 +30,13 @@ from typing import Callable
 
 from feeler.errors import ArgumentError
 
-__all__ = ["serve_firmware", "BANNER_END"]
+__all__ = ["serve_firmware", "BANNER_END", "read_until", "pin_and_die_with_parent"]
 
 BANNER_END = b"['$' for help]\r\n"
 
 
-def _read_until(fd: int, done: Callable[[bytes], bool], timeout_s: float) -> bytes:
+def read_until(fd: int, done: Callable[[bytes], bool], timeout_s: float) -> bytes:
+    """Bytes read from ``fd`` until ``done(data)`` is true or ``timeout_s`` passes."""
     data = b""
     deadline = time.monotonic() + timeout_s
     while not done(data) and (left := deadline - time.monotonic()) > 0:
@@ -43,11 +45,13 @@ def _read_until(fd: int, done: Callable[[bytes], bool], timeout_s: float) -> byt
     return data
 
 
-def _one_cpu_and_die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
+def pin_and_die_with_parent(cpu: int) -> None:  # pragma: no cover - runs in the child before exec
+    """A child's set-up before exec (``preexec_fn=functools.partial(pin_and_die_with_parent, cpu)``):
+    SIGKILL when its parent dies (PR_SET_PDEATHSIG), and one CPU, ``cpu``."""
     with contextlib.suppress(OSError, AttributeError):
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL, 0, 0, 0)      # PR_SET_PDEATHSIG
     with contextlib.suppress(OSError, AttributeError):
-        os.sched_setaffinity(0, {max(os.sched_getaffinity(0))})
+        os.sched_setaffinity(0, {cpu})
 
 
 def serve_firmware(exe: str | Path, workdir: str | Path, on_ready: Callable[[str], None],
@@ -72,17 +76,17 @@ def serve_firmware(exe: str | Path, workdir: str | Path, on_ready: Callable[[str
     try:
         process = subprocess.Popen([str(exe.resolve()), "-n", "-s", "/dev/null", "-b", "/dev/null"],
                                    stdin=master, stdout=master, stderr=subprocess.DEVNULL, cwd=workdir,
-                                   preexec_fn=_one_cpu_and_die_with_parent)
+                                   preexec_fn=functools.partial(pin_and_die_with_parent, max(os.sched_getaffinity(0))))
     finally:
         os.close(master)
     try:
-        boot = _read_until(slave, lambda d: BANNER_END in d, ready_timeout_s)
+        boot = read_until(slave, lambda d: BANNER_END in d, ready_timeout_s)
         os.write(slave, b"?")
-        boot += _read_until(slave, lambda d: d.endswith(b">\r\n"), ready_timeout_s)
+        boot += read_until(slave, lambda d: d.endswith(b">\r\n"), ready_timeout_s)
         if not boot.endswith(b">\r\n"):
             raise RuntimeError(f"{exe} (pid {process.pid}) did not answer '?' within {ready_timeout_s:g} s: "
                                f"{boot[-200:]!r}")
-        _read_until(slave, lambda d: False, 0.05)         # a quiet line for the driver
+        read_until(slave, lambda d: False, 0.05)         # a quiet line for the driver
         on_ready(os.ttyname(slave))
         while not should_stop() and process.poll() is None:
             time.sleep(0.1)

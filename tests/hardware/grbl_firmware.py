@@ -17,13 +17,11 @@ several times slower on a loaded machine; every input pin reads active (``Pn:PXY
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import fcntl
+import functools
 import hashlib
 import os
-import select
 import shutil
-import signal
 import subprocess
 import time
 import tty
@@ -31,12 +29,13 @@ from pathlib import Path
 
 import pytest
 
+from feeler.hardware.emulators.firmware import BANNER_END, pin_and_die_with_parent, read_until
+
 __all__ = ["ROOT", "SOURCES", "firmware_exe", "firmware_cpu", "Firmware", "read_until", "BANNER_END", "UNLOCK"]
 
 ROOT = Path(__file__).resolve().parents[2]
 SOURCES = Path(os.environ.get("FEELER_GRBL_SIM", ROOT.parent / "shared" / "grbl-sim"))
 _BUILT: dict[Path, Path] = {}
-BANNER_END = b"['$' for help]\r\n"
 UNLOCK = b"[MSG:'$H'|'$X' to unlock]\r\n"
 
 
@@ -79,23 +78,6 @@ def firmware_cpu(cpus, worker: str | None) -> int:
     return cpus[-1 - n % len(cpus)]
 
 
-def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
-    with contextlib.suppress(OSError, AttributeError):
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
-    with contextlib.suppress(OSError, AttributeError):                 # one CPU: see Firmware
-        os.sched_setaffinity(0, {firmware_cpu(os.sched_getaffinity(0), os.environ.get("PYTEST_XDIST_WORKER"))})
-
-
-def read_until(fd: int, done, timeout_s: float) -> bytes:
-    """Bytes read from ``fd`` until ``done(data)`` is true or ``timeout_s`` passes."""
-    data = b""
-    deadline = time.monotonic() + timeout_s
-    while not done(data) and (left := deadline - time.monotonic()) > 0:
-        if select.select([fd], [], [], min(left, 0.05))[0]:
-            data += os.read(fd, 4096)
-    return data
-
-
 class Firmware:
     """One running grbl-sim on a pty: ``path`` is its device, ``pid`` its process.
 
@@ -126,7 +108,8 @@ class Firmware:
         self.process = subprocess.Popen(
             [str(exe or firmware_exe()), "-n", "-s", "/dev/null", "-b", "/dev/null"],
             stdin=master, stdout=master, stderr=subprocess.DEVNULL, cwd=self.workdir,
-            preexec_fn=_die_with_parent)
+            preexec_fn=functools.partial(pin_and_die_with_parent,      # one CPU: see the class docstring
+                                         firmware_cpu(os.sched_getaffinity(0), os.environ.get("PYTEST_XDIST_WORKER"))))
         os.close(master)
         self.pid = self.process.pid
         self.boot = b""

@@ -204,6 +204,16 @@ def test_decode_flags_a_batch_noisier_than_training_as_classify_does(fit_dir, sc
     assert cls.flagged.all() and dec.flag.tolist() == cls.flag.tolist()
 
 
+def _follow_while_written(fit_dir, run, writer, frame) -> None:
+    """`decode --follow` of ``run`` while a thread's ``writer(run, frame)`` acquires it; exit 0."""
+    th = threading.Thread(target=writer, args=(run, frame))
+    th.start()
+    try:
+        assert main(["decode", str(fit_dir), str(run), "--follow", "--poll-s", "0.02", "--wait-s", "10",
+                     "--n-draws", "40", "--no-live"]) == 0
+    finally:
+        th.join()
+
 def test_a_follower_flags_the_batch_as_soon_as_its_scans_tell(fit_dir, scans_frame, tmp_path, capsys):
     """`decode --follow` (and `acquire --decode`, the same RunDecoder) judges the batch's
     noise after every scan: from the 5th scan on every row so far is flagged, the next scans
@@ -212,13 +222,7 @@ def test_a_follower_flags_the_batch_as_soon_as_its_scans_tell(fit_dir, scans_fra
     noisy = scans_frame.assign(uy_mm=scans_frame.uy_mm + 0.002 * np.random.default_rng(3).standard_normal(
         len(scans_frame)))
     run = tmp_path / "run"
-    th = threading.Thread(target=_scan_by_scan_writer, args=(run, noisy))
-    th.start()
-    try:
-        assert main(["decode", str(fit_dir), str(run), "--follow", "--poll-s", "0.02", "--wait-s", "10",
-                     "--n-draws", "40", "--no-live"]) == 0
-    finally:
-        th.join()
+    _follow_while_written(fit_dir, run, _scan_by_scan_writer, noisy)
     assert "note: every scan is flagged: these 12 scans' read-out noise" in capsys.readouterr().out
     live = pd.read_csv(run / "decisions.csv")
     assert live.flagged.all() and live.decided_mm[5:].isna().all()
@@ -305,13 +309,7 @@ def test_follow_waits_for_the_run_and_leaves_out_a_scan_cut_short(fit_dir, scans
     stopped mid-scan, the follower wrote a row for the half scan (p = 0.999 for the wrong
     plate) that `decode` of the stopped run leaves out."""
     run = tmp_path / "later"
-    th = threading.Thread(target=_stopped_writer, args=(run, scans_frame))
-    th.start()
-    try:
-        assert main(["decode", str(fit_dir), str(run), "--follow", "--poll-s", "0.02", "--wait-s", "10",
-                     "--n-draws", "40", "--no-live"]) == 0
-    finally:
-        th.join()
+    _follow_while_written(fit_dir, run, _stopped_writer, scans_frame)
     said = capsys.readouterr()
     out = said.out
     ids = list(dict.fromkeys(scans_frame.scan_id))
