@@ -36,14 +36,19 @@ FP, PSY = ("four-plates",), ("finger-route", "m4", "psychophysics")
 def test_corrupt_file_is_named_in_one_line(part_run, tmp_path, parts, rel, content, problem):
     run = part_run(*parts)
     (run / rel).write_bytes(content)
+    _refused_before_any_figure(run, tmp_path, rel.split("/")[-1], problem)
+
+
+def _refused_before_any_figure(run, tmp_path, name: str, problem: str, *, error=DataFileError) -> None:
+    """build_report of ``run`` stops with one line naming ``name`` and ``problem``, before
+    any figure is drawn and without writing a report."""
     stages = []
-    with pytest.raises(DataFileError) as info:
+    with pytest.raises(error) as info:
         build_report(run, tmp_path / "out", pdf=False, progress=stages.append)
     message = str(info.value)
-    assert "\n" not in message and rel.split("/")[-1] in message and problem in message
+    assert "\n" not in message and name in message and problem in message, message
     assert not [s for s in stages if "figure" in s], stages
     assert not (tmp_path / "out" / "report.html").exists()
-
 
 # each beside the four-plates scans, whose section comes first and draws figures: the corrupt
 # file's own section came later, and its error only after those figures (an outside audit)
@@ -73,13 +78,7 @@ def test_every_input_is_read_before_the_first_figure(part_run, tmp_path, parts, 
 
     run = part_run(*parts)
     (run / rel).write_bytes(content)
-    stages = []
-    with pytest.raises(InputError) as info:
-        build_report(run, tmp_path / "out", pdf=False, progress=stages.append)
-    message = str(info.value)
-    assert "\n" not in message and rel in message and problem in message, message
-    assert not [s for s in stages if "figure" in s], stages
-    assert not (tmp_path / "out" / "report.html").exists()
+    _refused_before_any_figure(run, tmp_path, rel, problem, error=InputError)
 
 
 def test_skin_figure_tables_are_read_before_the_first_figure(part_run, tmp_path):
@@ -203,12 +202,7 @@ def test_a_json_field_of_another_shape_is_named_in_one_line(part_run, tmp_path, 
         node = node[key]
     node[path[-1]] = value
     (run / rel).write_text(json.dumps(obj), encoding="utf-8")
-    stages = []
-    with pytest.raises(DataFileError) as info:
-        build_report(run, tmp_path / "out", pdf=False, progress=stages.append)
-    message = str(info.value)
-    assert "\n" not in message and rel.split("/")[-1] in message and problem in message, message
-    assert not [s for s in stages if "figure" in s], stages
+    _refused_before_any_figure(run, tmp_path, rel.split("/")[-1], problem)
 
 
 def test_an_estimate_outside_its_interval_is_drawn(part_run, tmp_path):
