@@ -190,7 +190,8 @@ def _load(inv, part) -> RobotDisc:
     speeds = (pse.get("speed_ref_mm_s"), pse.get("speed_test_mm_s")) if isinstance(pse, dict) else (None, None)
     curve, curve_rel = _curve(inv, part, obj)
     return RobotDisc(part=part, reference_um=ref_um, threshold_um=estimate(obj["threshold_mm"]).scaled(1e3),
-                     weber=estimate({**obj["weber"], "found": obj["threshold_mm"].get("found")}
+                     weber=estimate({**obj["weber"], "found": (obj["threshold_mm"].get("found")
+                                                               if isinstance(obj["threshold_mm"], dict) else None)}
                                     if isinstance(obj["weber"], dict) else obj["weber"]),
                      pse_um=pse_est, pse_speeds=speeds, pairs=list(obj["pairs"] or []), curve=curve,
                      curve_rel=curve_rel, notes=_notes(obj.get("notes")),

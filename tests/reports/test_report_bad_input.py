@@ -205,6 +205,20 @@ def test_a_json_field_of_another_shape_is_named_in_one_line(part_run, tmp_path, 
     _refused_before_any_figure(run, tmp_path, rel.split("/")[-1], problem)
 
 
+def test_a_threshold_given_as_a_bare_number_is_shown(part_run, tmp_path):
+    """threshold_mm may be a bare number (the reader takes one); its Weber fraction's object
+    then has no "found" to borrow (an AttributeError traceback)."""
+    import json
+
+    run = part_run("discriminate")
+    path = run / "discriminate" / "discrimination.json"
+    obj = json.loads(path.read_text(encoding="utf-8"))
+    obj["threshold_mm"] = 0.0045
+    path.write_text(json.dumps(obj), encoding="utf-8")
+    build_report(run, tmp_path / "out", pdf=False)
+    assert "4.5" in (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
+
+
 def test_an_estimate_outside_its_interval_is_drawn(part_run, tmp_path):
     """A mean may lie outside its equal-tailed or bootstrap interval; the error bar then ends
     at the mean on that side (matplotlib raised "'xerr' must not contain negative values")."""
