@@ -106,6 +106,11 @@ def test_a_scan_or_a_batch_noisier_than_training_is_flagged():
                                      "plates were learned without noise)")
     assert "lies more than 10^4 sds from the nearest trained plate (0 mm)" in ENV.plates(1.5e14, 0.0, 0.00648)
     assert "lies 7 sds from" in ENV.plates(7.2, 0.05, 0.08)
+    # a response below the lowest plate decodes to its height (the scale stops at 0): said so, as the
+    # bare "decoded height 0 mm lies 6 sds from the nearest trained plate (0 mm)" contradicted itself
+    assert ("decoded height 0 mm lies 6 sds from the nearest trained plate (0 mm; its response lies beyond that "
+            "plate's band, where the height scale ends)") in ENV.plates(6.1, 0.0, 0.0)
+    assert "plate's band" not in ENV.plates(7.2, 0.05, 0.08)
     same = np.random.default_rng(6).lognormal(np.log(0.001), 0.2, 40)
     assert env.batch_noise(same) is None and env.batch_noise(same / 2) is None
     line = env.batch_noise(same * 1.5)

@@ -223,3 +223,15 @@ def test_a_spike_judged_at_the_stream_threshold_is_flagged_when_the_scan_ends(sm
     c = classify(res, (glitch / dec.length_mm)[None], t, rng=np.random.default_rng(1), n_draws=40)
     flags = Envelope.of_fit(res, c.tau_s).problems(t, c.p_at_tau[:, 0], uy_mm=glitch)
     assert any(f.startswith("U_y jumps +") for f in flags)
+
+
+def test_a_one_sample_scan_is_flagged_not_a_crash(small_fit):
+    """A scan of one sample never grows the window sums, so the live decoder had no mode for it,
+    and a two-mode fit's finish() raised TypeError ('NoneType' object is not subscriptable):
+    `decode` of a file holding such a scan wrote nothing for the whole run (an outside audit).
+    It is flagged as classify flags it, and not decided."""
+    data, res = small_fit
+    dec = LiveDecoder(res, seed=0, n_draws=30)
+    assert dec.dec.snap_mm is not None                  # a two-mode fit: the case that crashed
+    _, end = _stream(dec, data.strain[40][:1], data.t_s[:1])
+    assert end.decision is None and any(f.startswith("1 sample") for f in end.flags), end.flags

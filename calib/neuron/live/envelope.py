@@ -271,9 +271,13 @@ class Envelope:
         if not distance_sd > self.plate_sds:
             return None
         far = f"{distance_sd:.0f}" if distance_sd < 1e4 else "more than 10^4"        # a plate of no spread: 1e14
+        # the decoded height stops at 0: a response below the lowest plate's band can decode to
+        # that plate's own height ("0 mm lies 6 sds from ... (0 mm)", an outside audit)
+        where = ("its response lies beyond that plate's band, where the height scale ends"
+                 if f"{height_mm:.3g}" == f"{nearest_mm:.3g}" else "")
         return (f"decoded height {height_mm:.3g} mm lies {far} sds from the nearest trained plate "
-                f"({nearest_mm:g} mm): a step the fit was not trained on, so its plate probabilities (which assume "
-                f"a trained plate) do not apply")
+                f"({nearest_mm:g} mm{'; ' + where if where else ''}): a step the fit was not trained on, so its plate "
+                f"probabilities (which assume a trained plate) do not apply")
 
     def falling(self, uy_mm, plates_mm, height_mm) -> str | None:
         """A scan whose U_y falls over it by more than half its range (the median of its
