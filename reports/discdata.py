@@ -139,8 +139,7 @@ def check_shape(path, obj: dict) -> None:
     from feeler.errors import DataFileError
 
     def bad(key: str, allowed: str, value) -> None:
-        shown = repr(value)
-        raise DataFileError(path, f"{key} holds {shown if len(shown) <= 40 else shown[:37] + '...'}; expected {allowed}")
+        raise DataFileError(path, f"{key} holds {value!r:.40}; expected {allowed}")
 
     def is_estimate_or_value(key: str) -> None:
         value = obj.get(key)
@@ -156,10 +155,9 @@ def check_shape(path, obj: dict) -> None:
 
     for key in ("threshold_mm", "weber"):
         is_estimate_or_value(key)
-    if isinstance(obj.get("pse"), dict) or obj.get("pse") is None:
-        if obj.get("pse") is not None:
-            is_estimate_or_value("pse")
-    else:
+    if isinstance(obj.get("pse"), dict):
+        is_estimate_or_value("pse")
+    elif obj.get("pse") is not None:
         bad("pse", "an object {mean_mm, lo95, hi95, speed_ref_mm_s, speed_test_mm_s}", obj["pse"])
     pairs = obj.get("pairs")
     if pairs is not None:

@@ -218,7 +218,7 @@ class LiveDecoder:
         self._quality, self._recheck_at = (None, None, None), 0
         self._state = None
         self._decision = None
-        self._answer = self._answer_of(np.zeros(self.dec.size))
+        self._answer = self._answer_of(np.zeros(self.dec.size), self._mode())     # a two-mode fit: a mode from the start
 
     def _mode(self) -> np.ndarray | None:
         """The scan's mode so far (``two-mode`` fits: did it snap onto the upper level,
@@ -360,8 +360,7 @@ class LiveDecoder:
             raise ArgumentError("scan", "no samples", "at least one sample before finish()")
         s = self._state
         mode = self._mode()
-        # the whole scan's mode, as classify (None still when no sample ever grew the sums: a one-sample scan)
-        if mode is not None and (self._answer[4] is None or bool(mode[0]) != bool(self._answer[4][0])):
+        if mode is not None and bool(mode[0]) != bool(self._answer[4][0]):     # the whole scan's mode, as classify
             self._answer = self._answer_of(self.p_at_tau, mode)
             s = LiveState(s.n, s.t_s, self._answer[0], self._answer[1], s.z_mm, s.peaked, s.decision, s.new_decision,
                           s.flags)
