@@ -49,10 +49,8 @@ def register(parser) -> None:
 
 
 def run(args) -> int:
-    from feeler.simulate import run_simulation
-
     from feeler.scene import load_scene
-    from feeler.simulate import written_files
+    from feeler.simulate import run_simulation, written_files
 
     out = run_simulation(args.scene, args.out, force=args.force, seed=args.seed, progress=args.progress)
     print(f"wrote {out}: {', '.join(written_files(out, load_scene(args.scene)))}")     # its own files only
